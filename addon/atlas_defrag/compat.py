@@ -1,0 +1,76 @@
+# SPDX-License-Identifier: MIT
+"""Differences between Blender 3.x and 4.x that the other modules must not care about."""
+
+from __future__ import annotations
+
+import contextlib
+
+import bpy
+
+BLENDER_4 = bpy.app.version >= (4, 0, 0)
+
+# Blender allows at most this many UV maps on a mesh (MAX_MTFACE).
+MAX_UV_MAPS = 8
+
+# Principled BSDF input names (3.x and 4.x) -> role names used by the job.
+PRINCIPLED_ROLES = {
+    "Base Color": "base_color",
+    "Metallic": "metallic",
+    "Roughness": "roughness",
+    "Alpha": "alpha",
+    "Normal": "normal",
+    "Emission": "emission",  # 3.x
+    "Emission Color": "emission",  # 4.x
+    "Emission Strength": "emission_strength",
+    "Specular": "specular",  # 3.x
+    "Specular IOR Level": "specular",  # 4.x
+    "Clearcoat Normal": "coat_normal",  # 3.x
+    "Coat Normal": "coat_normal",  # 4.x
+    "Subsurface Color": "base_color",  # 3.x: glTF and OBJ feed it with the base colour
+}
+
+
+def input_role(socket_name: str) -> str:
+    role = PRINCIPLED_ROLES.get(socket_name)
+    if role is None:
+        role = socket_name.strip().lower().replace(" ", "_") or "other"
+    return role
+
+
+def calc_loop_triangles(mesh) -> None:
+    # 4.x keeps loop triangles up to date lazily; the call still exists in 4.5.
+    fn = getattr(mesh, "calc_loop_triangles", None)
+    if fn is not None:
+        fn()
+
+
+def is_gltf_output_group(node) -> bool:
+    """The glTF importer's group carrying Occlusion ("glTF Settings" in old
+    versions, "glTF Material Output" since 3.x)."""
+    tree = getattr(node, "node_tree", None)
+    return node.bl_idname == "ShaderNodeGroup" and tree is not None and "gltf" in tree.name.lower()
+
+
+def temp_override(context, **kwargs):
+    """context.temp_override (3.2+), with only the keys the caller provides."""
+    kwargs = {k: v for k, v in kwargs.items() if v is not None}
+    if hasattr(context, "temp_override"):
+        return context.temp_override(**kwargs)
+    return contextlib.nullcontext()
+
+
+def set_colorspace(image, name: str) -> None:
+    try:
+        image.colorspace_settings.name = name
+    except TypeError:
+        # A colour space this Blender does not know (file from another version).
+        pass
+
+
+def status_text_set(context, text) -> None:
+    ws = getattr(context, "workspace", None)
+    if ws is not None and hasattr(ws, "status_text_set"):
+        try:
+            ws.status_text_set(text)
+        except Exception:
+            pass

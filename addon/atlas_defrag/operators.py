@@ -1,0 +1,278 @@
+# SPDX-License-Identifier: MIT
+"""The operator, its dialog and its menu entries."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
+
+from . import api, compat, job
+from .job import DefragCancelled, DefragError
+
+# Events that may pass through while the worker runs (view navigation only).
+_NAVIGATION = {
+    "MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "WHEELINMOUSE", "WHEELOUTMOUSE",
+    "TRACKPADPAN", "TRACKPADZOOM", "MOUSEROTATE", "MOUSEMOVE", "INBETWEEN_MOUSEMOVE",
+    "NDOF_MOTION", "WINDOW_DEACTIVATE", "TIMER_REPORT",
+}
+
+
+class _Run:
+    """State shared with the worker thread: plain Python, no bpy."""
+
+    def __init__(self, read, settings, cancel_token):
+        self.read = read
+        self.settings = settings
+        self.token = cancel_token
+        self.stage = "starting"
+        self.fraction = 0.0
+        self.result = None
+        self.error = None
+        self.cancel_requested = False
+        self.started = time.perf_counter()
+        self.thread = None
+
+    def progress(self, stage, fraction):
+        self.stage = stage
+        self.fraction = fraction
+
+    def work(self):
+        try:
+            self.result = api.compute(self.read, self.settings, progress=self.progress, cancel=self.token)
+        except BaseException as exc:  # reported on the main thread
+            self.error = exc
+
+
+# The outcome of the last run, for scripts and tests: status is 'finished',
+# 'cancelled' or 'error'; message is what was reported.
+last_outcome = {"status": None, "message": ""}
+
+
+def _outcome(status, message):
+    last_outcome["status"] = status
+    last_outcome["message"] = message
+
+
+def _native_token():
+    from . import _native
+    return _native.CancelToken()
+
+
+class UV_OT_defragment_atlas(bpy.types.Operator):
+    """Merge the UV charts of the active mesh into fewer, larger ones and bake
+    new textures for them (the old UV map and images are kept)"""
+
+    bl_idname = "uv.defragment_atlas"
+    bl_label = "Defragment Texture Atlas"
+    bl_options = {"REGISTER", "UNDO"}
+
+    uv_map: StringProperty(name="UV Map", description="UV map to defragment (empty: the active one)",
+                           options={"SKIP_SAVE"})
+    automatic_charts: BoolProperty(name="Automatic Chart Count", default=True,
+                                   description="Let the solver choose how many charts to keep")
+    target_charts: IntProperty(name="Target Charts", default=50, min=1, soft_max=10000,
+                               description="Number of charts to aim for")
+    weighting: EnumProperty(
+        name="Weighting", default="UV",
+        items=(("UV", "UV", "Merge by seam length measured in the texture"),
+               ("3D", "3D", "Merge by seam length measured on the surface")))
+    padding: IntProperty(name="Padding", default=4, min=0, max=64, subtype="PIXEL",
+                         description="Empty texels kept around every chart")
+    automatic_size: BoolProperty(name="Automatic Size", default=True,
+                                 description="Keep the texel density and budget of the source images")
+    output_size: IntProperty(name="Output Size", default=4096, min=64, max=16384, subtype="PIXEL",
+                             description="Side of the square output pages")
+    max_page_size: IntProperty(name="Maximum Page Size", default=8192, min=256, max=16384,
+                               subtype="PIXEL", description="Largest output page side")
+    storage: EnumProperty(
+        name="Images", default="PACK",
+        items=(("PACK", "Pack in .blend", "Pack the new images into the .blend file"),
+               ("SAVE", "Save Beside .blend", "Save the new images as files next to the .blend file")))
+    duplicate_materials: BoolProperty(
+        name="Duplicate Materials", default=False,
+        description="Rewire copies of the materials and leave the originals untouched")
+    use_modal: BoolProperty(default=False, options={"HIDDEN", "SKIP_SAVE"})
+
+    @classmethod
+    def poll(cls, context):
+        # Permissive on purpose: execute() explains what is missing.
+        return context.scene is not None
+
+    def _settings(self) -> api.Settings:
+        return api.Settings.from_kwargs(
+            uv_map=self.uv_map or None,
+            target_charts=0 if self.automatic_charts else self.target_charts,
+            weighting=self.weighting.lower(), padding=self.padding,
+            output_size=0 if self.automatic_size else self.output_size,
+            max_page_size=self.max_page_size, storage=self.storage,
+            duplicate_materials=self.duplicate_materials)
+
+    def invoke(self, context, event):
+        obj = context.active_object
+        try:
+            layer = api.read_bpy.check_object(obj, self.uv_map or None)
+        except DefragError as exc:
+            return self._fail("error", str(exc))
+        if not self.uv_map:
+            self.uv_map = layer.name
+        self.use_modal = not bpy.app.background and context.window is not None
+        return context.window_manager.invoke_props_dialog(self, width=360)
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        obj = context.active_object
+        if obj is not None and obj.type == "MESH":
+            layout.prop_search(self, "uv_map", obj.data, "uv_layers")
+        col = layout.column(heading="Charts")
+        col.prop(self, "automatic_charts", text="Automatic")
+        sub = col.column()
+        sub.enabled = not self.automatic_charts
+        sub.prop(self, "target_charts")
+        layout.prop(self, "weighting", expand=True)
+        layout.prop(self, "padding")
+        col = layout.column(heading="Output Size")
+        col.prop(self, "automatic_size", text="Automatic")
+        sub = col.column()
+        sub.enabled = not self.automatic_size
+        sub.prop(self, "output_size", text="Size")
+        layout.prop(self, "max_page_size")
+        layout.prop(self, "storage")
+        layout.prop(self, "duplicate_materials")
+
+    # -- synchronous path (background, scripts, redo) ------------------------
+    def execute(self, context):
+        obj = context.active_object
+        try:
+            settings = self._settings()
+            read = api.prepare(obj, settings)
+        except (DefragError, TypeError) as exc:
+            return self._fail("error", str(exc))
+        if self.use_modal and context.window is not None and not bpy.app.background:
+            self.use_modal = False  # a redo of this operator runs synchronously
+            return self._start_modal(context, obj, read, settings)
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        try:
+            result = api.compute(read, settings,
+                                 progress=lambda s, f: wm.progress_update(int(100 * f)))
+            report = api.finish(obj, read, result, settings)
+        except DefragCancelled:
+            return self._fail("cancelled", "Cancelled: nothing was changed")
+        except DefragError as exc:
+            return self._fail("error", str(exc))
+        finally:
+            wm.progress_end()
+        self._report_done(report)
+        return {"FINISHED"}
+
+    def _fail(self, status, message):
+        _outcome(status, message)
+        self.report({"WARNING"} if status == "cancelled" else {"ERROR"}, message)
+        return {"CANCELLED"}
+
+    def _report_done(self, report):
+        for w in report.get("warnings", []):
+            self.report({"WARNING"}, w)
+        msg = (f"Defragmented '{report['object']}': {job.summary(report)}; "
+               f"new UV map '{report['uv_map']}'")
+        _outcome("finished", msg)
+        self.report({"INFO"}, msg)
+
+    # -- modal path: worker thread + timer ------------------------------------
+    def _start_modal(self, context, obj, read, settings):
+        try:
+            token = _native_token()
+        except ImportError as exc:
+            return self._fail("error", f"The native module is missing: {exc}")
+        run = _Run(read, settings, token)
+        self._run = run
+        self._object_name = obj.name
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.progress_begin(0, 100)
+        compat.status_text_set(context, "Defragmenting texture atlas... (Esc to cancel)")
+        wm.modal_handler_add(self)
+        run.thread = threading.Thread(target=run.work, name="atlas_defrag", daemon=True)
+        run.thread.start()
+        return {"RUNNING_MODAL"}
+
+    def _end_modal(self, context):
+        wm = context.window_manager
+        if getattr(self, "_timer", None) is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        compat.status_text_set(context, None)
+
+    def modal(self, context, event):
+        run = self._run
+        if event.type == "ESC" and event.value == "PRESS" and not run.cancel_requested:
+            run.cancel_requested = True
+            run.token.cancel()
+            compat.status_text_set(context, "Cancelling...")
+            return {"RUNNING_MODAL"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"} if event.type in _NAVIGATION else {"RUNNING_MODAL"}
+        if run.thread.is_alive():
+            context.window_manager.progress_update(int(100 * run.fraction))
+            if not run.cancel_requested:
+                compat.status_text_set(
+                    context, f"Defragmenting texture atlas: {run.stage} {100 * run.fraction:.0f}% "
+                             f"({time.perf_counter() - run.started:.0f} s, Esc to cancel)")
+            return {"RUNNING_MODAL"}
+        self._end_modal(context)
+        if run.cancel_requested or isinstance(run.error, DefragCancelled):
+            return self._fail("cancelled", "Cancelled: nothing was changed")
+        if run.error is not None:
+            msg = str(run.error) if isinstance(run.error, DefragError) else \
+                f"{type(run.error).__name__}: {run.error}"
+            return self._fail("error", msg)
+        obj = bpy.data.objects.get(self._object_name)
+        if obj is None:
+            return self._fail("error", "The object was removed during the run: nothing was written")
+        try:
+            report = api.finish(obj, run.read, run.result, run.settings)
+        except DefragError as exc:
+            return self._fail("error", str(exc))
+        self._report_done(report)
+        return {"FINISHED"}
+
+    def cancel(self, context):
+        # Blender ends the modal (window closed, file loaded): stop the worker.
+        run = getattr(self, "_run", None)
+        if run is not None:
+            run.token.cancel()
+            run.thread.join(timeout=30)
+        self._end_modal(context)
+
+
+def menu_func(self, context):
+    self.layout.separator()
+    self.layout.operator(UV_OT_defragment_atlas.bl_idname, icon="UV")
+
+
+MENUS = ("IMAGE_MT_uvs", "VIEW3D_MT_uv_map")
+classes = (UV_OT_defragment_atlas,)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    for name in MENUS:
+        menu = getattr(bpy.types, name, None)
+        if menu is not None:
+            menu.append(menu_func)
+
+
+def unregister():
+    for name in MENUS:
+        menu = getattr(bpy.types, name, None)
+        if menu is not None:
+            menu.remove(menu_func)
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

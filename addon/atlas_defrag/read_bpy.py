@@ -1,0 +1,379 @@
+# SPDX-License-Identifier: MIT
+"""Reads an object into plain job data (bpy -> numpy). Never modifies anything."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Tuple
+
+import numpy as np
+
+from . import compat
+from .job import DefragError, ImageData, ImageMap, JobInput, MeshData, SourcePage, role_sort_key
+
+# Image sources whose pixels are one plain 2D image.
+SUPPORTED_SOURCES = {"FILE", "GENERATED"}
+
+
+@dataclass
+class NodeMap:
+    """An Image Texture node that will be rewired."""
+
+    node: str  # node name in the material's tree
+    role: str
+    image: str  # bpy image name
+    normal_nodes: List[str] = field(default_factory=list)  # tangent Normal Map nodes it feeds
+
+
+@dataclass
+class MaterialInfo:
+    name: str  # material name
+    slots: List[int]  # slot indices holding it
+    page: int = -1  # source page, -1 when the material has no usable image map
+    maps: List[NodeMap] = field(default_factory=list)
+    pin_images: List[str] = field(default_factory=list)  # image nodes on the render UV map (implicitly)
+    pin_uv_nodes: List[str] = field(default_factory=list)  # UV Map nodes with an empty name
+    pin_normal_nodes: List[str] = field(default_factory=list)  # Normal Map nodes with an empty UV map
+
+
+@dataclass
+class ReadResult:
+    job: JobInput
+    object_name: str
+    mesh_name: str
+    uv_map: str  # source UV map
+    active_uv: str
+    render_uv: str
+    n_loops: int
+    tri_loops: np.ndarray  # (F, 3) loop index per corner
+    tri_polygons: np.ndarray  # (F,)
+    slot_of_face: np.ndarray  # (F,) material slot per triangle (-1: none)
+    materials: List[MaterialInfo]
+    signature: tuple
+    warnings: List[str] = field(default_factory=list)
+
+
+def mesh_signature(obj) -> tuple:
+    """Cheap fingerprint used to refuse writing onto a mesh edited meanwhile."""
+    me = obj.data
+    return (obj.name, me.name, len(me.vertices), len(me.loops), len(me.polygons),
+            tuple(uv.name for uv in me.uv_layers), len(obj.material_slots))
+
+
+def check_object(obj, uv_map: Optional[str] = None):
+    """The checks that need no data: returns the source UV layer or raises."""
+    if obj is None or getattr(obj, "type", None) != "MESH":
+        raise DefragError("No active mesh: select a mesh object and make it active")
+    me = obj.data
+    if len(me.uv_layers) == 0:
+        raise DefragError(f"Mesh '{me.name}' has no UV map: unwrap it or import it with its UVs")
+    if uv_map:
+        layer = me.uv_layers.get(uv_map)
+        if layer is None:
+            raise DefragError(f"Mesh '{me.name}' has no UV map named '{uv_map}'")
+    else:
+        layer = me.uv_layers.active or me.uv_layers[0]
+    if len(me.uv_layers) >= compat.MAX_UV_MAPS:
+        raise DefragError(
+            f"Mesh '{me.name}' already has {len(me.uv_layers)} UV maps, the most Blender allows: "
+            "remove one to make room for the new map")
+    return layer
+
+
+def _render_uv_name(me) -> str:
+    for uv in me.uv_layers:
+        if uv.active_render:
+            return uv.name
+    return me.uv_layers[0].name
+
+
+def _follow_reroutes_back(link):
+    while link is not None and link.from_node.bl_idname == "NodeReroute":
+        inp = link.from_node.inputs[0]
+        link = inp.links[0] if inp.is_linked else None
+    return link
+
+
+def _vector_source(node, render_uv: str) -> Tuple[str, Optional[str]]:
+    """How an Image Texture node gets its coordinates.
+
+    Returns (kind, uv_name): kind 'implicit' (unlinked: render UV map),
+    'uvnode' (UV Map node), 'texcoord' (Texture Coordinate UV output) or
+    'other' (a transform or other coordinates: not a plain UV lookup).
+    """
+    sock = node.inputs.get("Vector")
+    if sock is None or not sock.is_linked:
+        return "implicit", render_uv
+    link = _follow_reroutes_back(sock.links[0])
+    if link is None:
+        return "implicit", render_uv
+    src = link.from_node
+    if src.bl_idname == "ShaderNodeUVMap":
+        return "uvnode", src.uv_map or render_uv
+    if src.bl_idname == "ShaderNodeTexCoord" and link.from_socket.identifier == "UV":
+        return "texcoord", render_uv
+    return "other", None
+
+
+def _downstream_roles(node) -> Tuple[List[str], bool, List[str]]:
+    """Roles an Image Texture node feeds: Principled BSDF inputs (through any
+    converter nodes), the glTF group's Occlusion, or 'other' for any other
+    shader. Also whether a tangent-space Normal Map node is on the way, and
+    the names of those Normal Map nodes."""
+    roles = set()
+    tangent = False
+    normal_nodes: List[str] = []
+    seen = set()
+    stack = [(out, False, False) for out in node.outputs if out.is_linked]
+    while stack:
+        sock, via_normal, via_bump = stack.pop()
+        for link in sock.links:
+            if getattr(link, "is_muted", False) or not link.is_valid:
+                continue
+            to_node, to_sock = link.to_node, link.to_socket
+            key = (to_node.name, to_sock.identifier, via_normal, via_bump)
+            if key in seen:
+                continue
+            seen.add(key)
+            idname = to_node.bl_idname
+            if idname == "ShaderNodeBsdfPrincipled":
+                role = compat.input_role(to_sock.name)
+                if via_bump and role in ("normal", "coat_normal"):
+                    role = "bump"
+                roles.add(role)
+                continue
+            if compat.is_gltf_output_group(to_node):
+                roles.add("occlusion" if to_sock.name.lower() == "occlusion" else
+                          compat.input_role(to_sock.name))
+                continue
+            nxt_normal, nxt_bump = via_normal, via_bump
+            if idname == "ShaderNodeNormalMap":
+                if to_node.space == "TANGENT":
+                    nxt_normal = True
+                    tangent = True
+                    if to_node.name not in normal_nodes:
+                        normal_nodes.append(to_node.name)
+            elif idname in ("ShaderNodeBump", "ShaderNodeDisplacement"):
+                nxt_bump = True
+            if to_node.type == "OUTPUT_MATERIAL" or any(o.type == "SHADER" for o in to_node.outputs):
+                roles.add("other")
+                continue
+            for out in to_node.outputs:
+                if out.is_linked:
+                    stack.append((out, nxt_normal, nxt_bump))
+    ordered = sorted(roles, key=role_sort_key)
+    return ordered, tangent, normal_nodes
+
+
+def _check_image(img, material_name: str):
+    """None when the image can be read; a warning string when it has no pixels;
+    raises DefragError when it can never be supported."""
+    if img.source == "TILED":
+        raise DefragError(
+            f"Image '{img.name}' in material '{material_name}' uses UDIM tiles: "
+            "tiled images are not supported")
+    if img.source not in SUPPORTED_SOURCES:
+        raise DefragError(
+            f"Image '{img.name}' in material '{material_name}' is a {img.source.lower()} "
+            "image: only single still images are supported")
+    w, h = img.size
+    if w <= 0 or h <= 0 or not _loads(img):
+        return f"Image '{img.name}' in material '{material_name}' has no pixels (missing file?): skipped"
+    return None
+
+
+def _loads(img) -> bool:
+    try:
+        return len(img.pixels) > 0
+    except Exception:
+        return False
+
+
+def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
+    """Image maps of one material that use uv_map, and the nodes to pin to the
+    render UV map (they would otherwise follow the new render-active map)."""
+    maps: List[NodeMap] = []
+    pin_images: List[str] = []
+    pin_uv_nodes: List[str] = []
+    pin_normal_nodes: List[str] = []
+    if mat is None or not mat.use_nodes or mat.node_tree is None:
+        return maps, pin_images, pin_uv_nodes, pin_normal_nodes
+    tree = mat.node_tree
+    rewired_normals = set()
+    for node in tree.nodes:
+        if node.bl_idname != "ShaderNodeTexImage":
+            continue
+        kind, uv_name = _vector_source(node, render_uv)
+        img = node.image
+        roles, tangent, normal_nodes = _downstream_roles(node)
+        usable = (img is not None and roles and uv_name == uv_map and kind != "other"
+                  and node.projection == "FLAT" and not node.mute)
+        if usable:
+            problem = _check_image(img, mat.name)
+            if problem:
+                warnings.append(problem)
+                usable = False
+        if usable:
+            maps.append(NodeMap(node=node.name, role="+".join(roles), image=img.name,
+                                normal_nodes=normal_nodes))
+            rewired_normals.update(normal_nodes)
+        elif kind == "implicit" and img is not None:
+            pin_images.append(node.name)
+        elif img is not None and kind == "other" and roles and node.projection == "FLAT":
+            warnings.append(f"Image '{img.name}' in material '{mat.name}' is read through a "
+                            "coordinate transform: left unchanged")
+    for node in tree.nodes:
+        if node.bl_idname == "ShaderNodeUVMap" and not node.uv_map:
+            pin_uv_nodes.append(node.name)
+        elif (node.bl_idname == "ShaderNodeNormalMap" and node.space == "TANGENT"
+              and not node.uv_map and node.name not in rewired_normals):
+            pin_normal_nodes.append(node.name)
+    return maps, pin_images, pin_uv_nodes, pin_normal_nodes
+
+
+def read_pixels(img) -> np.ndarray:
+    """(H, W, C) row 0 = bottom; uint8 for byte images, float32 for float ones."""
+    w, h = img.size
+    c = img.channels
+    n = w * h * c
+    try:
+        buf = np.empty(n, dtype=np.float32)
+    except MemoryError as exc:
+        raise DefragError(f"Out of memory reading image '{img.name}' ({w}x{h})") from exc
+    if len(img.pixels) != n:
+        raise DefragError(f"Image '{img.name}' has an unexpected pixel count")
+    img.pixels.foreach_get(buf)
+    if not img.is_float:
+        buf *= 255.0
+        np.rint(buf, out=buf)
+        arr = buf.astype(np.uint8)
+        del buf
+    else:
+        arr = buf
+    return arr.reshape(h, w, c)
+
+
+def read(obj, uv_map: Optional[str] = None) -> ReadResult:
+    """Collects everything the job needs. Raises DefragError with the reason."""
+    layer = check_object(obj, uv_map)
+    if obj.mode == "EDIT":
+        obj.update_from_editmode()
+        layer = check_object(obj, layer.name)
+    me = obj.data
+    uv_name = layer.name
+    render_uv = _render_uv_name(me)
+    active_uv = me.uv_layers.active.name if me.uv_layers.active else uv_name
+    warnings: List[str] = []
+
+    # Geometry.
+    compat.calc_loop_triangles(me)
+    n_tris = len(me.loop_triangles)
+    if n_tris == 0:
+        raise DefragError(f"Mesh '{me.name}' has no faces")
+    positions = np.empty(len(me.vertices) * 3, dtype=np.float32)
+    me.vertices.foreach_get("co", positions)
+    tri_verts = np.empty(n_tris * 3, dtype=np.int32)
+    me.loop_triangles.foreach_get("vertices", tri_verts)
+    tri_loops = np.empty(n_tris * 3, dtype=np.int32)
+    me.loop_triangles.foreach_get("loops", tri_loops)
+    tri_polys = np.empty(n_tris, dtype=np.int32)
+    me.loop_triangles.foreach_get("polygon_index", tri_polys)
+    tri_mat = np.empty(n_tris, dtype=np.int32)
+    me.loop_triangles.foreach_get("material_index", tri_mat)
+    n_loops = len(me.loops)
+    loop_uv = np.empty(n_loops * 2, dtype=np.float32)
+    layer.data.foreach_get("uv", loop_uv)
+    tri_loops = tri_loops.reshape(n_tris, 3)
+    uvs = loop_uv.reshape(n_loops, 2)[tri_loops].astype(np.float64)
+
+    # Materials -> pages and groups.
+    n_slots = len(obj.material_slots)
+    materials: Dict[str, MaterialInfo] = {}
+    slot_material: List[Optional[str]] = []
+    for i, slot in enumerate(obj.material_slots):
+        mat = slot.material
+        slot_material.append(mat.name if mat else None)
+        if mat is None:
+            continue
+        if mat.name in materials:
+            materials[mat.name].slots.append(i)
+            continue
+        maps, pins, pin_uv, pin_n = analyse_material(mat, uv_name, render_uv, warnings)
+        materials[mat.name] = MaterialInfo(name=mat.name, slots=[i], maps=maps, pin_images=pins,
+                                           pin_uv_nodes=pin_uv, pin_normal_nodes=pin_n)
+
+    import bpy  # only for bpy.data.images lookups
+
+    images: Dict[str, ImageData] = {}
+    pages: List[SourcePage] = []
+    page_index: Dict[tuple, int] = {}
+    group_index: Dict[tuple, int] = {}
+    # Only materials that faces actually use count.
+    if n_slots:
+        used_slots = set(np.unique(np.clip(tri_mat, 0, n_slots - 1)).tolist())
+    else:
+        used_slots = set()
+    for info in materials.values():
+        if not info.maps or not used_slots.intersection(info.slots):
+            continue
+        # One image per role: a second, different image in the same role (e.g.
+        # two base colours mixed) becomes a role of its own.
+        role_image: Dict[str, str] = {}
+        for nm in info.maps:
+            role, k = nm.role, 1
+            while role in role_image and role_image[role] != nm.image:
+                k += 1
+                role = f"{nm.role}#{k}"
+            nm.role = role
+            role_image[role] = nm.image
+        by_role = {nm.role: nm for nm in info.maps}
+        page_key = tuple(sorted(((nm.role, nm.image, bool(nm.normal_nodes)) for nm in by_role.values()),
+                                key=lambda t: role_sort_key(t[0])))
+        if page_key not in page_index:
+            gkey = []
+            for role, image_name, _ in page_key:
+                img = bpy.data.images[image_name]
+                gkey.append((role, img.colorspace_settings.name, bool(img.is_float)))
+            gkey = tuple(gkey)
+            if gkey not in group_index:
+                group_index[gkey] = len(group_index)
+            page_index[page_key] = len(pages)
+            pages.append(SourcePage(
+                maps=[ImageMap(role=r, image=n, normal_map=t) for r, n, t in page_key],
+                group=group_index[gkey]))
+        info.page = page_index[page_key]
+
+    slot_page = np.full(max(n_slots, 1), -1, dtype=np.int32)
+    for info in materials.values():
+        for s in info.slots:
+            slot_page[s] = info.page
+    if n_slots:
+        slot_of_face = np.clip(tri_mat, 0, n_slots - 1)
+        face_page = slot_page[slot_of_face]
+    else:
+        slot_of_face = np.full(n_tris, -1, dtype=np.int32)
+        face_page = np.full(n_tris, -1, dtype=np.int32)
+    if not pages or not np.any(face_page >= 0):
+        raise DefragError(
+            f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "
+            f"its Principled BSDF through UV map '{uv_name}'")
+
+    for page in pages:
+        for m in page.maps:
+            if m.image in images:
+                continue
+            img = bpy.data.images[m.image]
+            images[m.image] = ImageData(
+                name=img.name, pixels=read_pixels(img), colorspace=img.colorspace_settings.name,
+                is_float=bool(img.is_float), alpha_mode=img.alpha_mode)
+
+    job = JobInput(
+        mesh=MeshData(positions=positions.reshape(-1, 3).astype(np.float64),
+                      triangles=tri_verts.reshape(n_tris, 3), uvs=uvs,
+                      face_page=face_page.astype(np.int32)),
+        pages=pages, images=images)
+    return ReadResult(
+        job=job, object_name=obj.name, mesh_name=me.name, uv_map=uv_name, active_uv=active_uv,
+        render_uv=render_uv, n_loops=n_loops, tri_loops=tri_loops, tri_polygons=tri_polys,
+        slot_of_face=slot_of_face.astype(np.int32), materials=list(materials.values()),
+        signature=mesh_signature(obj), warnings=warnings)

@@ -1,0 +1,329 @@
+# SPDX-License-Identifier: MIT
+"""Writes a job result into Blender: a new UV map, new images, rewired materials.
+
+Called only after the native work succeeded. The source UV map and images are
+never modified. If anything fails half-way, what was already done is rolled
+back before the exception propagates.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from typing import Callable, Dict, List, Optional, Tuple
+
+import bpy
+import numpy as np
+
+from . import compat
+from .job import DefragError, JobResult, OutputImage, loop_uvs
+from .read_bpy import ReadResult, mesh_signature
+
+SUFFIX = "_defrag"
+UV_NODE_LABEL = "Atlas Defrag UV"
+PIN_NODE_LABEL = "Atlas Defrag: original UV"
+
+
+class _Journal:
+    """Undo log of the changes made so far, replayed in reverse on failure."""
+
+    def __init__(self):
+        self._undo: List[Callable[[], None]] = []
+
+    def add(self, fn: Callable[[], None]) -> None:
+        self._undo.append(fn)
+
+    def rollback(self) -> None:
+        while self._undo:
+            fn = self._undo.pop()
+            try:
+                fn()
+            except Exception:  # best effort: keep undoing the rest
+                pass
+
+
+def _safe_file_stem(name: str) -> str:
+    stem = re.sub(r"[^\w\-.]+", "_", name).strip("._") or "image"
+    return stem
+
+
+def _unique_path(directory: str, stem: str, ext: str, taken: set) -> str:
+    path = os.path.join(directory, stem + ext)
+    k = 1
+    while path in taken or os.path.exists(path):
+        path = os.path.join(directory, f"{stem}.{k:03d}{ext}")
+        k += 1
+    taken.add(path)
+    return path
+
+
+def _new_image(out: OutputImage, name: str):
+    h, w = out.pixels.shape[:2]
+    img = bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=bool(out.is_float))
+    compat.set_colorspace(img, out.colorspace)
+    try:
+        img.alpha_mode = out.alpha_mode
+    except (TypeError, ValueError):
+        pass
+    px = out.pixels
+    if px.shape[2] != 4:
+        full = np.empty((h, w, 4), dtype=px.dtype)
+        c = px.shape[2]
+        if c == 1:
+            full[..., :3] = px[..., :1]
+        else:
+            full[..., :min(c, 3)] = px[..., :min(c, 3)]
+            if c == 2:
+                full[..., 2] = 0
+        full[..., 3] = px[..., 3] if c == 4 else (255 if px.dtype == np.uint8 else 1.0)
+        px = full
+    if px.dtype == np.uint8:
+        flat = px.reshape(-1).astype(np.float32)
+        flat *= 1.0 / 255.0
+    else:
+        flat = np.ascontiguousarray(px, dtype=np.float32).reshape(-1)
+    img.pixels.foreach_set(flat)
+    img.update()
+    return img
+
+
+def _store_image(img, is_float: bool, storage: str, directory: Optional[str], taken: set) -> None:
+    if is_float:
+        # Float buffers are written as they are only when channel packed:
+        # other alpha modes (un)premultiply on save and the values drift.
+        img.alpha_mode = "CHANNEL_PACKED"
+        img.file_format = "OPEN_EXR"
+        if hasattr(img, "use_half_precision"):
+            img.use_half_precision = False
+        ext = ".exr"
+    else:
+        img.file_format = "PNG"
+        ext = ".png"
+    if storage == "PACK":
+        img.pack()
+        return
+    path = _unique_path(directory, _safe_file_stem(img.name), ext, taken)
+    img.filepath_raw = path
+    img.save()
+    img.source = "FILE"
+    if bpy.data.filepath:
+        try:
+            img.filepath = bpy.path.relpath(path)
+        except ValueError:  # another drive
+            img.filepath = path
+    else:
+        img.filepath = path
+
+
+def _place_left_of(node, other, dx=220.0, dy=0.0):
+    other.location = (node.location[0] - dx, node.location[1] + dy)
+
+
+def _relink(tree, from_socket, to_socket, journal: _Journal):
+    """Links from_socket -> to_socket, recording the links it replaces."""
+    old = [(lk.from_node.name, lk.from_socket.identifier) for lk in to_socket.links]
+    for lk in list(to_socket.links):
+        tree.links.remove(lk)
+    new = tree.links.new(from_socket, to_socket)
+    to_node_name, to_ident = to_socket.node.name, to_socket.identifier
+
+    def undo():
+        to_node = tree.nodes[to_node_name]
+        sock = next(s for s in to_node.inputs if s.identifier == to_ident)
+        for lk in list(sock.links):
+            tree.links.remove(lk)
+        for fn, fi in old:
+            src = tree.nodes[fn]
+            tree.links.new(next(s for s in src.outputs if s.identifier == fi), sock)
+    journal.add(undo)
+    return new
+
+
+def _add_node(tree, idname, label, journal: _Journal):
+    node = tree.nodes.new(idname)
+    node.label = label
+    name = node.name
+    journal.add(lambda: tree.nodes.remove(tree.nodes[name]) if name in tree.nodes else None)
+    return node
+
+
+def _set_attr(obj, attr, value, journal: _Journal):
+    old = getattr(obj, attr)
+    setattr(obj, attr, value)
+    journal.add(lambda: setattr(obj, attr, old))
+
+
+def _rewire_material(mat, info, new_uv: str, page_images: Dict[str, object], read: ReadResult,
+                     journal: _Journal) -> None:
+    tree = mat.node_tree
+    uv_node = None
+    for nm in info.maps:
+        node = tree.nodes[nm.node]
+        if uv_node is None:
+            uv_node = _add_node(tree, "ShaderNodeUVMap", UV_NODE_LABEL, journal)
+            uv_node.uv_map = new_uv
+            _place_left_of(node, uv_node, 260.0)
+        _set_attr(node, "image", page_images[nm.role], journal)
+        _relink(tree, uv_node.outputs["UV"], node.inputs["Vector"], journal)
+        for name in nm.normal_nodes:
+            _set_attr(tree.nodes[name], "uv_map", new_uv, journal)
+    # Nodes that used the render-active map implicitly keep using the old one.
+    pin = None
+    for name in info.pin_images:
+        node = tree.nodes[name]
+        if pin is None:
+            pin = _add_node(tree, "ShaderNodeUVMap", PIN_NODE_LABEL, journal)
+            pin.uv_map = read.render_uv
+            _place_left_of(node, pin, 260.0)
+        _relink(tree, pin.outputs["UV"], node.inputs["Vector"], journal)
+    for name in info.pin_uv_nodes:
+        _set_attr(tree.nodes[name], "uv_map", read.render_uv, journal)
+    for name in info.pin_normal_nodes:
+        _set_attr(tree.nodes[name], "uv_map", read.render_uv, journal)
+
+
+def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
+          image_dir: Optional[str] = None, duplicate_materials: bool = False) -> dict:
+    """Applies the result to obj (which must be in Object mode). Returns what
+    was created: {'uv_map', 'images', 'materials', 'warnings'}."""
+    if obj.mode != "OBJECT":
+        raise DefragError("internal error: write() needs Object mode")
+    if mesh_signature(obj) != read.signature:
+        raise DefragError("The mesh or its materials changed while the atlas was being computed: "
+                          "nothing was written")
+    if storage not in ("PACK", "SAVE"):
+        raise DefragError(f"storage must be 'PACK' or 'SAVE', not {storage!r}")
+    if storage == "SAVE":
+        image_dir = image_dir or (os.path.dirname(bpy.path.abspath(bpy.data.filepath))
+                                  if bpy.data.filepath else None)
+        if not image_dir:
+            raise DefragError("Save the .blend file first, or choose to pack the images")
+        os.makedirs(image_dir, exist_ok=True)
+    journal = _Journal()
+    try:
+        return _write(obj, read, result, storage, image_dir, duplicate_materials, journal)
+    except MemoryError as exc:
+        journal.rollback()
+        raise DefragError("Out of memory while writing the new images") from exc
+    except BaseException:
+        journal.rollback()
+        raise
+
+
+def _write(obj, read, result, storage, image_dir, duplicate_materials, journal) -> dict:
+    me = obj.data
+    warnings: List[str] = []
+    n_tris = len(read.tri_loops)
+    if result.uvs.shape != (n_tris, 3, 2) or result.face_page.shape != (n_tris,):
+        raise DefragError("internal error: the result does not match the mesh")
+
+    # 1. Images, one per (new page, role).
+    group_pages: Dict[int, List[int]] = {}
+    for q, g in enumerate(result.page_group.tolist()):
+        group_pages.setdefault(g, []).append(q)
+    taken: set = set()
+    page_role_image: Dict[Tuple[int, str], object] = {}
+    created_images = []
+    for out in result.images:
+        pages = group_pages.get(int(result.page_group[out.page]), [out.page])
+        k = pages.index(out.page) if out.page in pages else 0
+        name = f"{out.source}{SUFFIX}" if k == 0 else f"{out.source}{SUFFIX}_{k + 1}"
+        img = _new_image(out, name)
+        img_name = img.name
+        journal.add(lambda n=img_name: bpy.data.images.remove(bpy.data.images[n])
+                    if n in bpy.data.images else None)
+        _store_image(img, out.is_float, storage, image_dir, taken)
+        page_role_image[(out.page, out.role)] = img
+        created_images.append(img.name)
+
+    # 2. The UV map.
+    old_uv = me.uv_layers[read.uv_map]
+    fallback = np.empty(read.n_loops * 2, dtype=np.float32)
+    old_uv.data.foreach_get("uv", fallback)
+    per_loop, conflicts = loop_uvs(read.tri_loops, result.uvs, read.n_loops, fallback)
+    if conflicts:
+        warnings.append(f"{conflicts} polygon corners were split between charts: "
+                        "their polygons keep one of the UVs (triangulate n-gons first to avoid this)")
+    active_name = me.uv_layers.active.name if me.uv_layers.active else None
+    render_name = read.render_uv
+    layer = me.uv_layers.new(name=read.uv_map + SUFFIX, do_init=False)
+    if layer is None:
+        raise DefragError(f"Mesh '{me.name}' cannot take another UV map")
+    new_uv = layer.name
+
+    def undo_uv():
+        m = bpy.data.meshes[read.mesh_name]
+        if new_uv in m.uv_layers:
+            m.uv_layers.remove(m.uv_layers[new_uv])
+        if active_name in m.uv_layers:
+            m.uv_layers.active = m.uv_layers[active_name]
+        if render_name in m.uv_layers:
+            m.uv_layers[render_name].active_render = True
+    journal.add(undo_uv)
+    layer = me.uv_layers[new_uv]  # adding a layer may move the others
+    layer.data.foreach_set("uv", per_loop.astype(np.float32).reshape(-1))
+    me.uv_layers.active = layer
+    layer.active_render = True
+
+    # 3. Materials: one material per (source material, new page).
+    tri_slot = read.slot_of_face
+    poly_count = len(me.polygons)
+    first_tri = np.full(poly_count, -1, dtype=np.int64)
+    first_tri[read.tri_polygons[::-1]] = np.arange(n_tris - 1, -1, -1)
+    poly_page = np.where(first_tri >= 0, result.face_page[np.maximum(first_tri, 0)], -1)
+    old_mat_index = np.empty(poly_count, dtype=np.int32)
+    me.polygons.foreach_get("material_index", old_mat_index)
+    new_mat_index = old_mat_index.copy()
+    clipped_index = np.clip(old_mat_index, 0, max(0, len(obj.material_slots) - 1))
+    created_materials: List[str] = []
+    rewired: List[str] = []
+    shared_with_others: List[str] = []
+    for info in read.materials:
+        if info.page < 0:
+            continue
+        faces = np.isin(tri_slot, info.slots)
+        pages = [int(q) for q in np.unique(result.face_page[faces]) if q >= 0]
+        if not pages:
+            continue
+        # The page with most faces keeps the slot; others get new slots.
+        counts = [int(np.count_nonzero(result.face_page[faces] == q)) for q in pages]
+        pages = [q for _, q in sorted(zip(counts, pages), key=lambda t: -t[0])]
+        base = bpy.data.materials[info.name]
+        if not duplicate_materials and base.users > len(info.slots):
+            shared_with_others.append(base.name)
+        mats = []
+        for k, q in enumerate(pages):  # copies first, from the untouched material
+            if k == 0 and not duplicate_materials:
+                mats.append(base)
+                continue
+            mat = base.copy()
+            mat.name = base.name + SUFFIX + ("" if k == 0 else f"_{k + 1}")
+            mname = mat.name
+            journal.add(lambda n=mname: bpy.data.materials.remove(bpy.data.materials[n])
+                        if n in bpy.data.materials else None)
+            created_materials.append(mat.name)
+            mats.append(mat)
+        for k, (q, mat) in enumerate(zip(pages, mats)):
+            images = {nm.role: page_role_image[(q, nm.role)] for nm in info.maps}
+            _rewire_material(mat, info, new_uv, images, read, journal)
+            rewired.append(mat.name)
+            if k == 0:
+                if duplicate_materials:
+                    for s in info.slots:
+                        _set_attr(obj.material_slots[s], "material", mat, journal)
+            else:
+                me.materials.append(mat)
+                journal.add(lambda m=me: m.materials.pop(index=len(m.materials) - 1))
+                slot = len(me.materials) - 1
+                polys = np.isin(clipped_index, info.slots) & (poly_page == q)
+                new_mat_index[polys] = slot
+    if not np.array_equal(new_mat_index, old_mat_index):
+        me.polygons.foreach_set("material_index", new_mat_index)
+        journal.add(lambda m=me, a=old_mat_index: m.polygons.foreach_set("material_index", a))
+    if shared_with_others:
+        warnings.append("Material(s) also used by other objects were rewired: "
+                        + ", ".join(sorted(set(shared_with_others)))
+                        + " (use the duplicate-materials option to keep them)")
+    me.update()
+    return {"uv_map": new_uv, "images": created_images, "materials": created_materials,
+            "rewired_materials": rewired, "warnings": warnings}

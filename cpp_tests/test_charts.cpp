@@ -1,0 +1,118 @@
+// Chart graph and aggregation on small constructed meshes.
+#include <gtest/gtest.h>
+
+#include "aggregate.hpp"
+#include "charts.hpp"
+#include "disk_merge.hpp"
+#include "test_meshes.hpp"
+
+using namespace atlas;
+
+namespace {
+
+struct ChartRun {
+  Mesh mesh;
+  MeshTopology topology;
+  ChartGraph graph;
+  Aggregation aggregation;
+};
+
+ChartRun aggregate(Mesh mesh, AggregateOptions options = {}) {
+  ChartRun r{std::move(mesh), {}, {}, {}};
+  r.topology = build_topology(r.mesh.triangles, r.mesh.vertex_count());
+  r.graph = build_chart_graph(r.mesh, r.topology, {});
+  r.aggregation = aggregate_charts(r.mesh, r.topology, r.graph, options, RunControl());
+  return r;
+}
+
+void expect_all_disks(const ChartRun& r) {
+  DiskClusters check(r.mesh, r.topology, r.aggregation.face_chart, r.aggregation.chart_count());
+  for (int c = 0; c < r.aggregation.chart_count(); ++c) EXPECT_TRUE(check.is_disk(c)) << "chart " << c;
+}
+
+// Splits the n x n grid disk into cells x cells square charts.
+Mesh checkered_grid(int n, int cells) {
+  const Mesh disk = atlas::testing::grid_disk(n);
+  std::vector<int> chart(disk.face_count());
+  for (int f = 0; f < disk.face_count(); ++f) {
+    const int i = f / 2 / n, j = f / 2 % n;
+    chart[f] = i * cells / n * cells + j * cells / n;
+  }
+  return atlas::testing::with_chart_uvs(disk.positions, disk.triangles, chart);
+}
+
+}  // namespace
+
+TEST(ChartGraph, CountsChartsAndSharedBorders) {
+  const ChartRun r = aggregate(checkered_grid(8, 4));
+  EXPECT_EQ(r.graph.chart_count(), 16);
+  // 4x4 grid of squares: 2 * 4 * 3 = 24 adjacent pairs, each sharing 2 grid edges.
+  ASSERT_EQ(r.graph.adjacency.size(), 24u);
+  for (const ChartAdjacency& adj : r.graph.adjacency) {
+    EXPECT_EQ(adj.shared_edges, 2);
+    EXPECT_NEAR(adj.length_3d, 0.25, 1e-12);
+    EXPECT_TRUE(adj.mergeable);
+  }
+  for (const ChartStats& s : r.graph.charts) {
+    EXPECT_NEAR(s.area_3d, 1.0 / 16, 1e-12);
+    EXPECT_NEAR(s.perimeter_3d, 1.0, 1e-12);
+  }
+}
+
+TEST(ChartGraph, SeamLengthCountsEachInteriorSeamOnce) {
+  const ChartRun r = aggregate(checkered_grid(8, 4));
+  // Interior seams: 3 vertical + 3 horizontal lines of length 1 on a unit square.
+  EXPECT_NEAR(seam_length_ratio(r.mesh, r.topology, r.mesh.corner_uv, r.mesh.face_page), 6.0, 1e-12);
+}
+
+TEST(Aggregate, DiskBecomesOneChart) {
+  for (Weighting w : {Weighting::UV, Weighting::Surface}) {
+    const ChartRun r = aggregate(checkered_grid(12, 6), {w});
+    EXPECT_EQ(r.aggregation.chart_count(), 1);
+    expect_all_disks(r);
+  }
+}
+
+TEST(Aggregate, TargetStopsEarly) {
+  AggregateOptions options;
+  options.target_charts = 5;
+  const ChartRun r = aggregate(checkered_grid(12, 6), options);
+  EXPECT_EQ(r.aggregation.chart_count(), 5);
+  expect_all_disks(r);
+}
+
+TEST(Aggregate, AnnulusRefusesToCloseTheRing) {
+  const ChartRun r = aggregate(atlas::testing::annulus(3, 24, 4));
+  EXPECT_EQ(r.graph.chart_count(), 6);
+  EXPECT_EQ(r.aggregation.chart_count(), 2);
+  expect_all_disks(r);
+}
+
+TEST(Aggregate, ClosedSurfacesEndAsDisks) {
+  const ChartRun sphere = aggregate(atlas::testing::uv_sphere(12, 16, 2));
+  EXPECT_GE(sphere.aggregation.chart_count(), 2);
+  EXPECT_LT(sphere.aggregation.chart_count(), sphere.graph.chart_count());
+  expect_all_disks(sphere);
+  // A torus has genus one: a single disk cannot cover it, but few charts can.
+  const ChartRun torus = aggregate(atlas::testing::torus(24, 12, 4));
+  EXPECT_EQ(torus.graph.chart_count(), 24);
+  EXPECT_GE(torus.aggregation.chart_count(), 2);
+  EXPECT_LE(torus.aggregation.chart_count(), 4);
+  expect_all_disks(torus);
+}
+
+TEST(Aggregate, NeverMergesAcrossNonManifoldEdge) {
+  const ChartRun r = aggregate(atlas::testing::nonmanifold_fin());
+  EXPECT_EQ(r.graph.chart_count(), 3);
+  for (const ChartAdjacency& adj : r.graph.adjacency) EXPECT_FALSE(adj.mergeable);
+  EXPECT_EQ(r.aggregation.chart_count(), 3);
+}
+
+TEST(Aggregate, CancelStopsTheRun) {
+  const Mesh mesh = checkered_grid(64, 32);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const ChartGraph graph = build_chart_graph(mesh, topology, {});
+  RunControl control;
+  control.cancel();
+  EXPECT_THROW(aggregate_charts(mesh, topology, graph, {}, control), Cancelled);
+}

@@ -1,0 +1,312 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "chart_raster.hpp"
+#include "pack.hpp"
+
+namespace atlas {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Axis-aligned w x h rectangle at (x, y), as two triangles.
+RowMatrixX2d rectangle(double w, double h, double x = 0.0, double y = 0.0) {
+  RowMatrixX2d uv(6, 2);
+  uv << x, y, x + w, y, x + w, y + h,  //
+      x, y, x + w, y + h, x, y + h;
+  return uv;
+}
+
+// Star-shaped blob: a fan of `segments` triangles around (cx, cy) with radii in [r/2, r].
+RowMatrixX2d blob(std::mt19937& rng, double r, int segments, double cx, double cy) {
+  std::uniform_real_distribution<double> radius(0.5 * r, r);
+  std::vector<Eigen::RowVector2d> rim(segments);
+  for (int k = 0; k < segments; ++k) {
+    const double a = 2.0 * kPi * k / segments;
+    rim[k] = Eigen::RowVector2d(cx, cy) + radius(rng) * Eigen::RowVector2d(std::cos(a), std::sin(a));
+  }
+  RowMatrixX2d uv(3 * segments, 2);
+  for (int k = 0; k < segments; ++k) {
+    uv.row(3 * k) << cx, cy;
+    uv.row(3 * k + 1) = rim[k];
+    uv.row(3 * k + 2) = rim[(k + 1) % segments];
+  }
+  return uv;
+}
+
+std::vector<RowMatrixX2d> random_rectangles(int count, int max_side, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> side(1, max_side);
+  std::uniform_real_distribution<double> where(-5000.0, 5000.0);
+  std::vector<RowMatrixX2d> charts;
+  for (int i = 0; i < count; ++i) charts.push_back(rectangle(side(rng), side(rng), where(rng), where(rng)));
+  return charts;
+}
+
+std::vector<RowMatrixX2d> random_blobs(int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> radius(2.0, 40.0), where(-3000.0, 3000.0);
+  std::uniform_int_distribution<int> segments(3, 24);
+  std::vector<RowMatrixX2d> charts;
+  for (int i = 0; i < count; ++i)
+    charts.push_back(blob(rng, radius(rng), segments(rng), where(rng), where(rng)));
+  return charts;
+}
+
+// Re-rasterises every placed chart from the result alone and checks that its
+// texels lie on its page at least padding / 2 from the border, and that no
+// texel of any page is claimed by two dilated charts.
+void expect_valid_packing(const std::vector<RowMatrixX2d>& charts, const PackResult& result,
+                          int padding) {
+  ASSERT_EQ(result.placed_uv.size(), charts.size());
+  ASSERT_EQ(result.chart_page.size(), charts.size());
+  std::vector<std::vector<char>> claimed;
+  for (const PageSize& page : result.pages) {
+    ASSERT_GT(page.width, 0);
+    ASSERT_GT(page.height, 0);
+    claimed.emplace_back(static_cast<size_t>(page.width) * page.height, 0);
+  }
+  const int border = padding - padding / 2;
+  for (size_t c = 0; c < charts.size(); ++c) {
+    if (result.placed_uv[c].rows() == 0) continue;  // no faces: nothing to re-rasterise
+    const int p = result.chart_page[c];
+    ASSERT_GE(p, 0);
+    ASSERT_LT(p, static_cast<int>(result.pages.size()));
+    const PageSize page = result.pages[p];
+    RowMatrixX2d texels = result.placed_uv[c];
+    ASSERT_TRUE(texels.allFinite()) << "chart " << c;
+    texels.col(0) *= page.width;
+    texels.col(1) *= page.height;
+    const TexelMask own = rasterize_chart(texels);
+    EXPECT_GE(own.origin_x, border) << "chart " << c;
+    EXPECT_GE(own.origin_y, border) << "chart " << c;
+    EXPECT_LE(own.origin_x + own.width, page.width - border) << "chart " << c;
+    EXPECT_LE(own.origin_y + own.height, page.height - border) << "chart " << c;
+    const TexelMask grown = dilate_mask(own, padding);
+    int collisions = 0;
+    for (int y = 0; y < grown.height; ++y)
+      for (int x = 0; x < grown.width; ++x) {
+        const int px = grown.origin_x + x, py = grown.origin_y + y;
+        if (!grown.test(x, y) || px < 0 || py < 0 || px >= page.width || py >= page.height)
+          continue;
+        char& owner = claimed[p][static_cast<size_t>(py) * page.width + px];
+        collisions += owner;
+        owner = 1;
+      }
+    EXPECT_EQ(collisions, 0) << "chart " << c << " overlaps an earlier chart on page " << p;
+  }
+}
+
+// placed_uv must be exactly scale * R * uv + translation, in page units.
+void expect_reported_transform(const std::vector<RowMatrixX2d>& charts, const PackResult& result) {
+  ASSERT_EQ(result.chart_translation.rows(), static_cast<Eigen::Index>(charts.size()));
+  for (size_t c = 0; c < charts.size(); ++c) {
+    const PageSize page = result.pages[result.chart_page[c]];
+    const Eigen::RowVector2d t = result.chart_translation.row(c);
+    for (Eigen::Index i = 0; i < charts[c].rows(); ++i) {
+      const double u = charts[c](i, 0), v = charts[c](i, 1);
+      const Eigen::RowVector2d turned =
+          result.chart_rotated[c] ? Eigen::RowVector2d(-v, u) : Eigen::RowVector2d(u, v);
+      const Eigen::RowVector2d expected = result.scale * turned + t;
+      EXPECT_NEAR(result.placed_uv[c](i, 0) * page.width, expected.x(), 1e-6);
+      EXPECT_NEAR(result.placed_uv[c](i, 1) * page.height, expected.y(), 1e-6);
+    }
+  }
+}
+
+long long total_page_texels(const PackResult& result) {
+  long long total = 0;
+  for (const PageSize& p : result.pages) total += static_cast<long long>(p.width) * p.height;
+  return total;
+}
+
+TEST(RasterizeChart, CoversOverlappedTexelsOnly) {
+  // Edges on grid lines claim nothing beyond them.
+  const TexelMask square = rasterize_chart(rectangle(10, 10, 0, 0));
+  EXPECT_EQ(square.width, 10);
+  EXPECT_EQ(square.height, 10);
+  EXPECT_EQ(count_set_texels(square), 100);
+  // The hypotenuse x + y = 2 only touches texel (1, 1) at its corner.
+  RowMatrixX2d tri(3, 2);
+  tri << 0.5, 0.5, 1.5, 0.5, 0.5, 1.5;
+  const TexelMask t = rasterize_chart(tri);
+  EXPECT_EQ(count_set_texels(t), 3);
+  EXPECT_TRUE(t.test(0, 0) && t.test(1, 0) && t.test(0, 1));
+  // A sliver that crosses a texel without covering any texel centre still claims it.
+  tri << 0.0, 0.1, 3.0, 0.1, 3.0, 0.15;
+  EXPECT_EQ(count_set_texels(rasterize_chart(tri)), 3);
+  // Square dilation: one texel grown by 2 is a 5 x 5 block.
+  const TexelMask dot = dilate_mask(rasterize_chart(rectangle(0.5, 0.5, 7.2, 3.2)), 2);
+  EXPECT_EQ(dot.width, 5);
+  EXPECT_EQ(dot.origin_x, 5);
+  EXPECT_EQ(count_set_texels(dot), 25);
+}
+
+TEST(PackCharts, RandomRectanglesNeverShareATexel) {
+  const auto charts = random_rectangles(400, 60, 7);
+  PackOptions options;
+  options.padding = 4;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  ASSERT_EQ(result.pages.size(), 1u);
+  expect_valid_packing(charts, result, options.padding);
+  expect_reported_transform(charts, result);
+  EXPECT_DOUBLE_EQ(result.scale, 1.0);
+  EXPECT_GT(result.efficiency, 0.5);
+  for (Eigen::Index c = 0; c < result.chart_translation.rows(); ++c)
+    for (int k = 0; k < 2; ++k)  // whole texels: charts can be copied 1:1
+      EXPECT_EQ(result.chart_translation(c, k), std::round(result.chart_translation(c, k)));
+}
+
+TEST(PackCharts, BlobsNeverShareATexel) {
+  const auto charts = random_blobs(500, 11);
+  PackOptions options;
+  options.padding = 2;
+  options.density_scale = 1.5;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  expect_valid_packing(charts, result, options.padding);
+  expect_reported_transform(charts, result);
+  EXPECT_DOUBLE_EQ(result.scale, 1.5);
+  EXPECT_GT(result.efficiency, 0.45);
+}
+
+TEST(PackCharts, DefaultPageIsSmallAndNearSquare) {
+  std::vector<RowMatrixX2d> charts;
+  for (int i = 0; i < 100; ++i) charts.push_back(rectangle(10, 10, 13.0 * i, 0.0));
+  PackOptions options;
+  options.padding = 4;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  ASSERT_EQ(result.pages.size(), 1u);
+  const PageSize page = result.pages[0];
+  const double dilated = 100.0 * (10 + 2 * options.padding) * (10 + 2 * options.padding);
+  EXPECT_LT(static_cast<double>(page.width) * page.height, 3.0 * dilated);
+  EXPECT_EQ(page.width % 4, 0);
+  EXPECT_EQ(page.height % 4, 0);
+  EXPECT_LE(std::max(page.width, page.height), 2 * std::min(page.width, page.height));
+  expect_valid_packing(charts, result, options.padding);
+}
+
+TEST(PackCharts, TexelBudgetShrinksCharts) {
+  const auto charts = random_rectangles(200, 40, 3);
+  PackOptions options;
+  options.padding = 2;
+  const PackResult full = pack_charts(charts, options, RunControl());
+  options.texel_budget = total_page_texels(full) / 3;
+  const PackResult shrunk = pack_charts(charts, options, RunControl());
+  EXPECT_LT(shrunk.scale, 1.0);
+  EXPECT_GT(shrunk.scale, 0.3);  // not needlessly small
+  EXPECT_LE(total_page_texels(shrunk), options.texel_budget);
+  expect_valid_packing(charts, shrunk, options.padding);
+  expect_reported_transform(charts, shrunk);
+}
+
+TEST(PackCharts, MaxPageSizeSpillsOntoMorePages) {
+  const auto charts = random_rectangles(300, 40, 5);
+  PackOptions options;
+  options.padding = 3;
+  options.max_page_size = 256;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  EXPECT_GT(result.pages.size(), 1u);
+  for (const PageSize& page : result.pages) {
+    EXPECT_LE(page.width, 256);
+    EXPECT_LE(page.height, 256);
+  }
+  EXPECT_DOUBLE_EQ(result.scale, 1.0);
+  expect_valid_packing(charts, result, options.padding);
+  // Fewest pages: all but the last are well filled.
+  EXPECT_GT(result.efficiency, 0.5);
+}
+
+TEST(PackCharts, ChartLargerThanMaxPageIsScaledDown) {
+  const std::vector<RowMatrixX2d> charts = {rectangle(500, 100), rectangle(20, 20)};
+  PackOptions options;
+  options.max_page_size = 128;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  EXPECT_LT(result.scale, 128.0 / 500.0);
+  EXPECT_EQ(result.pages.size(), 1u);
+  expect_valid_packing(charts, result, options.padding);
+}
+
+TEST(PackCharts, FixedPageSizeFitsOnePageAsLargeAsPossible) {
+  const auto charts = random_blobs(150, 2);
+  PackOptions options;
+  options.padding = 2;
+  options.fixed_page_size = 512;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  ASSERT_EQ(result.pages.size(), 1u);
+  EXPECT_EQ(result.pages[0].width, 512);
+  EXPECT_EQ(result.pages[0].height, 512);
+  EXPECT_GT(result.scale, 0.0);
+  EXPECT_GT(result.efficiency, 0.4);  // the page is filled, not just fitted
+  expect_valid_packing(charts, result, options.padding);
+  expect_reported_transform(charts, result);
+
+  // Small charts are scaled up to fill the page.
+  const PackResult grown = pack_charts({rectangle(10, 10), rectangle(5, 20)}, options, RunControl());
+  EXPECT_GT(grown.scale, 5.0);
+}
+
+TEST(PackCharts, LongChartIsRotatedToFit) {
+  // At the largest scale (set by the wide chart's width) the tall chart only
+  // fits lying down in the strip above the wide one.
+  const std::vector<RowMatrixX2d> charts = {rectangle(240, 150, 30, 40), rectangle(30, 200, -7, 3)};
+  PackOptions options;
+  options.padding = 2;
+  options.fixed_page_size = 256;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  EXPECT_FALSE(result.chart_rotated[0]);
+  EXPECT_TRUE(result.chart_rotated[1]);
+  const Eigen::RowVector2d extent =
+      result.placed_uv[1].colwise().maxCoeff() - result.placed_uv[1].colwise().minCoeff();
+  EXPECT_GT(extent.x(), 4.0 * extent.y());
+  EXPECT_GT(result.scale, 1.0);
+  expect_valid_packing(charts, result, options.padding);
+  expect_reported_transform(charts, result);
+}
+
+TEST(PackCharts, DegenerateInputs) {
+  RowMatrixX2d point(3, 2), with_nan = rectangle(8, 8, 100, 100);
+  point << 5, 5, 5, 5, 5, 5;
+  with_nan(2, 0) = std::nan("");
+  const std::vector<RowMatrixX2d> charts = {point, with_nan, RowMatrixX2d(0, 2), rectangle(12, 3)};
+  PackOptions options;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  for (const RowMatrixX2d& uv : result.placed_uv) EXPECT_TRUE(uv.allFinite());
+  // The point still owns a texel of its own.
+  RowMatrixX2d placed = result.placed_uv[0];
+  placed.col(0) *= result.pages[0].width;
+  placed.col(1) *= result.pages[0].height;
+  EXPECT_EQ(count_set_texels(rasterize_chart(placed)), 1);
+  const std::vector<RowMatrixX2d> finite = {point, rectangle(8, 8), RowMatrixX2d(0, 2), rectangle(12, 3)};
+  expect_valid_packing(finite, result, options.padding);
+  EXPECT_GT(result.efficiency, 0.0);
+
+  const PackResult empty = pack_charts({}, options, RunControl());
+  ASSERT_EQ(empty.pages.size(), 1u);
+  EXPECT_EQ(empty.pages[0].width, 4);
+  EXPECT_EQ(empty.pages[0].height, 4);
+  EXPECT_TRUE(empty.placed_uv.empty());
+}
+
+TEST(PackCharts, RejectsBadOptions) {
+  const std::vector<RowMatrixX2d> charts = {rectangle(4, 4)};
+  PackOptions options;
+  options.padding = -1;
+  EXPECT_THROW(pack_charts(charts, options, RunControl()), InputError);
+  options = PackOptions();
+  options.fixed_page_size = 64;
+  options.texel_budget = 1000;
+  EXPECT_THROW(pack_charts(charts, options, RunControl()), InputError);
+  options = PackOptions();
+  EXPECT_THROW(pack_charts({RowMatrixX2d(4, 2)}, options, RunControl()), InputError);
+}
+
+TEST(PackCharts, CancelledControlThrows) {
+  RunControl control;
+  control.cancel();
+  EXPECT_THROW(pack_charts(random_rectangles(50, 20, 1), PackOptions(), control), Cancelled);
+}
+
+}  // namespace
+}  // namespace atlas

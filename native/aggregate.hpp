@@ -1,0 +1,36 @@
+// Aggregation (thesis 5.2): greedy edge collapse on the chart graph, cheapest
+// first, refusing any merge whose result is not a topological disk.
+#pragma once
+#include <vector>
+
+#include "charts.hpp"
+#include "mesh.hpp"
+#include "run_control.hpp"
+#include "topology.hpp"
+
+namespace atlas {
+
+enum class Weighting { UV, Surface };
+
+struct AggregateOptions {
+  Weighting weighting = Weighting::UV;
+  int target_charts = 0;            // stop at this many charts; 0: no target
+  // A collapse is made only while the smaller chart covers less than this
+  // fraction of the total area; 1 lets charts grow as far as topology allows.
+  double min_chart_fraction = 1.0;
+  // A merged chart must stay flattenable without folding over itself: its
+  // area-weighted normal |sum n_f A_f| / sum A_f may not fall below this
+  // (1: flat; about 0.64 for a hemisphere cap of 100 degrees). 0 disables.
+  double min_normal_coherence = 0.0;
+};
+
+struct Aggregation {
+  std::vector<int> face_chart;                 // F, new chart per face, -1 untextured
+  std::vector<std::vector<int>> members;       // new chart -> original charts in it
+  int chart_count() const { return static_cast<int>(members.size()); }
+};
+
+Aggregation aggregate_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                             const AggregateOptions& options, const RunControl& control);
+
+}  // namespace atlas

@@ -1,0 +1,437 @@
+// The thin Python layer: numpy arrays in, numpy arrays and dicts out. Every
+// call checks shapes and dtypes here (ValueError naming the argument), releases
+// the GIL while the native stages run, forwards progress to an optional Python
+// callable and honours an optional CancelToken.
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cstdint>
+#include <sstream>
+
+#include "bake.hpp"
+#include "charts.hpp"
+#include "metrics.hpp"
+#include "pipeline.hpp"
+
+namespace py = pybind11;
+using namespace atlas;
+
+namespace {
+
+std::string shape_of(const py::array& a) {
+  std::ostringstream s;
+  s << "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s << (i ? ", " : "") << a.shape(i);
+  s << (a.ndim() == 1 ? ",)" : ")");
+  return s.str();
+}
+
+// Checks the trailing dimensions and returns the array as a C-contiguous
+// rows x cols block of T. Integer arguments must already be integers: a float
+// array of indices is a caller bug, not something to round silently.
+template <class T>
+py::array_t<T, py::array::c_style | py::array::forcecast> checked(const py::handle& obj, const char* name,
+                                                                  std::vector<py::ssize_t> tail,
+                                                                  const char* expected) {
+  py::array a = py::array::ensure(obj);
+  if (!a) throw py::value_error(std::string(name) + " must be an array");
+  bool ok = a.ndim() == static_cast<py::ssize_t>(tail.size()) + 1;
+  for (size_t i = 0; ok && i < tail.size(); ++i) ok = a.shape(i + 1) == tail[i];
+  if (!ok) throw py::value_error(std::string(name) + " must have shape " + expected + ", got " + shape_of(a));
+  const char kind = a.dtype().kind();
+  if (std::is_integral_v<T> && kind != 'i' && kind != 'u')
+    throw py::value_error(std::string(name) + " must be an integer array, got dtype " + std::string(py::str(a.dtype())));
+  if (!std::is_integral_v<T> && kind != 'f' && kind != 'i' && kind != 'u')
+    throw py::value_error(std::string(name) + " must be a numeric array, got dtype " + std::string(py::str(a.dtype())));
+  return py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(a);
+}
+
+template <class Matrix, class T>
+Matrix to_matrix(const py::array_t<T, py::array::c_style | py::array::forcecast>& a, Eigen::Index rows,
+                 Eigen::Index cols) {
+  return Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(a.data(), rows, cols)
+      .template cast<typename Matrix::Scalar>();
+}
+
+std::vector<PageSize> page_sizes(const py::handle& obj, const char* name) {
+  const auto a = checked<long long>(obj, name, {2}, "(P, 2) as (width, height)");
+  std::vector<PageSize> pages(a.shape(0));
+  for (py::ssize_t p = 0; p < a.shape(0); ++p) {
+    if (a.at(p, 0) <= 0 || a.at(p, 1) <= 0 || a.at(p, 0) > 65536 || a.at(p, 1) > 65536) {
+      std::ostringstream msg;
+      msg << name << ": page " << p << " has size " << a.at(p, 0) << "x" << a.at(p, 1)
+          << " (each side must be 1..65536 texels)";
+      throw py::value_error(msg.str());
+    }
+    pages[p] = {static_cast<int>(a.at(p, 0)), static_cast<int>(a.at(p, 1))};
+  }
+  return pages;
+}
+
+struct Layout {
+  RowMatrixX2d corner_uv;
+  Eigen::VectorXi face_page;
+};
+
+Layout layout(const py::handle& uvs, const py::handle& face_page, Eigen::Index faces, const char* uv_name,
+              const char* page_name) {
+  const auto uv = checked<double>(uvs, uv_name, {3, 2}, "(F, 3, 2)");
+  const auto page = checked<long long>(face_page, page_name, {}, "(F,)");
+  if (uv.shape(0) != faces || page.shape(0) != faces) {
+    std::ostringstream msg;
+    msg << uv_name << " and " << page_name << " must describe the " << faces << " triangles, got "
+        << uv.shape(0) << " and " << page.shape(0);
+    throw py::value_error(msg.str());
+  }
+  return {to_matrix<RowMatrixX2d>(uv, 3 * faces, 2), to_matrix<Eigen::VectorXi>(page, faces, 1)};
+}
+
+Mesh mesh_from(const py::handle& positions, const py::handle& triangles, const py::handle& uvs,
+               const py::handle& face_page, const py::handle& sizes) {
+  const auto pos = checked<double>(positions, "positions", {3}, "(V, 3)");
+  const auto tri = checked<long long>(triangles, "triangles", {3}, "(F, 3)");
+  const Layout l = layout(uvs, face_page, tri.shape(0), "uvs", "face_page");
+  // Indices beyond int range are out of range by definition; clamp to keep the message exact.
+  RowMatrixX3i t(tri.shape(0), 3);
+  for (py::ssize_t f = 0; f < tri.shape(0); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const long long v = tri.at(f, k);
+      t(f, k) = v < 0 || v > INT32_MAX ? -1 : static_cast<int>(v);
+      if (t(f, k) < 0) {
+        std::ostringstream msg;
+        msg << "triangle " << f << " has vertex index " << v << " out of range [0, " << pos.shape(0) << ")";
+        throw py::value_error(msg.str());
+      }
+    }
+  return make_mesh(to_matrix<RowMatrixX3d>(pos, pos.shape(0), 3), t, l.corner_uv, l.face_page,
+                   page_sizes(sizes, "page_sizes"));
+}
+
+struct CancelToken {
+  RunControl::Flag flag = std::make_shared<std::atomic<bool>>(false);
+};
+
+RunControl control_from(const py::object& progress, const py::object& cancel) {
+  RunControl::ReportFn report;
+  if (!progress.is_none()) {
+    report = [progress](const std::string& stage, double fraction) {
+      py::gil_scoped_acquire gil;
+      progress(stage, fraction);
+    };
+  }
+  if (cancel.is_none()) return RunControl(report);
+  return RunControl(report, cancel.cast<CancelToken&>().flag);
+}
+
+PipelineOptions pipeline_options(const py::object& obj) {
+  PipelineOptions o;
+  if (obj.is_none()) return o;
+  for (const auto& [key_obj, value] : obj.cast<py::dict>()) {
+    const std::string key = key_obj.cast<std::string>();
+    if (key == "target_charts") o.aggregate.target_charts = value.cast<int>();
+    else if (key == "weighting") {
+      const std::string w = value.cast<std::string>();
+      if (w != "uv" && w != "3d") throw py::value_error("weighting must be 'uv' or '3d', got '" + w + "'");
+      o.aggregate.weighting = w == "uv" ? Weighting::UV : Weighting::Surface;
+    } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = value.cast<double>();
+    else if (key == "padding") o.pack.padding = value.cast<int>();
+    else if (key == "output_size") o.pack.fixed_page_size = value.cast<int>();
+    else if (key == "max_page_size") o.pack.max_page_size = value.cast<int>();
+    else if (key == "density_scale") o.pack.density_scale = value.cast<double>();
+    else if (key == "texel_budget") o.pack.texel_budget = value.cast<long long>();
+    else if (key == "max_iterations") o.slim.max_iterations = value.cast<int>();
+    else throw py::value_error("unknown option '" + key + "'");
+  }
+  if (o.pack.padding < 0 || o.pack.padding > 64) throw py::value_error("padding must be 0..64 texels");
+  if (o.pack.max_page_size < 64 || o.pack.max_page_size > 32768)
+    throw py::value_error("max_page_size must be 64..32768 texels");
+  if (o.pack.fixed_page_size < 0 || o.pack.fixed_page_size > o.pack.max_page_size)
+    throw py::value_error("output_size must be 0 (automatic) or at most max_page_size");
+  if (!(o.pack.density_scale > 0 && o.pack.density_scale <= 16)) throw py::value_error("density_scale must be in (0, 16]");
+  if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be >= 0");
+  return o;
+}
+
+py::array_t<double> uv_array(const RowMatrixX2d& uv) {
+  py::array_t<double> out({uv.rows() / 3, py::ssize_t(3), py::ssize_t(2)});
+  std::copy(uv.data(), uv.data() + uv.size(), out.mutable_data());
+  return out;
+}
+
+py::array_t<int> int_array(const Eigen::VectorXi& v) {
+  py::array_t<int> out(v.size());
+  std::copy(v.data(), v.data() + v.size(), out.mutable_data());
+  return out;
+}
+
+py::array_t<int> sizes_array(const std::vector<PageSize>& pages) {
+  py::array_t<int> out({static_cast<py::ssize_t>(pages.size()), py::ssize_t(2)});
+  for (size_t p = 0; p < pages.size(); ++p) out.mutable_at(p, 0) = pages[p].width, out.mutable_at(p, 1) = pages[p].height;
+  return out;
+}
+
+py::dict report_dict(const PipelineReport& r) {
+  py::dict seconds;
+  for (const StageTime& t : r.seconds) seconds[py::str(t.stage)] = t.seconds;
+  py::dict d;
+  d["charts_before"] = r.charts_before;
+  d["charts_aggregated"] = r.charts_aggregated;
+  d["charts_after"] = r.charts_after;
+  d["charts_solved"] = r.charts_solved;
+  d["splits_not_disk"] = r.splits_not_disk;
+  d["splits_solver"] = r.splits_solver;
+  d["splits_overlap"] = r.splits_overlap;
+  d["seam_before"] = r.seam_before;
+  d["seam_after"] = r.seam_after;
+  d["texels_before"] = r.texels_before;
+  d["texels_after"] = r.texels_after;
+  d["packing_efficiency"] = r.packing_efficiency;
+  d["scale"] = r.scale;
+  d["energy_median"] = r.energy_median;
+  d["energy_max"] = r.energy_max;
+  d["seconds"] = seconds;
+  return d;
+}
+
+py::dict defragment_py(const py::object& positions, const py::object& triangles, const py::object& uvs,
+                       const py::object& face_page, const py::object& sizes, const py::object& face_group,
+                       const py::object& options, const py::object& progress, const py::object& cancel) {
+  const Mesh mesh = mesh_from(positions, triangles, uvs, face_page, sizes);
+  std::vector<int> groups;
+  if (!face_group.is_none()) {
+    const auto g = checked<long long>(face_group, "face_group", {}, "(F,)");
+    if (g.shape(0) != mesh.face_count()) throw py::value_error("face_group must hold one group per triangle");
+    groups.assign(g.data(), g.data() + g.shape(0));
+  }
+  const PipelineOptions opts = pipeline_options(options);
+  const RunControl control = control_from(progress, cancel);
+  PipelineResult r;
+  {
+    py::gil_scoped_release release;
+    r = defragment(mesh, groups, opts, control);
+  }
+  py::dict out;
+  out["uvs"] = uv_array(r.corner_uv);
+  out["face_page"] = int_array(r.face_page);
+  out["page_sizes"] = sizes_array(r.pages);
+  out["report"] = report_dict(r.report);
+  return out;
+}
+
+py::dict chart_graph_py(const py::object& positions, const py::object& triangles, const py::object& uvs,
+                        const py::object& face_page, const py::object& sizes) {
+  const Mesh mesh = mesh_from(positions, triangles, uvs, face_page, sizes);
+  ChartGraph g;
+  {
+    py::gil_scoped_release release;
+    g = build_chart_graph(mesh, build_topology(mesh.triangles, mesh.vertex_count()), {});
+  }
+  py::dict out;
+  out["chart_count"] = g.chart_count();
+  out["face_chart"] = py::array_t<int>(g.face_chart.size(), g.face_chart.data());
+  out["adjacent_pairs"] = g.adjacency.size();
+  out["welded_vertices"] = mesh.vertex_count();
+  int mirrored = 0;
+  for (const ChartStats& s : g.charts) mirrored += s.mirrored();
+  out["mirrored_charts"] = mirrored;
+  return out;
+}
+
+// Images as (H, W, C) arrays, row 0 at v = 0; all of one dtype T. The arrays
+// are returned too so their buffers outlive the views.
+template <class T>
+std::vector<ImageView<T>> image_views(const py::list& images, const char* name, std::vector<py::array>& keep) {
+  std::vector<ImageView<T>> views;
+  for (size_t i = 0; i < images.size(); ++i) {
+    auto a = py::array_t<T, py::array::c_style>::ensure(images[i]);
+    if (!a || a.ndim() != 3 || a.shape(2) < 1 || a.shape(2) > 4) {
+      std::ostringstream msg;
+      msg << name << "[" << i << "] must be an (H, W, C) array with 1 to 4 channels of the same dtype as the others";
+      throw py::value_error(msg.str());
+    }
+    views.push_back({a.data(), static_cast<int>(a.shape(1)), static_cast<int>(a.shape(0)), static_cast<int>(a.shape(2)),
+                     static_cast<std::size_t>(a.size())});
+    keep.push_back(a);
+  }
+  return views;
+}
+
+bool is_uint8_images(const py::list& images, const char* name) {
+  if (images.empty()) throw py::value_error(std::string(name) + " must hold at least one image");
+  const py::array first = py::array::ensure(images[0]);
+  if (!first) throw py::value_error(std::string(name) + "[0] must be an array");
+  if (first.dtype().is(py::dtype::of<std::uint8_t>())) return true;
+  if (first.dtype().is(py::dtype::of<float>())) return false;
+  throw py::value_error(std::string(name) + " must be uint8 or float32 arrays, got " + std::string(py::str(first.dtype())));
+}
+
+// Hands the texels to numpy without a copy: the vector moves into a capsule.
+template <class T>
+py::array_t<T> image_array(Image<T>&& image) {
+  auto* texels = new std::vector<T>(std::move(image.texels));
+  py::capsule owner(texels, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+  return py::array_t<T>({image.height, image.width, image.channels}, texels->data(), owner);
+}
+
+template <class T>
+py::list bake_typed(const Layout& old_l, const py::list& images, const Layout& new_l, const std::vector<PageSize>& out,
+                    const BakeOptions& options, const RunControl& control) {
+  std::vector<py::array> keep;
+  const auto views = image_views<T>(images, "images", keep);
+  std::vector<Image<T>> baked;
+  {
+    py::gil_scoped_release release;
+    baked = bake_map<T>({&old_l.corner_uv, &old_l.face_page}, views, {&new_l.corner_uv, &new_l.face_page}, out,
+                        options, control);
+  }
+  py::list result;
+  for (auto& image : baked) result.append(image_array(std::move(image)));
+  return result;
+}
+
+py::list bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
+                 const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
+                 bool normal_map, int padding, const py::object& progress, const py::object& cancel) {
+  const Eigen::Index faces = checked<double>(old_uvs, "old_uvs", {3, 2}, "(F, 3, 2)").shape(0);
+  const Layout old_l = layout(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
+  const Layout new_l = layout(new_uvs, new_face_page, faces, "new_uvs", "new_face_page");
+  const std::vector<PageSize> out = page_sizes(out_sizes, "out_sizes");
+  if (padding < 0 || padding > 64) throw py::value_error("padding must be 0..64 texels");
+  const BakeOptions options{normal_map, padding};
+  const RunControl control = control_from(progress, cancel);
+  if (is_uint8_images(images, "images")) return bake_typed<std::uint8_t>(old_l, images, new_l, out, options, control);
+  return bake_typed<float>(old_l, images, new_l, out, options, control);
+}
+
+py::dict atlas_dict(const AtlasMeasures& m) {
+  py::dict d;
+  d["charts"] = m.charts;
+  d["seam_ratio"] = m.seam_ratio;
+  d["boundary_texels"] = m.boundary_texels;
+  d["page_texels"] = m.page_texels;
+  d["covered_texels"] = m.covered_texels;
+  d["occupancy"] = m.occupancy;
+  d["flipped_faces"] = m.flipped_faces;
+  d["overlap_texels"] = m.overlap_texels;
+  return d;
+}
+
+py::dict measure_py(const py::object& positions, const py::object& triangles, const py::object& old_uvs,
+                    const py::object& old_face_page, const py::object& old_sizes, const py::object& new_uvs,
+                    const py::object& new_face_page, const py::object& new_sizes) {
+  const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, old_sizes);
+  const Layout new_l = layout(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page");
+  const std::vector<PageSize> new_pages = page_sizes(new_sizes, "new_page_sizes");
+  const UvAtlas old_atlas = atlas_of(mesh);
+  const UvAtlas new_atlas{&new_l.corner_uv, &new_l.face_page, &new_pages};
+  AtlasMeasures before, after;
+  MapMeasures map;
+  {
+    py::gil_scoped_release release;
+    const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+    before = measure_atlas(mesh, topology, old_atlas);
+    after = measure_atlas(mesh, topology, new_atlas);
+    map = measure_map(mesh, old_atlas, new_atlas);
+  }
+  py::dict m;
+  m["density_loss_area_share"] = map.density_loss_area_share;
+  m["density_ratio_p5"] = map.density_ratio_p5;
+  m["density_ratio_p50"] = map.density_ratio_p50;
+  m["density_ratio_p95"] = map.density_ratio_p95;
+  m["angle_error_p50"] = map.angle_error_p50;
+  m["angle_error_p90"] = map.angle_error_p90;
+  m["angle_error_p99"] = map.angle_error_p99;
+  py::dict d;
+  d["old"] = atlas_dict(before);
+  d["new"] = atlas_dict(after);
+  d["map"] = m;
+  return d;
+}
+
+template <class T>
+ColorFidelity compare_typed(const Mesh& mesh, const py::list& old_images, const UvAtlas& new_atlas,
+                            const py::list& new_images, int samples, unsigned seed) {
+  std::vector<py::array> keep;
+  const auto old_views = image_views<T>(old_images, "old_images", keep);
+  const auto new_views = image_views<T>(new_images, "new_images", keep);
+  py::gil_scoped_release release;
+  return compare_colors<T>(mesh, atlas_of(mesh), old_views, new_atlas, new_views, samples, seed);
+}
+
+py::dict compare_colors_py(const py::object& positions, const py::object& triangles, const py::object& old_uvs,
+                           const py::object& old_face_page, const py::list& old_images, const py::object& new_uvs,
+                           const py::object& new_face_page, const py::list& new_images, int samples, unsigned seed) {
+  std::vector<PageSize> old_pages, new_pages;
+  for (const auto& img : old_images) {
+    const py::array a = py::array::ensure(img);
+    if (!a || a.ndim() != 3) throw py::value_error("old_images must be (H, W, C) arrays");
+    old_pages.push_back({static_cast<int>(a.shape(1)), static_cast<int>(a.shape(0))});
+  }
+  for (const auto& img : new_images) {
+    const py::array a = py::array::ensure(img);
+    if (!a || a.ndim() != 3) throw py::value_error("new_images must be (H, W, C) arrays");
+    new_pages.push_back({static_cast<int>(a.shape(1)), static_cast<int>(a.shape(0))});
+  }
+  if (old_pages.empty() || new_pages.empty()) throw py::value_error("old_images and new_images must not be empty");
+  const auto pos = checked<double>(positions, "positions", {3}, "(V, 3)");
+  const auto tri = checked<long long>(triangles, "triangles", {3}, "(F, 3)");
+  const Layout old_l = layout(old_uvs, old_face_page, tri.shape(0), "old_uvs", "old_face_page");
+  RowMatrixX3i t = to_matrix<RowMatrixX3i>(tri, tri.shape(0), 3);
+  const Mesh mesh = make_mesh(to_matrix<RowMatrixX3d>(pos, pos.shape(0), 3), t, old_l.corner_uv, old_l.face_page, old_pages);
+  const Layout new_l = layout(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page");
+  const UvAtlas new_atlas{&new_l.corner_uv, &new_l.face_page, &new_pages};
+  const bool bytes = is_uint8_images(old_images, "old_images");
+  if (bytes != is_uint8_images(new_images, "new_images")) throw py::value_error("old and new images must share a dtype");
+  const ColorFidelity c = bytes ? compare_typed<std::uint8_t>(mesh, old_images, new_atlas, new_images, samples, seed)
+                                : compare_typed<float>(mesh, old_images, new_atlas, new_images, samples, seed);
+  py::dict d;
+  d["psnr_db"] = c.psnr_db;
+  d["share_off_32"] = c.share_off_32;
+  d["samples"] = c.samples;
+  return d;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_native, m) {
+  m.doc() = "Atlas Defrag native core: chart aggregation, SLIM flattening, packing, baking and metrics.";
+  py::register_exception<Cancelled>(m, "Cancelled");
+
+  py::class_<CancelToken>(m, "CancelToken", "Pass to a call; cancel() from any thread stops it early.")
+      .def(py::init<>())
+      .def("cancel", [](CancelToken& t) { t.flag->store(true); })
+      .def_property_readonly("cancelled", [](const CancelToken& t) { return t.flag->load(); });
+
+  m.def("defragment", &defragment_py, py::arg("positions"), py::arg("triangles"), py::arg("uvs"),
+        py::arg("face_page"), py::arg("page_sizes"), py::kw_only(), py::arg("face_group") = py::none(),
+        py::arg("options") = py::none(), py::arg("progress") = py::none(), py::arg("cancel") = py::none(),
+        R"(Computes a defragmented UV layout.
+
+positions (V,3) float, triangles (F,3) int (triangulate quads and n-gons first),
+uvs (F,3,2) per-corner UVs in page units, face_page (F,) int (-1: untextured,
+UVs pass through), page_sizes (P,2) (width, height) in texels. face_group (F,)
+keeps groups apart. Returns dict(uvs, face_page, page_sizes, report).)");
+
+  m.def("chart_graph", &chart_graph_py, py::arg("positions"), py::arg("triangles"), py::arg("uvs"),
+        py::arg("face_page"), py::arg("page_sizes"), "The input's UV charts: counts and the chart of each face.");
+
+  m.def("bake", &bake_py, py::arg("old_uvs"), py::arg("old_face_page"), py::arg("images"), py::arg("new_uvs"),
+        py::arg("new_face_page"), py::arg("out_sizes"), py::kw_only(), py::arg("normal_map") = false,
+        py::arg("padding") = 4, py::arg("progress") = py::none(), py::arg("cancel") = py::none(),
+        R"(Bakes one map through the new layout.
+
+images: one (H,W,C) uint8 or float32 array per old page, row 0 at v = 0 (Blender's
+order). Returns one array per entry of out_sizes (width, height), same dtype.
+normal_map re-orients tangent-space XY per face.)");
+
+  m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
+        py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),
+        py::arg("new_page_sizes"), "Metrics of the old and new atlases and of the map between them.");
+
+  m.def("compare_colors", &compare_colors_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
+        py::arg("old_face_page"), py::arg("old_images"), py::arg("new_uvs"), py::arg("new_face_page"),
+        py::arg("new_images"), py::kw_only(), py::arg("samples") = 400000, py::arg("seed") = 1,
+        "PSNR and share of points off by more than 32/255, on points drawn uniformly by surface area.");
+}

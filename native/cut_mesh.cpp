@@ -1,0 +1,63 @@
+#include "cut_mesh.hpp"
+
+#include <numeric>
+
+namespace atlas {
+namespace {
+
+int find(std::vector<int>& parent, int x) {
+  while (parent[x] != x) x = parent[x] = parent[parent[x]];
+  return x;
+}
+
+// Corner of face f sitting at vertex v.
+int corner_at(const Mesh& mesh, int f, int v) {
+  for (int k = 0; k < 3; ++k)
+    if (mesh.triangles(f, k) == v) return 3 * f + k;
+  return -1;
+}
+
+bool keeps_edge(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph, int e) {
+  if (topology.edge_valence(e) != 2) return false;
+  const int c0 = topology.edge_corners[topology.edge_offsets[e]];
+  const int c1 = topology.edge_corners[topology.edge_offsets[e] + 1];
+  if (mesh.triangles(c0 / 3, c0 % 3) == mesh.triangles(c1 / 3, c1 % 3)) return false;  // winding flip
+  const int chart = graph.face_chart[c0 / 3];
+  const bool same_chart = chart >= 0 && chart == graph.face_chart[c1 / 3];
+  return !same_chart || uv_continuous_across(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, e);
+}
+
+}  // namespace
+
+Mesh cut_internal_seams(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph) {
+  // Corners at the same vertex are joined across every edge that stays; each
+  // resulting class of corners becomes one vertex of the cut surface.
+  std::vector<int> parent(3 * mesh.face_count());
+  std::iota(parent.begin(), parent.end(), 0);
+  for (int e = 0; e < topology.edge_count(); ++e) {
+    if (!keeps_edge(mesh, topology, graph, e)) continue;
+    const int f0 = topology.edge_corners[topology.edge_offsets[e]] / 3;
+    const int f1 = topology.edge_corners[topology.edge_offsets[e] + 1] / 3;
+    for (int j = 0; j < 2; ++j) {
+      const int v = topology.edge_vertices(e, j);
+      parent[find(parent, corner_at(mesh, f0, v))] = find(parent, corner_at(mesh, f1, v));
+    }
+  }
+  Mesh cut;
+  cut.triangles.resize(mesh.face_count(), 3);
+  std::vector<int> vertex_of_root(parent.size(), -1);
+  std::vector<int> source_vertex;
+  for (int c = 0; c < static_cast<int>(parent.size()); ++c) {
+    int& id = vertex_of_root[find(parent, c)];
+    if (id < 0) id = static_cast<int>(source_vertex.size()), source_vertex.push_back(mesh.triangles(c / 3, c % 3));
+    cut.triangles(c / 3, c % 3) = id;
+  }
+  cut.positions.resize(static_cast<Eigen::Index>(source_vertex.size()), 3);
+  for (size_t v = 0; v < source_vertex.size(); ++v) cut.positions.row(v) = mesh.positions.row(source_vertex[v]);
+  cut.corner_uv = mesh.corner_uv;
+  cut.face_page = mesh.face_page;
+  cut.pages = mesh.pages;
+  return cut;
+}
+
+}  // namespace atlas

@@ -1,0 +1,18 @@
+// Tiny triangle formulas shared by the stages.
+#pragma once
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace atlas {
+
+// Signed area of a 2D triangle: ((b-a) x (c-a)) / 2, positive counter-clockwise.
+inline double signed_area(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  return 0.5 * ((b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x()));
+}
+
+// Area of a 3D triangle: |(b-a) x (c-a)| / 2.
+inline double triangle_area(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  return 0.5 * (b - a).cross(c - a).norm();
+}
+
+}  // namespace atlas

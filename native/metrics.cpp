@@ -1,0 +1,431 @@
+#include "metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <numeric>
+#include <sstream>
+#include <utility>
+
+#include "charts.hpp"
+#include "geometry.hpp"
+#include "rasterize_triangle.hpp"
+#include "sample_texture.hpp"
+
+namespace atlas {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+// Rows per coverage work item: one thread counts a band from every face overlapping
+// it, so the per-texel counters need no atomics and only a band-sized buffer.
+constexpr int kBandRows = 32;
+
+// ---- validation ------------------------------------------------------------
+
+void require_atlas(const Mesh& mesh, const UvAtlas& atlas, const char* what) {
+  std::ostringstream msg;
+  msg << what << ": ";
+  if (!atlas.corner_uv || !atlas.face_page || !atlas.pages) {
+    msg << "layout is missing an array";
+    throw InputError(msg.str());
+  }
+  const Eigen::Index faces = mesh.triangles.rows();
+  if (atlas.corner_uv->rows() != 3 * faces) {
+    msg << "uvs must hold " << 3 * faces << " rows, got " << atlas.corner_uv->rows();
+    throw InputError(msg.str());
+  }
+  if (atlas.face_page->size() != faces) {
+    msg << "face_page must hold " << faces << " pages, got " << atlas.face_page->size();
+    throw InputError(msg.str());
+  }
+  const std::vector<PageSize>& pages = *atlas.pages;
+  for (std::size_t p = 0; p < pages.size(); ++p)
+    if (pages[p].width <= 0 || pages[p].height <= 0) {
+      msg << "page " << p << " has non-positive size " << pages[p].width << "x" << pages[p].height;
+      throw InputError(msg.str());
+    }
+  for (Eigen::Index f = 0; f < faces; ++f) {
+    const int page = (*atlas.face_page)[f];
+    if (page < -1 || page >= static_cast<int>(pages.size())) {
+      msg << "triangle " << f << " uses page " << page << " but only " << pages.size() << " page(s) exist";
+      throw InputError(msg.str());
+    }
+    if (page >= 0 && !atlas.corner_uv->middleRows(3 * f, 3).allFinite()) {
+      msg << "triangle " << f << " has a non-finite uv";
+      throw InputError(msg.str());
+    }
+  }
+}
+
+template <class T>
+void require_images(const std::vector<ImageView<T>>& images, const UvAtlas& atlas, const char* what) {
+  int used = -1;
+  for (Eigen::Index f = 0; f < atlas.face_page->size(); ++f) used = std::max(used, (*atlas.face_page)[f]);
+  if (used >= static_cast<int>(images.size())) {
+    std::ostringstream msg;
+    msg << "compare_colors: " << what << " page " << used << " has no image (" << images.size() << " given)";
+    throw InputError(msg.str());
+  }
+  for (int p = 0; p <= used; ++p) {
+    const ImageView<T>& image = images[p];
+    std::ostringstream msg;
+    msg << "compare_colors: " << what << " image " << p << " ";
+    if (!image.texels) msg << "has no texel buffer";
+    else if (image.width <= 0 || image.height <= 0) msg << "has non-positive size";
+    else if (image.channels < 1 || image.channels > kMaxTexelChannels)
+      msg << "has " << image.channels << " channels; 1 to " << kMaxTexelChannels << " are supported";
+    else if (image.size < static_cast<std::size_t>(image.width) * image.height * image.channels)
+      msg << "buffer holds " << image.size << " values, fewer than width x height x channels";
+    else continue;
+    throw InputError(msg.str());
+  }
+}
+
+// ---- small helpers ---------------------------------------------------------
+
+Eigen::Vector2d texel_uv(const UvAtlas& atlas, int f, int k) {
+  const PageSize& page = (*atlas.pages)[(*atlas.face_page)[f]];
+  return {(*atlas.corner_uv)(3 * f + k, 0) * page.width, (*atlas.corner_uv)(3 * f + k, 1) * page.height};
+}
+
+double face_area_3d(const Mesh& mesh, int f) {
+  return triangle_area(mesh.positions.row(mesh.triangles(f, 0)), mesh.positions.row(mesh.triangles(f, 1)),
+                       mesh.positions.row(mesh.triangles(f, 2)));
+}
+
+double face_signed_area_uv(const UvAtlas& atlas, int f) {
+  return signed_area(texel_uv(atlas, f, 0), texel_uv(atlas, f, 1), texel_uv(atlas, f, 2));
+}
+
+// Area-weighted percentiles: for each fraction q, the smallest value whose
+// cumulative weight reaches q of the total. `values` is sorted in place.
+std::vector<double> weighted_percentiles(std::vector<std::pair<double, double>>& values,
+                                         const std::vector<double>& fractions) {
+  std::vector<double> out(fractions.size(), 0.0);
+  if (values.empty()) return out;
+  std::sort(values.begin(), values.end());
+  double total = 0;
+  for (const auto& v : values) total += v.second;
+  if (!(total > 0)) return out;
+  for (std::size_t i = 0; i < fractions.size(); ++i) {
+    const double target = fractions[i] * total;
+    double cumulative = 0;
+    std::size_t j = 0;
+    for (; j + 1 < values.size(); ++j) {
+      cumulative += values[j].second;
+      if (cumulative >= target) break;
+    }
+    out[i] = values[j].first;
+  }
+  return out;
+}
+
+// Unsigned interior angle (radians) of a 2D triangle at p; 0 when an edge has zero length.
+double corner_angle(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const Eigen::Vector2d& r) {
+  const Eigen::Vector2d u = q - p, v = r - p;
+  return std::atan2(std::abs(u.x() * v.y() - u.y() * v.x()), u.dot(v));
+}
+
+// ---- coverage --------------------------------------------------------------
+
+struct Coverage {
+  long long covered = 0;
+  long long overlap = 0;
+};
+
+Coverage rasterise_coverage(const Mesh& mesh, const UvAtlas& atlas) {
+  const int faces = mesh.face_count();
+  const std::vector<PageSize>& pages = *atlas.pages;
+  const Eigen::VectorXi& face_page = *atlas.face_page;
+
+  std::vector<TexelTriangle> tri(faces);
+  std::vector<char> live(faces, 0);
+#pragma omp parallel for schedule(static)
+  for (int f = 0; f < faces; ++f) {
+    const int p = face_page[f];
+    if (p < 0) continue;
+    if (!tri[f].setup(texel_uv(atlas, f, 0), texel_uv(atlas, f, 1), texel_uv(atlas, f, 2))) continue;
+    TexelTriangle& t = tri[f];
+    t.row_begin = std::max(t.row_begin, 0);
+    t.row_end = std::min(t.row_end, pages[p].height);
+    live[f] = t.row_begin < t.row_end && t.col_begin < pages[p].width && t.col_end > 0;
+  }
+
+  // Global band numbering: page p owns bands [band_base[p], band_base[p+1]).
+  std::vector<int> band_base(pages.size() + 1, 0);
+  for (std::size_t p = 0; p < pages.size(); ++p)
+    band_base[p + 1] = band_base[p] + (pages[p].height + kBandRows - 1) / kBandRows;
+  const int bands = band_base.back();
+
+  // Faces of every band (CSR, in face order).
+  std::vector<long long> offsets(bands + 1, 0);
+  for (int f = 0; f < faces; ++f) {
+    if (!live[f]) continue;
+    const int base = band_base[face_page[f]];
+    for (int b = tri[f].row_begin / kBandRows; b <= (tri[f].row_end - 1) / kBandRows; ++b) ++offsets[base + b + 1];
+  }
+  for (int b = 0; b < bands; ++b) offsets[b + 1] += offsets[b];
+  std::vector<int> band_faces(offsets.back());
+  {
+    std::vector<long long> cursor(offsets.begin(), offsets.end() - 1);
+    for (int f = 0; f < faces; ++f) {
+      if (!live[f]) continue;
+      const int base = band_base[face_page[f]];
+      for (int b = tri[f].row_begin / kBandRows; b <= (tri[f].row_end - 1) / kBandRows; ++b)
+        band_faces[cursor[base + b]++] = f;
+    }
+  }
+  std::vector<int> band_page(bands);
+  for (std::size_t p = 0; p < pages.size(); ++p)
+    for (int b = band_base[p]; b < band_base[p + 1]; ++b) band_page[b] = static_cast<int>(p);
+
+  int widest = 0;
+  for (const PageSize& p : pages) widest = std::max(widest, p.width);
+
+  long long covered = 0, overlap = 0;
+#pragma omp parallel reduction(+ : covered, overlap)
+  {
+    // Per texel: 0, 1, or 2 = "two or more" triangles claim its centre.
+    std::vector<std::uint8_t> counts(static_cast<std::size_t>(widest) * kBandRows);
+#pragma omp for schedule(dynamic, 4)
+    for (int b = 0; b < bands; ++b) {
+      if (offsets[b] == offsets[b + 1]) continue;
+      const int p = band_page[b], width = pages[p].width;
+      const int y0 = (b - band_base[p]) * kBandRows, y1 = std::min(pages[p].height, y0 + kBandRows);
+      std::uint8_t* band = counts.data();
+      std::memset(band, 0, static_cast<std::size_t>(width) * (y1 - y0));
+      for (long long i = offsets[b]; i < offsets[b + 1]; ++i) {
+        const TexelTriangle& t = tri[band_faces[i]];
+        const int ya = std::max(y0, t.row_begin), yb = std::min(y1, t.row_end);
+        for (int y = ya; y < yb; ++y) {
+          int xa, xb;
+          t.row_span(y, xa, xb);
+          xa = std::max(xa, 0);
+          xb = std::min(xb, width);
+          std::uint8_t* row = band + static_cast<std::size_t>(y - y0) * width;
+          for (int x = xa; x < xb; ++x) row[x] = static_cast<std::uint8_t>(row[x] + (row[x] < 2));
+        }
+      }
+      const std::size_t n = static_cast<std::size_t>(width) * (y1 - y0);
+      long long c = 0, o = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        c += band[i] != 0;
+        o += band[i] == 2;
+      }
+      covered += c;
+      overlap += o;
+    }
+  }
+  return {covered, overlap};
+}
+
+// ---- colour sampling -------------------------------------------------------
+
+inline std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+inline double unit_double(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1.0p-53; }
+
+template <class T>
+inline double texel_scale() {
+  return 1.0;
+}
+template <>
+inline double texel_scale<std::uint8_t>() {
+  return 1.0 / 255.0;
+}
+
+}  // namespace
+
+// ---- public ------------------------------------------------------------------
+
+AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, const UvAtlas& atlas) {
+  require_atlas(mesh, atlas, "measure_atlas");
+  if (topology.corner_edge.size() != 3 * static_cast<std::size_t>(mesh.face_count()))
+    throw InputError("measure_atlas: topology was built for a different mesh");
+  AtlasMeasures m;
+
+  // The chart graph reads the layout from a Mesh: borrow positions/triangles, swap in the layout.
+  Mesh layout_mesh;
+  layout_mesh.positions = mesh.positions;
+  layout_mesh.triangles = mesh.triangles;
+  layout_mesh.corner_uv = *atlas.corner_uv;
+  layout_mesh.face_page = *atlas.face_page;
+  layout_mesh.pages = *atlas.pages;
+  const ChartGraph graph = build_chart_graph(layout_mesh, topology, {});
+  m.charts = graph.chart_count();
+  for (const ChartStats& s : graph.charts) m.boundary_texels += s.perimeter_uv;
+  m.seam_ratio = seam_length_ratio(mesh, topology, *atlas.corner_uv, *atlas.face_page);
+
+  int flipped = 0;
+  const int faces = mesh.face_count();
+#pragma omp parallel for reduction(+ : flipped) schedule(static)
+  for (int f = 0; f < faces; ++f) {
+    const int chart = graph.face_chart[f];
+    if (chart < 0) continue;
+    const double a = face_signed_area_uv(atlas, f);
+    if (a != 0 && (a < 0) != graph.charts[chart].mirrored()) ++flipped;
+  }
+  m.flipped_faces = flipped;
+
+  for (const PageSize& p : *atlas.pages) m.page_texels += static_cast<long long>(p.width) * p.height;
+  const Coverage coverage = rasterise_coverage(mesh, atlas);
+  m.covered_texels = coverage.covered;
+  m.overlap_texels = coverage.overlap;
+  m.occupancy = m.page_texels > 0 ? static_cast<double>(m.covered_texels) / m.page_texels : 0.0;
+  return m;
+}
+
+MapMeasures measure_map(const Mesh& mesh, const UvAtlas& old_atlas, const UvAtlas& new_atlas) {
+  require_atlas(mesh, old_atlas, "measure_map (old)");
+  require_atlas(mesh, new_atlas, "measure_map (new)");
+  const int faces = mesh.face_count();
+
+  // Per face: density ratio and 3D area (weight 0: skipped); per corner: angle error.
+  std::vector<std::pair<double, double>> ratio(faces, {0.0, 0.0});
+  std::vector<std::pair<double, double>> angle(3 * static_cast<std::size_t>(faces), {0.0, 0.0});
+#pragma omp parallel for schedule(static)
+  for (int f = 0; f < faces; ++f) {
+    if ((*old_atlas.face_page)[f] < 0 || (*new_atlas.face_page)[f] < 0) continue;
+    const double area = face_area_3d(mesh, f);
+    const double old_uv = std::abs(face_signed_area_uv(old_atlas, f));
+    if (!(area > 0) || !(old_uv > 0)) continue;
+    const double new_uv = std::abs(face_signed_area_uv(new_atlas, f));
+    ratio[f] = {new_uv / old_uv, area};
+    const Eigen::Vector2d o[3] = {texel_uv(old_atlas, f, 0), texel_uv(old_atlas, f, 1), texel_uv(old_atlas, f, 2)};
+    const Eigen::Vector2d n[3] = {texel_uv(new_atlas, f, 0), texel_uv(new_atlas, f, 1), texel_uv(new_atlas, f, 2)};
+    for (int k = 0; k < 3; ++k) {
+      const int k1 = (k + 1) % 3, k2 = (k + 2) % 3;
+      const double error = std::abs(corner_angle(n[k], n[k1], n[k2]) - corner_angle(o[k], o[k1], o[k2]));
+      angle[3 * static_cast<std::size_t>(f) + k] = {error * (180.0 / kPi), area / 3};
+    }
+  }
+  // Drop skipped entries so they do not sit at value 0 with weight 0 in the order.
+  auto drop_unweighted = [](std::vector<std::pair<double, double>>& v) {
+    v.erase(std::remove_if(v.begin(), v.end(), [](const auto& e) { return !(e.second > 0); }), v.end());
+  };
+  drop_unweighted(ratio);
+  drop_unweighted(angle);
+
+  MapMeasures m;
+  double total = 0, lost = 0;
+  for (const auto& [r, w] : ratio) {
+    total += w;
+    if (r < 0.5) lost += w;
+  }
+  m.density_loss_area_share = total > 0 ? lost / total : 0.0;
+  const std::vector<double> rp = weighted_percentiles(ratio, {0.05, 0.50, 0.95});
+  m.density_ratio_p5 = rp[0];
+  m.density_ratio_p50 = rp[1];
+  m.density_ratio_p95 = rp[2];
+  const std::vector<double> ap = weighted_percentiles(angle, {0.50, 0.90, 0.99});
+  m.angle_error_p50 = ap[0];
+  m.angle_error_p90 = ap[1];
+  m.angle_error_p99 = ap[2];
+  return m;
+}
+
+template <class T>
+ColorFidelity compare_colors(const Mesh& mesh, const UvAtlas& old_atlas, const std::vector<ImageView<T>>& old_images,
+                             const UvAtlas& new_atlas, const std::vector<ImageView<T>>& new_images, int samples,
+                             unsigned seed) {
+  require_atlas(mesh, old_atlas, "compare_colors (old)");
+  require_atlas(mesh, new_atlas, "compare_colors (new)");
+  require_images(old_images, old_atlas, "old");
+  require_images(new_images, new_atlas, "new");
+  ColorFidelity result;
+  const int faces = mesh.face_count();
+
+  // Cumulative 3D area over faces textured in both layouts.
+  std::vector<int> face;
+  std::vector<double> cdf;
+  double total = 0;
+  for (int f = 0; f < faces; ++f) {
+    if ((*old_atlas.face_page)[f] < 0 || (*new_atlas.face_page)[f] < 0) continue;
+    const double a = face_area_3d(mesh, f);
+    if (!(a > 0)) continue;
+    total += a;
+    face.push_back(f);
+    cdf.push_back(total);
+  }
+  if (face.empty() || samples <= 0) return result;
+
+  const double scale = texel_scale<T>();
+  constexpr int kChunk = 4096;  // per-chunk partial sums keep the total independent of thread count
+  const int chunks = (samples + kChunk - 1) / kChunk;
+  std::vector<double> chunk_error(chunks, 0.0);
+  std::vector<long long> chunk_off(chunks, 0), chunk_values(chunks, 0);
+  const std::uint64_t stream = splitmix64(0x5eed0000ull ^ seed);
+
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int chunk = 0; chunk < chunks; ++chunk) {
+    const int begin = chunk * kChunk, end = std::min(samples, begin + kChunk);
+    double error = 0;
+    long long off = 0, values = 0;
+    double old_px[kMaxTexelChannels], new_px[kMaxTexelChannels];
+    // Jittered stratified picks: sample i lands uniformly in the i-th of `samples`
+    // equal slices of the cumulative area, so picks rise with i and the face search
+    // is a merge walk; samples of one face are consecutive, which keeps texel reads local.
+    std::size_t j = 0;
+    for (int i = begin; i < end; ++i) {
+      const std::uint64_t state = stream + 3 * static_cast<std::uint64_t>(i);
+      const double pick = (i + unit_double(splitmix64(state))) / samples * total;
+      const double s = std::sqrt(unit_double(splitmix64(state + 1))), t = unit_double(splitmix64(state + 2));
+      if (i == begin) j = std::upper_bound(cdf.begin(), cdf.end(), pick) - cdf.begin();
+      while (j < cdf.size() && cdf[j] <= pick) ++j;
+      j = std::min(j, face.size() - 1);
+      const int f = face[j];
+      const double w0 = 1 - s, w1 = s * (1 - t), w2 = s * t;  // uniform barycentrics
+      auto at = [&](const UvAtlas& atlas, const ImageView<T>& image) {
+        const RowMatrixX2d& uv = *atlas.corner_uv;
+        const Eigen::Vector2d p = w0 * uv.row(3 * f).transpose() + w1 * uv.row(3 * f + 1).transpose() +
+                                  w2 * uv.row(3 * f + 2).transpose();
+        return Eigen::Vector2d(p.x() * image.width, p.y() * image.height);
+      };
+      const ImageView<T>& old_image = old_images[(*old_atlas.face_page)[f]];
+      const ImageView<T>& new_image = new_images[(*new_atlas.face_page)[f]];
+      sample_texture(old_image, at(old_atlas, old_image), Footprint{}, old_px);
+      sample_texture(new_image, at(new_atlas, new_image), Footprint{}, new_px);
+      const int channels = std::min({3, old_image.channels, new_image.channels});
+      bool is_off = false;
+      for (int c = 0; c < channels; ++c) {
+        double d = std::abs(new_px[c] - old_px[c]) * scale;
+        if (!std::isfinite(d)) d = 1.0;
+        error += d * d;
+        is_off = is_off || d > 32.0 / 255.0;
+      }
+      values += channels;
+      off += is_off;
+    }
+    chunk_error[chunk] = error;
+    chunk_off[chunk] = off;
+    chunk_values[chunk] = values;
+  }
+  double error = 0;
+  long long off = 0, values = 0;
+  for (int c = 0; c < chunks; ++c) {
+    error += chunk_error[c];
+    off += chunk_off[c];
+    values += chunk_values[c];
+  }
+  result.samples = samples;
+  result.share_off_32 = static_cast<double>(off) / samples;
+  const double mse = values > 0 ? error / values : 0.0;
+  const double psnr = mse > 0 ? -10.0 * std::log10(mse) : kMaxPsnrDb;
+  // Capped both ways: identical colours give +99, absurd float values at worst -99, never NaN.
+  result.psnr_db = std::isfinite(psnr) ? std::clamp(psnr, -kMaxPsnrDb, kMaxPsnrDb) : -kMaxPsnrDb;
+  return result;
+}
+
+template ColorFidelity compare_colors<std::uint8_t>(const Mesh&, const UvAtlas&,
+                                                    const std::vector<ImageView<std::uint8_t>>&, const UvAtlas&,
+                                                    const std::vector<ImageView<std::uint8_t>>&, int, unsigned);
+template ColorFidelity compare_colors<float>(const Mesh&, const UvAtlas&, const std::vector<ImageView<float>>&,
+                                             const UvAtlas&, const std::vector<ImageView<float>>&, int, unsigned);
+
+}  // namespace atlas

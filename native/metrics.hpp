@@ -1,0 +1,77 @@
+// Quality metrics of a texture atlas and of the map old UV -> new UV: what every
+// stage and the benchmark are judged by. Untextured faces (page -1) are ignored
+// everywhere; no result is ever NaN.
+#pragma once
+#include <Eigen/Core>
+#include <vector>
+
+#include "bake.hpp"
+#include "mesh.hpp"
+#include "topology.hpp"
+
+namespace atlas {
+
+// One parameterization of a mesh: borrowed arrays, shaped like Mesh's
+// (corner_uv 3F x 2 in page units, face_page F with -1 = untextured, page sizes).
+struct UvAtlas {
+  const RowMatrixX2d* corner_uv = nullptr;
+  const Eigen::VectorXi* face_page = nullptr;
+  const std::vector<PageSize>* pages = nullptr;
+};
+
+// The mesh's own layout.
+inline UvAtlas atlas_of(const Mesh& mesh) { return {&mesh.corner_uv, &mesh.face_page, &mesh.pages}; }
+
+// One layout on its own.
+struct AtlasMeasures {
+  int charts = 0;
+  double seam_ratio = 0;           // seam 3D length / sqrt(3D area) (seam_length_ratio)
+  double boundary_texels = 0;      // sum of chart perimeters in texels
+  long long page_texels = 0;       // sum of width * height over all pages of the layout
+  long long covered_texels = 0;    // texels whose centre some triangle covers
+  double occupancy = 0;            // covered / page texels
+  int flipped_faces = 0;           // signed UV area opposite to the chart's (zero area not counted)
+  long long overlap_texels = 0;    // texels whose centre two or more triangles cover
+};
+
+// Only positions and triangles of `mesh` are used; the UVs come from `atlas`.
+// Coverage is rasterised at texel centres on each face's page: a centre on an
+// edge shared by two triangles counts once; parts of triangles outside the page
+// (UVs outside [0,1]) are clipped, not wrapped; zero-area triangles claim nothing.
+// Throws InputError when the atlas does not match the mesh (shapes, pages,
+// non-finite UVs).
+AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, const UvAtlas& atlas);
+
+// The map old UV -> new UV. Texel density of a face = UV area in texels per 3D
+// area. Faces untextured in either layout, or with zero 3D area or zero old UV
+// area, are skipped; percentiles are area-weighted (the smallest value whose
+// cumulative weight reaches the fraction); all zero when no face counts.
+struct MapMeasures {
+  double density_loss_area_share = 0;  // share of 3D area whose density ratio new/old < 0.5
+  double density_ratio_p5 = 0, density_ratio_p50 = 0, density_ratio_p95 = 0;
+  double angle_error_p50 = 0, angle_error_p90 = 0, angle_error_p99 = 0;  // degrees, per corner, in texel space
+};
+
+MapMeasures measure_map(const Mesh& mesh, const UvAtlas& old_atlas, const UvAtlas& new_atlas);
+
+// Colour fidelity of a re-bake. psnr_db is capped at kMaxPsnrDb (identical colours).
+constexpr double kMaxPsnrDb = 99.0;
+struct ColorFidelity {
+  double psnr_db = kMaxPsnrDb;  // over RGB (first min(3, channels) channels) in [0,1] units
+  double share_off_32 = 0;      // share of points where some channel differs by > 32/255
+  long long samples = 0;        // points drawn (0 when no face is textured in both layouts)
+};
+
+// Draws `samples` surface points uniformly by 3D area over the faces textured
+// in both layouts (jittered stratified along the cumulative area, uniform
+// barycentrics; deterministic for a given seed, independent of thread count),
+// samples old_images[old page] and new_images[new page] bilinearly with repeat
+// wrapping at the points' UVs. uint8 values are divided by 255, floats used as
+// they are; a non-finite difference counts as 1. Throws InputError when a used
+// page has no image or an image view is inconsistent.
+template <class T>
+ColorFidelity compare_colors(const Mesh& mesh, const UvAtlas& old_atlas, const std::vector<ImageView<T>>& old_images,
+                             const UvAtlas& new_atlas, const std::vector<ImageView<T>>& new_images, int samples,
+                             unsigned seed);
+
+}  // namespace atlas

@@ -1,0 +1,46 @@
+// Overlaps (thesis 5.1): a merged chart whose new boundary crosses itself is
+// split back into two groups of its original charts, each solved again. A group
+// holding a single original chart keeps its original UVs, so this always ends.
+#pragma once
+#include <vector>
+
+#include "charts.hpp"
+#include "mesh.hpp"
+#include "slim.hpp"
+#include "topology.hpp"
+
+namespace atlas {
+
+// True when two boundary edges of the chart cross or touch (other than at a
+// shared end vertex). Uses a uniform grid over the boundary's bounding box.
+// triangles are local vertex indices into uv.
+bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d& uv);
+
+// A chart as it leaves the parameterization stage.
+struct FlatChart {
+  std::vector<int> faces;      // mesh faces
+  RowMatrixX2d corner_uv;      // 3 rows per face, texels, arbitrary placement
+  bool kept_original = false;  // single original chart, UVs copied from the input
+  double energy_initial = 0, energy_final = 0;  // per unit reference area (0 when kept)
+  int iterations = 0;
+};
+
+// Why charts were split back (each split counts once, under its first reason).
+struct FlattenStats {
+  int not_disk = 0;            // handles left after cutting holes open
+  int solver_failed = 0;       // SLIM reported a failure or left flipped faces
+  int overlapped = 0;          // the new boundary crossed itself
+  int splits() const { return not_disk + solver_failed + overlapped; }
+};
+
+// Flattens one aggregated chart (its original charts `members`), splitting on
+// overlap or solver failure until every piece is valid.
+// chart_faces[c] lists the faces of original chart c.
+std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology,
+                                               const ChartGraph& graph,
+                                               const std::vector<std::vector<int>>& chart_faces,
+                                               const std::vector<int>& members,
+                                               const SlimOptions& options, const RunControl& control,
+                                               FlattenStats& stats);
+
+}  // namespace atlas

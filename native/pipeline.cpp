@@ -1,0 +1,185 @@
+#include "pipeline.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <exception>
+#include <map>
+#include <numeric>
+
+#include "charts.hpp"
+#include "cut_mesh.hpp"
+#include "overlap.hpp"
+#include "topology.hpp"
+
+namespace atlas {
+namespace {
+
+class StageClock {
+ public:
+  explicit StageClock(PipelineReport& report) : report_(report) {}
+  void lap(const std::string& stage) {
+    const auto now = std::chrono::steady_clock::now();
+    report_.seconds.push_back({stage, std::chrono::duration<double>(now - last_).count()});
+    last_ = now;
+  }
+
+ private:
+  PipelineReport& report_;
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
+std::vector<std::vector<int>> faces_by_chart(const std::vector<int>& face_chart, int chart_count) {
+  std::vector<std::vector<int>> out(chart_count);
+  for (size_t f = 0; f < face_chart.size(); ++f)
+    if (face_chart[f] >= 0) out[face_chart[f]].push_back(static_cast<int>(f));
+  return out;
+}
+
+// One aggregated chart per task, largest first so the long ones start early.
+// Exceptions (Cancelled included) cannot leave an OpenMP region: the first is
+// kept and rethrown after the loop.
+std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                                   const Aggregation& aggregation, const SlimOptions& options,
+                                   const RunControl& control, PipelineReport& report) {
+  const auto chart_faces = faces_by_chart(graph.face_chart, graph.chart_count());
+  std::vector<int> order(aggregation.chart_count());
+  std::iota(order.begin(), order.end(), 0);
+  auto faces_in = [&](int c) {
+    size_t n = 0;
+    for (int m : aggregation.members[c]) n += chart_faces[m].size();
+    return n;
+  };
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
+
+  std::vector<std::vector<FlatChart>> pieces(order.size());
+  std::vector<FlattenStats> stats(order.size());
+  std::exception_ptr error;
+  std::atomic<int> finished{0};
+  std::atomic<bool> failed{false};
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int i = 0; i < static_cast<int>(order.size()); ++i) {
+    if (failed || control.cancelled()) continue;
+    try {
+      pieces[i] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[order[i]],
+                                          options, control, stats[i]);
+      ++finished;
+      if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / order.size());
+    } catch (...) {
+#pragma omp critical
+      if (!error) error = std::current_exception();
+      failed = true;  // the other workers skip what they have not started
+    }
+  }
+  if (error) std::rethrow_exception(error);
+  control.throw_if_cancelled();
+  std::vector<FlatChart> out;
+  for (size_t i = 0; i < pieces.size(); ++i) {
+    report.splits_not_disk += stats[i].not_disk;
+    report.splits_solver += stats[i].solver_failed;
+    report.splits_overlap += stats[i].overlapped;
+    for (auto& c : pieces[i]) out.push_back(std::move(c));
+  }
+  return out;
+}
+
+long long page_texels(const std::vector<PageSize>& pages, const std::vector<char>& used) {
+  long long total = 0;
+  for (size_t p = 0; p < pages.size(); ++p)
+    if (used.empty() || used[p]) total += static_cast<long long>(pages[p].width) * pages[p].height;
+  return total;
+}
+
+// Packs each face group on pages of its own and writes the placed UVs.
+void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std::vector<FlatChart>& charts,
+                 const PackOptions& base, const RunControl& control, PipelineResult& result) {
+  std::map<int, std::vector<int>> by_group;
+  for (size_t c = 0; c < charts.size(); ++c)
+    by_group[face_group.empty() ? 0 : face_group[charts[c].faces.front()]].push_back(static_cast<int>(c));
+  double covered = 0, total = 0;
+  for (const auto& [group, members] : by_group) {
+    std::vector<char> used(mesh.pages.size(), 0);
+    std::vector<RowMatrixX2d> uv;
+    for (int c : members) {
+      uv.push_back(charts[c].corner_uv);
+      for (int f : charts[c].faces) used[mesh.face_page[f]] = 1;
+    }
+    PackOptions options = base;
+    if (options.texel_budget <= 0 && options.fixed_page_size <= 0) options.texel_budget = page_texels(mesh.pages, used);
+    const PackResult packed = pack_charts(uv, options, control);
+    const int first_page = static_cast<int>(result.pages.size());
+    for (size_t i = 0; i < members.size(); ++i) {
+      const FlatChart& chart = charts[members[i]];
+      for (size_t j = 0; j < chart.faces.size(); ++j) {
+        const int f = chart.faces[j];
+        result.corner_uv.middleRows(3 * f, 3) = packed.placed_uv[i].middleRows(3 * j, 3);
+        result.face_page[f] = first_page + packed.chart_page[i];
+      }
+    }
+    result.pages.insert(result.pages.end(), packed.pages.begin(), packed.pages.end());
+    const double texels = static_cast<double>(page_texels(packed.pages, {}));
+    covered += packed.efficiency * texels;
+    total += texels;
+    result.report.scale = std::min(result.report.scale, packed.scale);
+  }
+  result.report.packing_efficiency = total > 0 ? covered / total : 0;
+}
+
+void summarize_energy(const std::vector<FlatChart>& charts, PipelineReport& report) {
+  std::vector<double> energy;
+  for (const FlatChart& c : charts)
+    if (!c.kept_original) energy.push_back(c.energy_final);
+  report.charts_solved = static_cast<int>(energy.size());
+  if (energy.empty()) return;
+  std::sort(energy.begin(), energy.end());
+  report.energy_median = energy[energy.size() / 2];
+  report.energy_max = energy.back();
+}
+
+}  // namespace
+
+PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group, const PipelineOptions& options,
+                          const RunControl& control) {
+  PipelineResult result;
+  PipelineReport& report = result.report;
+  StageClock clock(report);
+  const MeshTopology welded_topology = build_topology(welded.triangles, welded.vertex_count());
+  const ChartGraph welded_graph = build_chart_graph(welded, welded_topology, face_group);
+  report.charts_before = welded_graph.chart_count();
+  report.seam_before = seam_length_ratio(welded, welded_topology, welded.corner_uv, welded.face_page);
+  std::vector<char> used(welded.pages.size(), 0);
+  for (int f = 0; f < welded.face_count(); ++f)
+    if (welded.face_page[f] >= 0) used[welded.face_page[f]] = 1;
+  report.texels_before = page_texels(welded.pages, used);
+  // Everything from here on works on the cut surface (see cut_mesh.hpp); its
+  // charts are the same, numbered the same.
+  const Mesh mesh = cut_internal_seams(welded, welded_topology, welded_graph);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const ChartGraph graph = build_chart_graph(mesh, topology, face_group);
+  clock.lap("charts");
+  control.progress("charts", 1.0);
+
+  const Aggregation aggregation = aggregate_charts(mesh, topology, graph, options.aggregate, control);
+  report.charts_aggregated = aggregation.chart_count();
+  clock.lap("aggregate");
+
+  const std::vector<FlatChart> charts = flatten_all(mesh, topology, graph, aggregation, options.slim, control, report);
+  report.charts_after = static_cast<int>(charts.size());
+  summarize_energy(charts, report);
+  clock.lap("flatten");
+
+  // Untextured faces keep their input UVs and page -1.
+  result.corner_uv = mesh.corner_uv;
+  result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
+  pack_groups(mesh, face_group, charts, options.pack, control, result);
+  report.texels_after = page_texels(result.pages, {});
+  clock.lap("pack");
+
+  report.seam_after = seam_length_ratio(welded, welded_topology, result.corner_uv, result.face_page);
+  control.progress("pack", 1.0);
+  return result;
+}
+
+}  // namespace atlas

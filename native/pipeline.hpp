@@ -1,0 +1,54 @@
+// The whole job on plain arrays: chart graph -> aggregation -> flattening with
+// overlap backtracking -> packing. Baking is separate (see bake.hpp) so that the
+// caller can bake each of its image maps through the same new layout.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "aggregate.hpp"
+#include "mesh.hpp"
+#include "pack.hpp"
+#include "run_control.hpp"
+#include "slim.hpp"
+
+namespace atlas {
+
+struct PipelineOptions {
+  AggregateOptions aggregate;
+  SlimOptions slim;
+  PackOptions pack;  // texel_budget 0 means "the input's texel count, per group"
+};
+
+struct StageTime {
+  std::string stage;
+  double seconds = 0;
+};
+
+struct PipelineReport {
+  int charts_before = 0;       // UV charts of the input
+  int charts_aggregated = 0;   // after aggregation, before overlap splits
+  int charts_after = 0;        // in the output
+  int charts_solved = 0;       // flattened by SLIM (the rest kept their original UVs)
+  int splits_not_disk = 0;     // charts split back, by reason (see FlattenStats)
+  int splits_solver = 0;
+  int splits_overlap = 0;
+  double seam_before = 0, seam_after = 0;  // seam length / sqrt(area)
+  long long texels_before = 0, texels_after = 0;
+  double packing_efficiency = 0;
+  double scale = 1;            // uniform texel scale the packer applied
+  double energy_median = 0, energy_max = 0;  // symmetric Dirichlet per area of solved charts
+  std::vector<StageTime> seconds;
+};
+
+struct PipelineResult {
+  RowMatrixX2d corner_uv;       // 3F x 2, page units of the new pages
+  Eigen::VectorXi face_page;    // new page per face, -1 kept for untextured faces
+  std::vector<PageSize> pages;
+  PipelineReport report;
+};
+
+// face_group may be empty; faces of different groups never share a chart or a page.
+PipelineResult defragment(const Mesh& mesh, const std::vector<int>& face_group, const PipelineOptions& options,
+                          const RunControl& control);
+
+}  // namespace atlas

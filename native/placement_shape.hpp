@@ -1,0 +1,30 @@
+// A dilated chart mask prepared for placement: its runs of set texels per
+// row (for the hole search) and its lower and upper outline per column (for
+// dropping it onto the page horizon).
+#pragma once
+#include <vector>
+
+#include "texel_mask.hpp"
+
+namespace atlas {
+
+struct Span {
+  int begin, end;  // texels [begin, end) of one row
+};
+
+struct PlacementShape {
+  TexelMask mask;
+  std::vector<Span> runs;         // runs of set texels, row by row, left to right
+  std::vector<int> row_start;     // runs of row r: runs[row_start[r], row_start[r + 1])
+  std::vector<int> longest_run;   // per row
+  int widest_row = 0;             // row holding the longest run
+  std::vector<int> row_order;     // rows in the order the hole search tests them
+  std::vector<int> column_bottom; // per column: lowest set row, mask.height if none
+  std::vector<int> column_top;    // per column: highest set row + 1, 0 if none
+  std::vector<int> column_order;  // set columns, lowest column_bottom first
+  std::vector<int> key_columns;   // a few set columns spread over the width, for bounds
+};
+
+PlacementShape make_placement_shape(TexelMask mask);
+
+}  // namespace atlas

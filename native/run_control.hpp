@@ -1,0 +1,49 @@
+// Progress reporting and cooperative cancellation shared by every stage.
+// One RunControl is owned by the caller of a pipeline run; stages only borrow it.
+#pragma once
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+namespace atlas {
+
+// Thrown when the caller asked to stop; the pipeline leaves its inputs untouched.
+struct Cancelled : std::runtime_error {
+  Cancelled() : std::runtime_error("cancelled") {}
+};
+
+class RunControl {
+ public:
+  // report(stage, fraction in [0,1]) is called from the calling thread only.
+  using ReportFn = std::function<void(const std::string& stage, double fraction)>;
+
+  using Flag = std::shared_ptr<std::atomic<bool>>;
+
+  RunControl() = default;
+  // flag may be shared with the caller (e.g. a Python CancelToken) to cancel from outside.
+  explicit RunControl(ReportFn report, Flag flag = std::make_shared<std::atomic<bool>>(false))
+      : report_(std::move(report)), cancelled_(std::move(flag)) {}
+
+  // const: cancelling is a signal to the run, not a change of its inputs.
+  void cancel() const { cancelled_->store(true, std::memory_order_relaxed); }
+  bool cancelled() const { return cancelled_->load(std::memory_order_relaxed); }
+
+  // Safe to call from any thread: OpenMP workers poll cancelled() instead.
+  void throw_if_cancelled() const {
+    if (cancelled()) throw Cancelled();
+  }
+
+  // Main thread only: forwards progress, then honours a pending cancel.
+  void progress(const std::string& stage, double fraction) const {
+    if (report_) report_(stage, fraction);
+    throw_if_cancelled();
+  }
+
+ private:
+  ReportFn report_;
+  Flag cancelled_ = std::make_shared<std::atomic<bool>>(false);
+};
+
+}  // namespace atlas

@@ -1,0 +1,336 @@
+// SLIM (Rabinovich et al. 2017) on the symmetric Dirichlet energy of the map
+// from each face's reference triangle to its new UV triangle (thesis 5.3.1, 5.4):
+//   E(u) = sum_f A_ref(f) psi(J_f(u)),  psi(J) = s1^2 + s2^2 + s1^-2 + s2^-2.
+// Each iteration solves one sparse SPD system whose pattern never changes, so
+// the symbolic Cholesky analysis is done once per chart and every iteration
+// costs little more than one numeric factorization.
+#include "slim.hpp"
+
+#include <Eigen/LU>
+#include <Eigen/OrderingMethods>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <vector>
+
+#include "disk_boundary.hpp"
+#include "reference_triangles.hpp"
+#include "symmetric_dirichlet.hpp"
+#include "tutte_embedding.hpp"
+
+namespace atlas {
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// Take this fraction of the step at which the first triangle degenerates: the
+// energy is infinite there, so the full step would never pass the line search.
+constexpr double kSafeStepFraction = 0.8;
+// Armijo sufficient decrease: E(x + t d) <= E(x) + kArmijo t dE/dt.
+constexpr double kArmijo = 1e-4;
+// 2^-30 of a step no longer moves a vertex by anything measurable.
+constexpr int kMaxHalvings = 30;
+
+// One face in solver numbering. Unknowns are interleaved, (x, y) of a vertex
+// side by side at dof and dof + 1, so each vertex is a 2x2 block.
+struct ProxyFace {
+  int dof[3];
+  double area;                    // reference area
+  Eigen::Matrix2d inverse_edges;  // [r1 - r0, r2 - r0]^-1, so J = [u1 - u0, u2 - u0] inverse_edges
+  double stiffness[6];            // area g_k.g_l for (k,l) = (0,1), (1,2), (2,0), (0,0), (1,1), (2,2)
+  int slot[21];                   // where those 6 blocks go in the matrix values, see assemble_proxy
+};
+
+// J = sum_k u_k g_k^T with g_1, g_2 the rows of inverse_edges and g_0 = -g_1 - g_2.
+Eigen::Vector2d corner_gradient(const ProxyFace& face, int k) {
+  if (k == 0) return -(face.inverse_edges.row(0) + face.inverse_edges.row(1)).transpose();
+  return face.inverse_edges.row(k - 1).transpose();
+}
+
+Eigen::Matrix2d edge_matrix(const ProxyFace& face, const Eigen::VectorXd& x) {
+  Eigen::Matrix2d edges;
+  edges << x[face.dof[1]] - x[face.dof[0]], x[face.dof[2]] - x[face.dof[0]],
+      x[face.dof[1] + 1] - x[face.dof[0] + 1], x[face.dof[2] + 1] - x[face.dof[0] + 1];
+  return edges;
+}
+
+Eigen::Matrix2d jacobian(const ProxyFace& face, const Eigen::VectorXd& x) {
+  return edge_matrix(face, x) * face.inverse_edges;
+}
+
+// The SLIM global step, (H + lambda I) x = b. The pattern is fixed, and only
+// the upper triangle is stored: with natural ordering Eigen then factorizes
+// the matrix in place, without the permuted copy it makes otherwise.
+struct ProxySystem {
+  Eigen::SparseMatrix<double> matrix;
+  std::vector<int> diagonal_slots;
+  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::NaturalOrdering<int>> solver;
+  Eigen::VectorXd rhs, solution;
+};
+
+// Fill-reducing (AMD) order of the vertex graph: x and y of a vertex always
+// couple, so ordering vertices and interleaving costs 4x less than ordering
+// the 2n unknowns, for the same fill. Returns the new index of each vertex.
+std::vector<int> fill_reducing_order(const RowMatrixX3i& triangles, int vertex_count) {
+  std::vector<Eigen::Triplet<double>> edges;
+  edges.reserve(3 * triangles.rows() + vertex_count);
+  for (int v = 0; v < vertex_count; ++v) edges.emplace_back(v, v, 1.0);
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
+    for (int k = 0; k < 3; ++k) edges.emplace_back(triangles(f, k), triangles(f, (k + 1) % 3), 1.0);
+  Eigen::SparseMatrix<double> graph(vertex_count, vertex_count);
+  graph.setFromTriplets(edges.begin(), edges.end());
+  // Eigen's orderings return P^-1; P sends vertex v to row P(v).
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
+  Eigen::AMDOrdering<int>()(graph, inverse);
+  const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> order = inverse.inverse();
+  return std::vector<int>(order.indices().data(), order.indices().data() + vertex_count);
+}
+
+std::vector<ProxyFace> proxy_faces(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
+                                   const std::vector<int>& order) {
+  std::vector<ProxyFace> faces(triangles.rows());
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    ProxyFace& face = faces[f];
+    for (int k = 0; k < 3; ++k) face.dof[k] = 2 * order[triangles(f, k)];
+    Eigen::Matrix2d edges;
+    edges.col(0) = (reference.row(3 * f + 1) - reference.row(3 * f)).transpose();
+    edges.col(1) = (reference.row(3 * f + 2) - reference.row(3 * f)).transpose();
+    face.area = edges.determinant() / 2;
+    face.inverse_edges = edges.inverse();
+    const Eigen::Vector2d g[3] = {corner_gradient(face, 0), corner_gradient(face, 1), corner_gradient(face, 2)};
+    for (int e = 0; e < 3; ++e) {
+      face.stiffness[e] = face.area * g[e].dot(g[(e + 1) % 3]);
+      face.stiffness[3 + e] = face.area * g[e].squaredNorm();
+    }
+  }
+  return faces;
+}
+
+// Position of entry (row, col), row <= col, in the values of a compressed
+// column-major matrix (rows are sorted within a column).
+int value_slot(const Eigen::SparseMatrix<double>& m, int row, int col) {
+  const int* begin = m.innerIndexPtr() + m.outerIndexPtr()[col];
+  const int* end = m.innerIndexPtr() + m.outerIndexPtr()[col + 1];
+  return static_cast<int>(std::lower_bound(begin, end, row) - m.innerIndexPtr());
+}
+
+// The upper-triangle entries each face writes, in assemble_proxy's order:
+// for each edge (k, l) the full 2x2 block between the two vertices (the lower
+// dof gives the rows), then for each corner the 3 upper entries of its diagonal block.
+template <class Visit>
+void for_each_face_entry(const ProxyFace& face, Visit visit) {
+  for (int e = 0; e < 3; ++e) {
+    const int lo = std::min(face.dof[e], face.dof[(e + 1) % 3]), hi = std::max(face.dof[e], face.dof[(e + 1) % 3]);
+    visit(lo, hi), visit(lo, hi + 1), visit(lo + 1, hi), visit(lo + 1, hi + 1);
+  }
+  for (const int d : face.dof) visit(d, d), visit(d, d + 1), visit(d + 1, d + 1);
+}
+
+// Builds the pattern, records every face's value slots and runs the symbolic
+// analysis: all the per-chart work that the iterations then reuse.
+void prepare_proxy_system(std::vector<ProxyFace>& faces, int dof_count, ProxySystem& system) {
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(21 * faces.size() + dof_count);
+  for (int i = 0; i < dof_count; ++i) entries.emplace_back(i, i, 0.0);
+  for (const ProxyFace& face : faces)
+    for_each_face_entry(face, [&](int row, int col) { entries.emplace_back(row, col, 0.0); });
+  system.matrix.resize(dof_count, dof_count);
+  system.matrix.setFromTriplets(entries.begin(), entries.end());
+  system.matrix.makeCompressed();
+  for (ProxyFace& face : faces) {
+    int* slot = face.slot;
+    for_each_face_entry(face, [&](int row, int col) { *slot++ = value_slot(system.matrix, row, col); });
+  }
+  system.diagonal_slots.resize(dof_count);
+  for (int i = 0; i < dof_count; ++i) system.diagonal_slots[i] = value_slot(system.matrix, i, i);
+  system.solver.analyzePattern(system.matrix);
+  system.rhs.resize(dof_count);
+  system.solution.resize(dof_count);
+}
+
+// Local step and assembly. Per face, with R and M = W^2 from slim_proxy_target,
+// A |W (J - R)|_F^2 = sum_kl A g_k.g_l u_k^T M u_l - 2 sum_k A u_k^T M R g_k + const,
+// so block (k,l) of H is stiffness_kl M and b_k = A M R g_k. M is symmetric, so
+// a block and its transpose are equal and either can be stored. The proximal
+// term lambda |x - x_k|^2 adds lambda I and lambda x_k: it pins the translation
+// the energy does not see.
+void assemble_proxy(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x, double proximal_weight,
+                    ProxySystem& system) {
+  double* values = system.matrix.valuePtr();
+  std::fill(values, values + system.matrix.nonZeros(), 0.0);
+  system.rhs = proximal_weight * x;
+  for (const ProxyFace& face : faces) {
+    const SlimProxyTarget target = slim_proxy_target(jacobian(face, x));
+    const Eigen::Matrix2d& M = target.weight;
+    const int* slot = face.slot;
+    for (int e = 0; e < 3; ++e) {
+      const double c = face.stiffness[e];
+      values[*slot++] += c * M(0, 0), values[*slot++] += c * M(0, 1);
+      values[*slot++] += c * M(1, 0), values[*slot++] += c * M(1, 1);
+    }
+    for (int k = 0; k < 3; ++k) {
+      const double c = face.stiffness[3 + k];
+      values[*slot++] += c * M(0, 0), values[*slot++] += c * M(0, 1), values[*slot++] += c * M(1, 1);
+    }
+    const Eigen::Matrix2d target_map = face.area * M * target.rotation;
+    for (int k = 0; k < 3; ++k) system.rhs.segment<2>(face.dof[k]) += target_map * corner_gradient(face, k);
+  }
+  for (int slot : system.diagonal_slots) values[slot] += proximal_weight;
+}
+
+// sum_f A_f psi(J_f); +inf as soon as one face flips or degenerates.
+double total_energy(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x) {
+  double energy = 0;
+  for (const ProxyFace& face : faces) {
+    energy += face.area * symmetric_dirichlet_density(jacobian(face, x));
+    if (!(energy < kInfinity)) return kInfinity;
+  }
+  return energy;
+}
+
+// Smallest t > 0 with a t^2 + b t + c = 0, for c > 0 (+inf if none), using
+// the cancellation-free form of the roots.
+double first_positive_root(double a, double b, double c) {
+  if (a == 0) return b < 0 ? -c / b : kInfinity;
+  const double discriminant = b * b - 4 * a * c;
+  if (discriminant < 0) return kInfinity;
+  const double q = -0.5 * (b + std::copysign(std::sqrt(discriminant), b));
+  double t = kInfinity;
+  for (const double root : {q / a, c / q})
+    if (root > 0) t = std::min(t, root);
+  return t;
+}
+
+struct SearchLine {
+  double slope = 0;              // dE/dt at t = 0, sum_f A_f <dpsi/dJ, dJ/dt>
+  double max_step = kInfinity;   // first t at which some triangle degenerates
+};
+
+// Along x + t d a face's doubled area is det(e1 + t d1, e2 + t d2) =
+// det(e1, e2) + t (det(e1, d2) + det(d1, e2)) + t^2 det(d1, d2) (Smith and Schaefer 2015).
+SearchLine search_line(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x, const Eigen::VectorXd& d) {
+  SearchLine line;
+  for (const ProxyFace& face : faces) {
+    const Eigen::Matrix2d edges = edge_matrix(face, x), moves = edge_matrix(face, d);
+    const Eigen::Matrix2d J = edges * face.inverse_edges;
+    line.slope += face.area * symmetric_dirichlet_gradient(J).cwiseProduct(moves * face.inverse_edges).sum();
+    const double mixed = edges(0, 0) * moves(1, 1) - edges(1, 0) * moves(0, 1) + moves(0, 0) * edges(1, 1) -
+                         moves(1, 0) * edges(0, 1);
+    line.max_step =
+        std::min(line.max_step, first_positive_root(moves.determinant(), mixed, edges.determinant()));
+  }
+  return line;
+}
+
+int flipped_faces(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x) {
+  int count = 0;
+  for (const ProxyFace& face : faces) count += !(edge_matrix(face, x).determinant() > 0);
+  return count;
+}
+
+std::string input_problem(const ChartProblem& problem) {
+  std::ostringstream msg;
+  const Eigen::Index face_count = problem.triangles.rows();
+  if (problem.reference_uv.rows() != 3 * face_count)
+    msg << "reference_uv must hold 3 rows per face: expected " << 3 * face_count << ", got "
+        << problem.reference_uv.rows();
+  else if (problem.mirrored.size() != face_count)
+    msg << "mirrored must hold one entry per face: expected " << face_count << ", got " << problem.mirrored.size();
+  return msg.str();
+}
+
+// Armijo backtracking, E(x + t d) <= E(x) + kArmijo t dE/dt, halving t from
+// the largest safe flip-free step. Leaves x + t d in trial and returns its
+// energy, or +inf if no step passed (the energy is flat at double precision).
+double backtracking_line_search(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x,
+                                const Eigen::VectorXd& direction, double energy, const SearchLine& line,
+                                Eigen::VectorXd& trial) {
+  double step = std::min(1.0, kSafeStepFraction * line.max_step);
+  for (int halving = 0; halving <= kMaxHalvings; ++halving, step /= 2) {
+    trial = x + step * direction;
+    const double trial_energy = total_energy(faces, trial);
+    if (trial_energy <= energy + kArmijo * step * line.slope) return trial_energy;
+  }
+  return kInfinity;
+}
+
+// Minimizes E from x (flip-free, in solver numbering), keeping x flip-free.
+// Returns "" or why it stopped early; x is the last accepted iterate either way.
+std::string minimize_energy(std::vector<ProxyFace>& faces, const SlimOptions& options, const RunControl& control,
+                            Eigen::VectorXd& x, ChartSolution& solution) {
+  ProxySystem system;
+  prepare_proxy_system(faces, static_cast<int>(x.size()), system);
+  Eigen::VectorXd direction(x.size()), trial(x.size());
+  double energy = total_energy(faces, x);
+  solution.iterations = 0;
+  while (solution.iterations < options.max_iterations) {
+    control.throw_if_cancelled();
+    assemble_proxy(faces, x, options.proximal_weight, system);
+    system.solver.factorize(system.matrix);
+    if (system.solver.info() != Eigen::Success) return "SLIM: proxy system is not positive definite";
+    system.solution = system.solver.solve(system.rhs);
+    direction = system.solution - x;
+    if (!direction.allFinite()) return "SLIM: proxy solve produced non-finite values";
+
+    // No descent direction or no acceptable step: converged at double precision.
+    const SearchLine line = search_line(faces, x, direction);
+    if (!(line.slope < 0)) return "";
+    const double trial_energy = backtracking_line_search(faces, x, direction, energy, line, trial);
+    if (!(trial_energy < kInfinity)) return "";
+
+    x.swap(trial);
+    ++solution.iterations;
+    const double decrease = (energy - trial_energy) / energy;
+    energy = trial_energy;
+    if (decrease < options.relative_tolerance) return "";
+  }
+  return "";
+}
+
+}  // namespace
+
+ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions& options,
+                                 const RunControl& control) {
+  control.throw_if_cancelled();
+  const int vertex_count = static_cast<int>(problem.positions.rows());
+  ChartSolution solution;
+  solution.uv = RowMatrixX2d::Zero(vertex_count, 2);
+  std::vector<int> boundary_corners;
+  solution.failure = input_problem(problem);
+  if (solution.failure.empty())
+    solution.failure = disk_boundary_loop(problem.triangles, vertex_count, boundary_corners);
+  if (!solution.failure.empty()) return solution;
+
+  const ReferenceTriangles reference = repaired_reference_triangles(problem.triangles, problem.positions,
+                                                                    problem.reference_uv, problem.mirrored);
+  solution.folded_references = reference.folded;
+  solution.repaired_references = reference.repaired;
+  RowMatrixX2d initial;
+  solution.failure =
+      mean_value_embedding(problem.triangles, reference.corners, boundary_corners, vertex_count, initial);
+  if (!solution.failure.empty()) return solution;
+
+  const std::vector<int> order = fill_reducing_order(problem.triangles, vertex_count);
+  std::vector<ProxyFace> faces = proxy_faces(problem.triangles, reference.corners, order);
+  double reference_area = 0;
+  for (const ProxyFace& face : faces) reference_area += face.area;
+  Eigen::VectorXd x(2 * vertex_count);
+  for (int v = 0; v < vertex_count; ++v) x.segment<2>(2 * order[v]) = initial.row(v).transpose();
+
+  const double initial_energy = total_energy(faces, x);
+  if (initial_energy < kInfinity) {
+    solution.energy_initial = initial_energy / reference_area;
+    solution.failure = minimize_energy(faces, options, control, x, solution);
+    solution.energy_final = total_energy(faces, x) / reference_area;
+  } else {
+    std::ostringstream msg;
+    msg << "initial embedding is not flip-free (" << flipped_faces(faces, x) << " faces)";
+    solution.failure = msg.str();
+  }
+  solution.flipped = flipped_faces(faces, x);
+  for (int v = 0; v < vertex_count; ++v) solution.uv.row(v) = x.segment<2>(2 * order[v]).transpose();
+  return solution;
+}
+
+}  // namespace atlas

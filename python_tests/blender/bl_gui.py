@@ -1,0 +1,153 @@
+# SPDX-License-Identifier: MIT
+"""The interactive path in a real Blender window (3.x under Xvfb):
+props dialog -> modal operator with a worker thread -> one undo; Esc cancels.
+
+xvfb-run blender --factory-startup --enable-event-simulate --python bl_gui.py -- \
+    --addon-parent DIR --out result.json
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+import traceback
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+ap = argparse.ArgumentParser()
+ap.add_argument("--addon-parent", required=True)
+ap.add_argument("--out", required=True)
+ap.add_argument("--timeout", type=float, default=300)
+ARGS = ap.parse_args(argv)
+sys.path.insert(0, ARGS.addon_parent)
+
+import bpy  # noqa: E402
+
+import atlas_defrag  # noqa: E402
+import blhelp as H  # noqa: E402
+import scenarios as S  # noqa: E402
+
+atlas_defrag.register()
+RESULT = {"blender": bpy.app.version_string, "background": bpy.app.background, "steps": {}}
+
+
+def ctx():
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    return win, bpy.context.temp_override(window=win, screen=win.screen, area=area, region=region)
+
+
+def done(name, ok, info=None):
+    RESULT["steps"][name] = {"ok": ok, "info": info}
+    with open(ARGS.out, "w") as f:
+        json.dump(RESULT, f, indent=1, default=str)
+
+
+def new_uv_present(name):
+    return any(uv.name.endswith("_defrag") for uv in bpy.data.objects[name].data.uv_layers)
+
+
+OUTCOME = atlas_defrag.operators.last_outcome
+
+
+def wait_outcome(timeout):
+    """Yields until the running operator reports an outcome."""
+    t0 = time.time()
+    ticks = 0
+    while OUTCOME["status"] is None:
+        assert time.time() - t0 < timeout, "the modal run did not end"
+        ticks += 1
+        yield 0.05
+    return ticks
+
+
+def driver():
+    """A generator stepped by a timer: yields seconds to wait."""
+    obj = H.import_model(H.model_path("tetra"))
+    name = obj.name
+    before = H.object_state(name)
+    win, override = ctx()
+
+    # 1. Modal run (what OK in the dialog starts), UI live meanwhile.
+    try:
+        H.undo_push("before")
+        OUTCOME["status"] = None
+        t0 = time.time()
+        with override:
+            res = bpy.ops.uv.defragment_atlas("EXEC_DEFAULT", use_modal=True)
+        assert res == {"RUNNING_MODAL"}, res
+        ticks = yield from wait_outcome(ARGS.timeout)
+        assert OUTCOME["status"] == "finished", OUTCOME
+        yield 0.3
+        S.check_result(name, before, None)
+        assert ticks > 3, f"the UI was blocked: only {ticks} timer ticks during the run"
+        H.undo()
+        yield 0.3
+        after = H.object_state(name)
+        assert after == before, S._diff(before, after)
+        done("modal_run_and_undo", True, {"ticks": ticks, "seconds": time.time() - t0})
+    except Exception:
+        done("modal_run_and_undo", False, traceback.format_exc())
+
+    # 2. Esc while the worker runs: cancelled, nothing written.
+    try:
+        win, override = ctx()
+        OUTCOME["status"] = None
+        with override:
+            res = bpy.ops.uv.defragment_atlas("EXEC_DEFAULT", use_modal=True)
+        assert res == {"RUNNING_MODAL"}, res
+        win.event_simulate(type="ESC", value="PRESS")
+        win.event_simulate(type="ESC", value="RELEASE")
+        yield from wait_outcome(60)
+        assert OUTCOME["status"] == "cancelled", OUTCOME
+        yield 0.3
+        after = H.object_state(name)
+        assert not new_uv_present(name), "Esc did not cancel"
+        assert after == before, S._diff(before, after)
+        done("escape_cancels", True)
+    except Exception:
+        done("escape_cancels", False, traceback.format_exc())
+
+    # 3. The props dialog: invoke, confirm with Return.
+    try:
+        win, override = ctx()
+        OUTCOME["status"] = None
+        with override:
+            res = bpy.ops.uv.defragment_atlas("INVOKE_DEFAULT")
+        assert res == {"RUNNING_MODAL"}, res  # the dialog is open
+        yield 0.5
+        assert OUTCOME["status"] is None, OUTCOME
+        win.event_simulate(type="RET", value="PRESS")
+        win.event_simulate(type="RET", value="RELEASE")
+        yield from wait_outcome(ARGS.timeout)
+        assert OUTCOME["status"] == "finished", OUTCOME
+        yield 0.3
+        S.check_result(name, before, None)
+        done("dialog_run", True, {"invoke": sorted(res)})
+    except Exception:
+        done("dialog_run", False, traceback.format_exc())
+
+
+GEN = None
+
+
+def tick():
+    global GEN
+    try:
+        if GEN is None:
+            GEN = driver()
+        return next(GEN)
+    except StopIteration:
+        pass
+    except Exception:
+        done("driver", False, traceback.format_exc())
+    RESULT["finished"] = True
+    done("end", True)
+    bpy.ops.wm.quit_blender()
+    return None
+
+
+bpy.app.timers.register(tick, first_interval=1.0)

@@ -1,0 +1,408 @@
+# SPDX-License-Identifier: MIT
+"""Test scenarios run identically in Blender 3.4 (bl_runner.py, subprocess)
+and in the bpy 4.5 module (pytest, in process). Each takes the add-on package
+and raises AssertionError on failure; some return observations."""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+import threading
+
+import bpy
+import numpy as np
+
+import blhelp as H
+
+# --------------------------------------------------------------------------- checks
+
+
+def check_result(obj_name, before, report, *, duplicate=False):
+    """The operator's promises, given the state before it ran."""
+    obj = bpy.data.objects[obj_name]
+    me = obj.data
+    src_uv = before["uv_active"]
+    new_uv = report["uv_map"] if report else src_uv + "_defrag"
+    assert new_uv == src_uv + "_defrag", (new_uv, src_uv)
+    assert [u.name for u in me.uv_layers] == before["uv_maps"] + [new_uv]
+    assert me.uv_layers.active.name == new_uv
+    assert me.uv_layers[new_uv].active_render
+    # The old UV map and old images are byte-for-byte unchanged.
+    assert H.uv_hash(me, src_uv) == before["uv_hash"][src_uv]
+    for name, st in before["image_state"].items():
+        assert name in bpy.data.images, f"image {name} removed"
+        assert H.image_state(bpy.data.images[name]) == st, f"image {name} changed"
+    # Geometry unchanged.
+    after = H.object_state(obj_name, pixels=False)
+    for key in ("vertices.co", "loops.vertex_index"):
+        assert after[key] == before[key], key
+    # The new UV map differs from the old one and lies in [0, 1] for textured faces.
+    assert H.uv_hash(me, new_uv) != before["uv_hash"][src_uv]
+    # New images: <image>_defrag, non-blank, same colour space and buffer type.
+    new_images = [i for i in bpy.data.images if i.name not in before["images"]]
+    assert new_images, "no new image"
+    for img in new_images:
+        m = re.match(r"(.+)_defrag(_\d+)?(\.\d{3})?$", img.name)
+        assert m, img.name
+        src = bpy.data.images[m.group(1)]
+        assert img.colorspace_settings.name == src.colorspace_settings.name, img.name
+        assert bool(img.is_float) == bool(src.is_float), img.name
+        assert img.source == "FILE" and (img.packed_file is not None or os.path.isfile(
+            bpy.path.abspath(img.filepath))), (img.name, img.source, img.filepath)
+        assert img.size[0] > 0 and img.size[1] > 0
+        assert H.image_variance(img) > 0.01, f"{img.name} is blank"
+    # Materials point to the new images through a UV Map node naming the new map.
+    rewired = 0
+    for slot in obj.material_slots:
+        mat = slot.material
+        if mat is None or mat.node_tree is None:
+            continue
+        for node in H.image_nodes(mat):
+            if node.image is not None and node.image in new_images:
+                assert H.vector_uv_map(node) == new_uv, (mat.name, node.name, H.vector_uv_map(node))
+                rewired += 1
+    assert rewired, "no material uses the new images"
+    if duplicate:
+        for name, st in before["materials"].items():
+            assert H.tree_state(bpy.data.materials[name]) == st, f"original material {name} changed"
+        rewired_slots = [s.material.name for s in obj.material_slots
+                         if s.material and s.material.name not in before["materials"]]
+        assert rewired_slots and all(m in report["materials"] for m in rewired_slots), rewired_slots
+    return new_images
+
+
+class _raises:
+    def __init__(self, exc):
+        self.exc = exc
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, typ, value, tb):
+        if typ is None:
+            raise AssertionError(f"{self.exc.__name__} not raised")
+        return issubclass(typ, self.exc)
+
+
+def run_operator(pkg, **props):
+    return bpy.ops.uv.defragment_atlas("EXEC_DEFAULT", **props)
+
+
+# --------------------------------------------------------------------------- scenarios
+
+
+def operator_on_model(pkg, model="tetra", **props):
+    """Operator on a model: new map + images + rewired materials, old data
+    unchanged; one undo restores everything exactly."""
+    H.reset()
+    obj = H.import_model(H.model_path(model))
+    name = obj.name
+    before = H.object_state(name)
+    H.undo_push("before defragment")
+    result = run_operator(pkg, **props)
+    assert result == {"FINISHED"}, result
+    check_result(name, before, None)
+    H.undo()
+    after_undo = H.object_state(name)
+    assert after_undo == before, _diff(before, after_undo)
+    return {"faces": len(bpy.data.objects[name].data.polygons)}
+
+
+def edit_mode_undo(pkg):
+    """From Edit mode: returns to Edit mode; one undo restores the object."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    name = obj.name
+    bpy.ops.object.mode_set(mode="EDIT")
+    before = H.object_state(name)
+    H.undo_push("before defragment")
+    assert run_operator(pkg) == {"FINISHED"}
+    obj = bpy.data.objects[name]
+    assert obj.mode == "EDIT", obj.mode
+    bpy.ops.object.mode_set(mode="OBJECT")
+    check_result(name, dict(before), None)
+    bpy.ops.object.mode_set(mode="EDIT")
+    H.undo()
+    after = H.object_state(name)
+    assert after == before, _diff(before, after)
+
+
+def python_entry(pkg):
+    """atlas_defrag.defragment(obj, **options) returns the report."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    before = H.object_state(obj.name)
+    report = pkg.defragment(obj, target_charts=0, weighting="3d", padding=2)
+    for key in ("charts_before", "charts_after", "seam_before", "seam_after", "seconds", "uv_map",
+                "images", "materials", "warnings"):
+        assert key in report, key
+    assert report["charts_after"] < report["charts_before"], report
+    assert report["seconds"]["total"] > 0
+    check_result(obj.name, before, report)
+    import json
+    json.dumps(report)  # plain data
+    return {k: report[k] for k in ("charts_before", "charts_after", "seam_before", "seam_after")}
+
+
+def duplicate_materials_and_removal(pkg):
+    """With duplicate materials the originals are untouched, and removing what
+    the operator added restores the original object exactly."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    name = obj.name
+    before = H.object_state(name)
+    report = pkg.defragment(obj, duplicate_materials=True)
+    check_result(name, before, report, duplicate=True)
+    assert report["materials"], report
+    obj = bpy.data.objects[name]
+    # Remove what was added.
+    me = obj.data
+    for s, (orig, _) in zip(obj.material_slots, before["slots"]):
+        s.material = bpy.data.materials[orig] if orig else None
+    while len(me.materials) > len(before["slots"]):
+        me.materials.pop()
+    for m in report["materials"]:
+        bpy.data.materials.remove(bpy.data.materials[m])
+    for i in report["images"]:
+        bpy.data.images.remove(bpy.data.images[i])
+    me.uv_layers.remove(me.uv_layers[report["uv_map"]])
+    me.uv_layers.active = me.uv_layers[before["uv_active"]]
+    for uv in me.uv_layers:
+        if uv.name in before["uv_render"]:
+            uv.active_render = True
+    after = H.object_state(name)
+    assert after == before, _diff(before, after)
+
+
+def save_beside_blend(pkg):
+    """storage='SAVE' writes PNG files beside the saved .blend."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    tmp = tempfile.mkdtemp(prefix="atlas_save_")
+    blend = os.path.join(tmp, "scene.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    obj = bpy.data.objects[obj.name]
+    before = H.object_state(obj.name)
+    report = pkg.defragment(obj, storage="SAVE")
+    check_result(obj.name, before, report)
+    for name in report["images"]:
+        img = bpy.data.images[name]
+        path = bpy.path.abspath(img.filepath)
+        assert img.packed_file is None and os.path.dirname(path) == tmp and path.endswith(".png"), path
+        a = np.empty(len(img.pixels), np.float32)
+        img.pixels.foreach_get(a)
+        img.reload()
+        b = np.empty(len(img.pixels), np.float32)
+        img.pixels.foreach_get(b)
+        assert np.array_equal(a, b), f"{name} differs after reload from {path}"
+    return {"files": sorted(os.listdir(tmp))}
+
+
+def cancel_leaves_nothing(pkg):
+    """Cancelling (as Esc does, from another thread) raises DefragCancelled
+    and changes nothing."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    name = obj.name
+    before = H.object_state(name)
+    from importlib import import_module
+    native = import_module(pkg.__name__ + "._native")
+    token = native.CancelToken()
+    seen = []
+
+    def progress(stage, fraction):
+        seen.append((stage, fraction))
+        if len(seen) == 3:
+            threading.Thread(target=token.cancel).start()
+
+    try:
+        pkg.defragment(obj, progress=progress, cancel=token)
+    except pkg.DefragCancelled:
+        pass
+    else:
+        raise AssertionError("not cancelled")
+    assert seen, "no progress reported"
+    after = H.object_state(name)
+    assert after == before, _diff(before, after)
+    # The operator's worker thread path: the same, through operators._Run.
+    settings = pkg.api.Settings.from_kwargs()
+    read = pkg.api.prepare(bpy.data.objects[name], settings)
+    token = native.CancelToken()
+    token.cancel()
+    run = pkg.operators._Run(read, settings, token)
+    t = threading.Thread(target=run.work)
+    t.start()
+    t.join(120)
+    assert isinstance(run.error, pkg.DefragCancelled), repr(run.error)
+    assert H.object_state(name) == before
+
+
+def worker_thread_run(pkg):
+    """The modal operator's worker: computes off the main thread, then writes."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    name = obj.name
+    before = H.object_state(name)
+    settings = pkg.api.Settings.from_kwargs()
+    read = pkg.api.prepare(obj, settings)
+    run = pkg.operators._Run(read, settings, pkg.operators._native_token())
+    t = threading.Thread(target=run.work)
+    t.start()
+    t.join(600)
+    assert run.error is None, repr(run.error)
+    assert run.fraction == 1.0, run.fraction
+    report = pkg.api.finish(bpy.data.objects[name], read, run.result, settings)
+    check_result(name, before, report)
+
+
+def identity_result(pkg, read):
+    """A JobResult that keeps the layout and copies every source image."""
+    job = read.job
+    sizes = pkg.job.page_sizes_of(job)
+    images = []
+    for p, page in enumerate(job.pages):
+        for m in page.maps:
+            src = job.images[m.image]
+            images.append(pkg.job.OutputImage(page=p, role=m.role, source=m.image, pixels=src.pixels.copy(),
+                                              colorspace=src.colorspace, is_float=src.is_float,
+                                              alpha_mode=src.alpha_mode))
+    return pkg.job.JobResult(uvs=job.mesh.uvs.copy(), face_page=job.mesh.face_page.copy(), page_sizes=sizes,
+                             page_group=np.array([p.group for p in job.pages], np.int32), images=images,
+                             report={"charts_before": 1, "charts_after": 1})
+
+
+def write_identity_layout(pkg):
+    """Writing a result: new map, images, materials; nothing old modified;
+    removing the additions restores the original."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    name = obj.name
+    before = H.object_state(name)
+    settings = pkg.api.Settings.from_kwargs()
+    read = pkg.api.prepare(obj, settings)
+    result = identity_result(pkg, read)
+    report = pkg.api.finish(obj, read, result, settings)
+    assert report["uv_map"] == "UVMap_defrag"
+    assert report["images"] == ["textured_0_v2.jpg_defrag"]
+    me = bpy.data.objects[name].data
+    # Same layout -> same UVs; same pixels after the byte round trip.
+    assert H.uv_hash(me, "UVMap_defrag") == before["uv_hash"]["UVMap"]
+    new = bpy.data.images["textured_0_v2.jpg_defrag"]
+    old = bpy.data.images["textured_0_v2.jpg"]
+    assert new.packed_file is not None and new.source == "FILE"
+    a = np.empty(len(old.pixels), np.float32)
+    b = np.empty(len(new.pixels), np.float32)
+    old.pixels.foreach_get(a)
+    new.pixels.foreach_get(b)
+    assert np.array_equal(a, b)
+    with _raises(AssertionError):  # the check notices an unchanged layout
+        check_result(name, before, report)
+    mat = bpy.data.objects[name].material_slots[0].material
+    tex = mat.node_tree.nodes["Image Texture"]
+    assert tex.image == new and H.vector_uv_map(tex) == "UVMap_defrag"
+    # The unloadable normal map keeps reading the old map explicitly.
+    assert H.vector_uv_map(mat.node_tree.nodes["Image Texture.001"]) == "UVMap"
+    assert mat.node_tree.nodes["Normal Map"].uv_map == "UVMap"
+    for n, st in before["image_state"].items():
+        assert H.image_state(bpy.data.images[n]) == st
+
+
+# --------------------------------------------------------------------------- errors
+
+ERRORS = {
+    "no_active_mesh": "No active mesh",
+    "camera_active": "No active mesh",
+    "no_uv_map": "no UV map",
+    "no_image_texture": "No image texture",
+    "eight_uv_maps": "8 UV maps",
+    "udim": "UDIM",
+}
+
+
+def make_error_case(case):
+    """Builds the scene of an error case; returns the object (or None)."""
+    H.reset()
+    if case == "no_active_mesh":
+        obj = H.textured_plane()
+        H.make_active(None)
+        return obj
+    if case == "camera_active":
+        obj = H.textured_plane()
+        bpy.ops.object.camera_add()
+        return obj
+    if case == "no_uv_map":
+        obj = H.textured_plane()
+        obj.data.uv_layers.remove(obj.data.uv_layers[0])
+        return obj
+    if case == "no_image_texture":
+        obj = H.textured_plane()
+        for n in list(obj.data.materials[0].node_tree.nodes):
+            if n.bl_idname == "ShaderNodeTexImage":
+                obj.data.materials[0].node_tree.nodes.remove(n)
+        return obj
+    if case == "eight_uv_maps":
+        return H.textured_plane(uv_maps=8)
+    if case == "udim":
+        return H.textured_plane(source="TILED")
+    raise ValueError(case)
+
+
+def error_case(pkg, case):
+    """The operator and the Python entry refuse with a clear message and
+    change nothing."""
+    obj = make_error_case(case)
+    name = obj.name
+    before = H.object_state(name)
+    expected = ERRORS[case]
+    try:
+        run_operator(pkg)
+    except RuntimeError as exc:
+        msg = str(exc)
+    else:
+        raise AssertionError("the operator did not fail")
+    assert expected.lower() in msg.lower(), msg
+    target = bpy.context.view_layer.objects.active
+    try:
+        pkg.defragment(target)
+    except pkg.DefragError as exc:
+        msg2 = str(exc)
+    else:
+        raise AssertionError("defragment() did not fail")
+    assert expected.lower() in msg2.lower(), msg2
+    after = H.object_state(name)
+    assert after == before, _diff(before, after)
+    return msg
+
+
+# --------------------------------------------------------------------------- utils
+
+
+def _diff(a, b):
+    keys = sorted(set(a) | set(b))
+    out = []
+    for k in keys:
+        if a.get(k) != b.get(k):
+            va, vb = a.get(k), b.get(k)
+            if isinstance(va, dict) and isinstance(vb, dict):
+                sub = [kk for kk in set(va) | set(vb) if va.get(kk) != vb.get(kk)]
+                out.append(f"{k}: {sub[:5]} e.g. {[(va.get(s), vb.get(s)) for s in sub[:1]]}")
+            else:
+                out.append(f"{k}: {va!r} != {vb!r}")
+    return "; ".join(out)[:2000]
+
+
+SCENARIOS = {
+    "operator_tetra": lambda pkg: operator_on_model(pkg, "tetra"),
+    "operator_smithsonian": lambda pkg: operator_on_model(pkg, "smithsonian"),
+    "operator_meshroom": lambda pkg: operator_on_model(pkg, "meshroom"),
+    "edit_mode_undo": edit_mode_undo,
+    "python_entry": python_entry,
+    "duplicate_materials_and_removal": duplicate_materials_and_removal,
+    "save_beside_blend": save_beside_blend,
+    "cancel_leaves_nothing": cancel_leaves_nothing,
+    "worker_thread_run": worker_thread_run,
+    "write_identity_layout": write_identity_layout,
+}
+for _case in ERRORS:
+    SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)

@@ -1,0 +1,134 @@
+# SPDX-License-Identifier: MIT
+"""The batch entry (addon/atlas_defrag/batch.py) in Blender 3.4 and in bpy 4.5."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+import blhelp as H
+from conftest import ADDON_PARENT, BLENDER, require_native, run_blender
+
+BATCH = ADDON_PARENT / "atlas_defrag" / "batch.py"
+BOX_GLB = H.ASSIMP / "glTF2" / "BoxTextured-glTF-Binary" / "BoxTextured.glb"
+UNTEXTURED_OBJ = H.ASSIMP / "OBJ" / "box.obj"
+
+
+def blender34_batch(*args):
+    return run_blender(["--python", str(BATCH), "--"] + [str(a) for a in args])
+
+
+def bpy45_batch(*args):
+    env = dict(os.environ)
+    return subprocess.run([sys.executable, str(BATCH)] + [str(a) for a in args], capture_output=True, text=True,
+                          timeout=900, env=env)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _native_built():
+    require_native()
+
+
+def _read_obj_output(path):
+    text = path.read_text()
+    mtllib = [ln.split(None, 1)[1].strip() for ln in text.splitlines() if ln.startswith("mtllib")]
+    assert mtllib, "no mtllib"
+    mtl = (path.parent / mtllib[0]).read_text()
+    maps = [ln.split(None, 1)[1].strip() for ln in mtl.splitlines() if ln.strip().startswith("map_Kd")]
+    return text, maps
+
+
+def test_batch34_obj_to_obj(tmp_path):
+    out = tmp_path / "out" / "tetra.obj"
+    rep = tmp_path / "out" / "tetra.json"
+    proc = blender34_batch(H.model_path("tetra"), out, "--report", rep, "--padding", "2")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    text, maps = _read_obj_output(out)
+    assert maps and all(m.endswith(".png") and "_defrag" in m for m in maps), maps
+    for m in maps:
+        assert (out.parent / m).is_file(), m
+    report = json.loads(rep.read_text())
+    assert report["status"] == "ok"
+    obj = report["objects"][0]
+    assert obj["charts_after"] < obj["charts_before"]
+    # Only the model's files, no scratch folder left behind.
+    assert sorted(p.name for p in out.parent.iterdir() if p.name.startswith(".")) == []
+    # The output loads back: one UV map, the new texture on the material.
+    vt = sum(1 for ln in text.splitlines() if ln.startswith("vt "))
+    assert vt > 0
+    # --skip-existing does nothing the second time.
+    t = time.perf_counter()
+    proc = blender34_batch(H.model_path("tetra"), out, "--skip-existing")
+    assert proc.returncode == 0 and "skipped" in proc.stdout, proc.stdout + proc.stderr
+    assert time.perf_counter() - t < 60
+
+
+def test_batch34_glb_to_glb(tmp_path):
+    out = tmp_path / "box.glb"
+    proc = blender34_batch(BOX_GLB, out, "--report", tmp_path / "r.json")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert out.is_file() and out.read_bytes()[:4] == b"glTF"
+    _check_glb(out)
+
+
+def _check_glb(path):
+    import struct
+    data = path.read_bytes()
+    n = struct.unpack_from("<I", data, 12)[0]
+    gltf = json.loads(data[20:20 + n])
+    prim = gltf["meshes"][0]["primitives"][0]
+    assert "TEXCOORD_0" in prim["attributes"] and "TEXCOORD_1" not in prim["attributes"], prim["attributes"]
+    assert gltf.get("images"), "no image"
+    names = [im.get("name", "") for im in gltf["images"]]
+    assert any("_defrag" in nm for nm in names), names
+    return gltf
+
+
+def test_batch45_obj_to_glb_and_back(tmp_path):
+    """bpy 4.5 as a module runs the same entry (python batch.py IN OUT)."""
+    out = tmp_path / "tetra.glb"
+    proc = bpy45_batch(H.model_path("tetra"), out, "--report", tmp_path / "r.json")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    gltf = _check_glb(out)
+    assert json.loads((tmp_path / "r.json").read_text())["status"] == "ok"
+    assert gltf["meshes"]
+
+
+def test_batch45_glb_to_obj(tmp_path):
+    out = tmp_path / "box.obj"
+    proc = bpy45_batch(BOX_GLB, out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    _, maps = _read_obj_output(out)
+    assert maps and all((tmp_path / m).is_file() for m in maps), maps
+
+
+@pytest.mark.parametrize("runner", ["blender34", "bpy45"])
+def test_batch_failures(tmp_path, runner):
+    run = blender34_batch if runner == "blender34" else bpy45_batch
+    proc = run(tmp_path / "missing.obj", tmp_path / "o.obj", "--report", tmp_path / "r.json")
+    assert proc.returncode == 1 and "input not found" in proc.stderr, proc.stderr[-2000:]
+    assert json.loads((tmp_path / "r.json").read_text())["status"] == "error"
+    proc = run(UNTEXTURED_OBJ, tmp_path / "o2.obj")
+    assert proc.returncode == 1 and "no image texture" in proc.stderr.lower(), proc.stderr[-2000:]
+    assert not (tmp_path / "o2.obj").exists()
+    proc = run(H.model_path("tetra"), tmp_path / "o3.fbx")
+    assert proc.returncode == 1 and "unsupported output" in proc.stderr, proc.stderr[-2000:]
+
+
+def test_batch_many_in_parallel(tmp_path):
+    """Folder/list form: one Blender per model, two at once, skipping done ones."""
+    out = tmp_path / "out"
+    env = dict(os.environ, BLENDER=BLENDER)
+    cmd = [sys.executable, str(BATCH), "--out-dir", str(out), "--jobs", "2", "--format", "glb",
+           H.model_path("tetra"), str(BOX_GLB)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, env=env)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert (out / "teTra-Mk5-miniature-model.glb").is_file() and (out / "BoxTextured.glb").is_file()
+    assert (out / "BoxTextured.report.json").is_file()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0 and proc.stdout.count("skipped") == 2, proc.stdout + proc.stderr

@@ -1,0 +1,52 @@
+# SPDX-License-Identifier: MIT
+"""The scenarios in Debian's Blender 3.4 (subprocesses; add-on from the build)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import scenarios as S
+from conftest import ADDON_PARENT, HERE, require_native, run_blender
+
+# Scenarios run together in one Blender process per group (keeps startup cost low;
+# every scenario starts from factory settings).
+GROUPS = {
+    "light": ["write_identity_layout"] + ["error_" + c for c in sorted(S.ERRORS)],
+    "tetra": ["operator_tetra", "edit_mode_undo", "python_entry", "duplicate_materials_and_removal",
+              "save_beside_blend", "cancel_leaves_nothing", "worker_thread_run"],
+    "smithsonian": ["operator_smithsonian"],
+    "meshroom": ["operator_meshroom"],
+}
+NEEDS_NATIVE = {"tetra", "smithsonian", "meshroom"}
+_cache = {}
+
+
+def group_results(group, tmp_path_factory):
+    if group not in _cache:
+        if group in NEEDS_NATIVE:
+            require_native()
+        out = tmp_path_factory.mktemp(f"bl34_{group}") / "result.json"
+        proc = run_blender(["--python", str(HERE / "bl_runner.py"), "--", "--addon-parent",
+                            str(ADDON_PARENT), "--out", str(out)] + GROUPS[group])
+        try:
+            data = json.loads(out.read_text())
+        except (OSError, ValueError):
+            data = {"results": {}}
+        data["log"] = (proc.stdout[-3000:], proc.stderr[-3000:], proc.returncode)
+        _cache[group] = data
+    return _cache[group]
+
+
+CASES = [(g, s) for g, names in GROUPS.items() for s in names]
+
+
+@pytest.mark.parametrize("group,scenario", CASES, ids=[s for _, s in CASES])
+def test_blender34(group, scenario, tmp_path_factory):
+    data = group_results(group, tmp_path_factory)
+    res = data["results"].get(scenario)
+    assert res is not None, f"scenario did not run; Blender log: {data['log']}"
+    assert data.get("blender", "").startswith("3."), data.get("blender")
+    assert str(ADDON_PARENT) in data.get("package", ""), data.get("package")
+    assert res["ok"], res["error"]

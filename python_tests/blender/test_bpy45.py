@@ -1,0 +1,22 @@
+# SPDX-License-Identifier: MIT
+"""The scenarios in the bpy 4.5 module, in process (add-on from the build)."""
+
+from __future__ import annotations
+
+import bpy
+import pytest
+
+import scenarios as S
+
+NATIVE_SCENARIOS = ["operator_tetra", "edit_mode_undo", "python_entry", "duplicate_materials_and_removal",
+                    "save_beside_blend", "cancel_leaves_nothing", "worker_thread_run",
+                    "operator_smithsonian", "operator_meshroom"]
+
+
+def test_is_blender_4():
+    assert bpy.app.version >= (4, 2, 0)
+
+
+@pytest.mark.parametrize("scenario", NATIVE_SCENARIOS)
+def test_bpy45(pkg, native, scenario):
+    S.SCENARIOS[scenario](pkg)

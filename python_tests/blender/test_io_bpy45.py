@@ -1,0 +1,156 @@
+# SPDX-License-Identifier: MIT
+"""The bpy read/write layers in the bpy 4.5 module, without the native core:
+reading real scans, writing a given layout, error cases, rollback."""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+
+import blhelp as H
+import scenarios as S
+
+
+identity_result = S.identity_result
+
+
+def test_read_tetra(pkg):
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    before = H.object_state(obj.name)
+    r = pkg.read_bpy.read(obj)
+    m = r.job.mesh
+    assert m.triangles.shape == (13666, 3) and m.uvs.shape == (13666, 3, 2)
+    assert m.positions.dtype == np.float64 and m.triangles.dtype == np.int32
+    assert m.triangles.max() < len(m.positions)
+    assert set(np.unique(m.face_page)) == {0}
+    assert [(im.role, im.image) for im in r.job.pages[0].maps] == [("base_color", "textured_0_v2.jpg")]
+    img = r.job.images["textured_0_v2.jpg"]
+    assert img.pixels.shape == (2048, 2048, 4) and img.pixels.dtype == np.uint8
+    assert img.colorspace == "sRGB" and not img.is_float
+    # Row 0 is the bottom row, as Blender stores it.
+    flat = np.empty(2048 * 2048 * 4, np.float32)
+    bpy.data.images["textured_0_v2.jpg"].pixels.foreach_get(flat)
+    assert np.array_equal(img.pixels[0, :16], np.rint(flat[:64] * 255).reshape(16, 4))
+    # The missing normal-map image is skipped with a warning.
+    assert any("no pixels" in w for w in r.warnings), r.warnings
+    # UVs per corner equal the loop UVs.
+    me = obj.data
+    uv = np.empty(len(me.loops) * 2, np.float32)
+    me.uv_layers.active.data.foreach_get("uv", uv)
+    assert np.allclose(m.uvs, uv.reshape(-1, 2)[r.tri_loops])
+    assert H.object_state(obj.name) == before
+
+
+def test_read_gltf_roles(pkg):
+    H.reset()
+    obj = H.import_model(H.model_path("smithsonian"))
+    r = pkg.read_bpy.read(obj)
+    page = r.job.pages[0]
+    roles = {m.role: m for m in page.maps}
+    assert set(roles) == {"base_color", "normal", "occlusion"}, roles
+    assert roles["normal"].normal_map and not roles["base_color"].normal_map
+    assert r.job.images[roles["normal"].image].colorspace == "Non-Color"
+    assert r.job.mesh.triangles.shape == (100000, 3)
+
+
+def test_read_multi_material(pkg):
+    """Several materials with different images: one page each, one group."""
+    H.reset()
+    objs = []
+    for i in range(2):
+        objs.append(H.textured_plane(name=f"P{i}", image_size=(32 * (i + 1), 32)))
+    H.make_active(objs[0])
+    for o in objs:
+        o.select_set(True)
+    bpy.ops.object.join()
+    obj = bpy.context.active_object
+    r = pkg.read_bpy.read(obj)
+    assert len(r.job.pages) == 2
+    assert {p.group for p in r.job.pages} == {0}
+    assert sorted(np.unique(r.job.mesh.face_page).tolist()) == [0, 1]
+    assert pkg.job.page_sizes_of(r.job).tolist() == [[32, 32], [64, 32]]
+
+
+def test_write_identity_layout(pkg):
+    S.write_identity_layout(pkg)
+
+
+def test_write_rolls_back_on_failure(pkg, monkeypatch):
+    H.reset()
+    obj = H.import_model(H.model_path("smithsonian"))
+    name = obj.name
+    before = H.object_state(name)
+    settings = pkg.api.Settings.from_kwargs()
+    read = pkg.api.prepare(obj, settings)
+    result = identity_result(pkg, read)
+    calls = []
+    real = pkg.write_bpy._rewire_material
+
+    def failing(*a, **k):
+        real(*a, **k)
+        calls.append(1)
+        raise RuntimeError("injected failure")
+    monkeypatch.setattr(pkg.write_bpy, "_rewire_material", failing)
+    with pytest.raises(RuntimeError, match="injected"):
+        pkg.api.finish(obj, read, result, settings)
+    assert calls
+    after = H.object_state(name)
+    assert after == before, S._diff(before, after)
+
+
+def test_write_refuses_changed_mesh(pkg):
+    H.reset()
+    obj = H.textured_plane()
+    settings = pkg.api.Settings.from_kwargs()
+    read = pkg.api.prepare(obj, settings)
+    result = identity_result(pkg, read)
+    obj.data.uv_layers.new(name="Other")
+    before = H.object_state(obj.name)
+    with pytest.raises(pkg.DefragError, match="changed"):
+        pkg.api.finish(obj, read, result, settings)
+    assert H.object_state(obj.name) == before
+
+
+def test_write_float_image_and_save(pkg, tmp_path):
+    """Float images stay float (EXR); storage='SAVE' writes files in image_dir."""
+    H.reset()
+    obj = H.textured_plane(float_buffer=True, image_size=(16, 8))
+    settings = pkg.api.Settings.from_kwargs(storage="SAVE", image_dir=str(tmp_path))
+    read = pkg.api.prepare(obj, settings)
+    src = next(iter(read.job.images.values()))
+    assert src.pixels.dtype == np.float32 and src.is_float
+    result = identity_result(pkg, read)
+    report = pkg.api.finish(obj, read, result, settings)
+    img = bpy.data.images[report["images"][0]]
+    assert img.is_float and img.source == "FILE"
+    files = sorted(p.name for p in tmp_path.iterdir())
+    assert files == ["Plane_tex_defrag.exr"], files
+    b = np.empty(len(img.pixels), np.float32)
+    img.pixels.foreach_get(b)
+    assert np.allclose(b.reshape(8, 16, 4), src.pixels, atol=1e-4)
+
+
+def test_settings_validation(pkg):
+    with pytest.raises(pkg.DefragError, match="weighting"):
+        pkg.api.Settings.from_kwargs(weighting="xyz")
+    with pytest.raises(pkg.DefragError, match="padding"):
+        pkg.api.Settings.from_kwargs(padding=-1)
+    with pytest.raises(TypeError, match="unknown"):
+        pkg.api.Settings.from_kwargs(bogus=1)
+
+
+@pytest.mark.parametrize("case", sorted(S.ERRORS))
+def test_error_cases(pkg, case):
+    msg = S.error_case(pkg, case)
+    assert msg
+
+
+def test_operator_registered_in_menus(pkg):
+    assert hasattr(bpy.types, "UV_OT_defragment_atlas")
+    op = bpy.ops.uv.defragment_atlas
+    assert op.get_rna_type().name == "Defragment Texture Atlas"
+    for menu in ("IMAGE_MT_uvs", "VIEW3D_MT_uv_map"):
+        funcs = getattr(bpy.types, menu)._dyn_ui_initialize()
+        assert pkg.operators.menu_func in funcs, menu

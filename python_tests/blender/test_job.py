@@ -1,0 +1,109 @@
+# SPDX-License-Identifier: MIT
+"""The bpy-free job module on synthetic data, with the native core."""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+import pytest
+
+
+def grid_job(job, n=6, cell=16):
+    """An n x n quad grid; each quad is its own UV chart (fragmented atlas).
+    Left half: material 0 (base colour 64x64 + normal 128x128), right half:
+    material 1 (base colour 32x32), last column: untextured."""
+    xs, ys = np.meshgrid(np.arange(n + 1, dtype=np.float64), np.arange(n + 1, dtype=np.float64))
+    positions = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], axis=1)
+    tris, uvs, page = [], [], []
+    for j in range(n):
+        for i in range(n):
+            a, b, c, d = j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i
+            # Each quad gets a scattered cell in [0,1]^2.
+            k = (i * 7 + j * 3) % (n * n)
+            u0, v0 = (k % n) / n, (k // n) / n
+            s = 0.8 / n
+            quad_uv = np.array([[u0, v0], [u0 + s, v0], [u0 + s, v0 + s], [u0, v0 + s]])
+            p = -1 if i == n - 1 else (0 if i < n // 2 else 1)
+            for tri in ((0, 1, 2), (0, 2, 3)):
+                tris.append([(a, b, c, d)[t] for t in tri])
+                uvs.append(quad_uv[list(tri)])
+                page.append(p)
+    rng = np.random.default_rng(0)
+    images = {
+        "A": job.ImageData("A", rng.integers(0, 255, (64, 64, 4), dtype=np.uint8)),
+        "N": job.ImageData("N", rng.integers(0, 255, (128, 128, 4), dtype=np.uint8), colorspace="Non-Color"),
+        "B": job.ImageData("B", rng.integers(0, 255, (32, 32, 4), dtype=np.uint8)),
+    }
+    pages = [job.SourcePage([job.ImageMap("base_color", "A"), job.ImageMap("normal", "N", True)], group=0),
+             job.SourcePage([job.ImageMap("base_color", "B")], group=1)]
+    mesh = job.MeshData(positions, np.array(tris, np.int32), np.array(uvs, np.float64), np.array(page, np.int32))
+    return job.JobInput(mesh, pages, images)
+
+
+@pytest.fixture(scope="module")
+def job(pkg, native):
+    return pkg.job
+
+
+def test_run_groups_roles_sizes(job, native):
+    inp = grid_job(job)
+    assert job.page_sizes_of(inp).tolist() == [[128, 128], [32, 32]]
+    stages = []
+    res = job.run(inp, job.Options(padding=2), progress=lambda s, f: stages.append((s, f)))
+    f = len(inp.mesh.triangles)
+    assert res.uvs.shape == (f, 3, 2) and res.face_page.shape == (f,)
+    # Untextured faces pass through, textured ones stay textured.
+    untextured = inp.mesh.face_page < 0
+    assert np.array_equal(res.face_page < 0, untextured)
+    assert np.array_equal(res.uvs[untextured], inp.mesh.uvs[untextured])
+    # Pages never mix groups.
+    for q in range(len(res.page_sizes)):
+        faces = res.face_page == q
+        assert len(set(np.asarray([inp.pages[p].group for p in inp.mesh.face_page[faces]]))) <= 1
+    # One image per (new page, role). Group 0's reference is its largest image
+    # (the 128x128 normal map), so its base colour (64x64) comes out at half
+    # the new page size.
+    roles = {(im.page, im.role) for im in res.images}
+    for q, g in enumerate(res.page_group):
+        want = {"base_color", "normal"} if g == 0 else {"base_color"}
+        assert {r for p, r in roles if p == q} == want
+        for im in res.images:
+            if im.page != q:
+                continue
+            h, w = im.pixels.shape[:2]
+            pw, ph = res.page_sizes[q]
+            if g == 0 and im.role == "base_color":
+                assert (w, h) == (round(pw * 0.5), round(ph * 0.5)), (w, h, pw, ph)
+            else:
+                assert (w, h) == (pw, ph)
+            assert im.pixels.dtype == np.uint8 and im.pixels.shape[2] == 4
+    assert res.report["charts_after"] < res.report["charts_before"]
+    # Progress is monotonic and ends at 1.
+    fr = [x for _, x in stages]
+    assert fr == sorted(fr) and fr[-1] == 1.0
+
+
+def test_cancel_and_errors(job, native):
+    inp = grid_job(job)
+    token = native.CancelToken()
+    token.cancel()
+    with pytest.raises(job.DefragCancelled):
+        job.run(inp, job.Options(), cancel=token)
+    bad = grid_job(job)
+    bad.mesh.triangles[0, 0] = 10 ** 6
+    with pytest.raises(job.DefragError, match="out of range"):
+        job.run(bad, job.Options())
+    with pytest.raises(job.DefragError, match="weighting"):
+        job.run(grid_job(job), job.Options(weighting="x"))
+
+
+def test_out_of_memory_is_reported(pkg, native):
+    """A MemoryError from the core becomes a clear DefragError."""
+    def oom(*a, **k):
+        raise MemoryError("std::bad_alloc")
+    failing = types.SimpleNamespace(defragment=oom, bake=oom, Cancelled=native.Cancelled)
+    inp = grid_job(pkg.job)
+    read = types.SimpleNamespace(job=inp)
+    with pytest.raises(pkg.DefragError, match="Out of memory"):
+        pkg.api.compute(read, pkg.api.Settings(), native=failing)

@@ -1,0 +1,109 @@
+# SPDX-License-Identifier: MIT
+"""The add-on zip: its layout, the manifest, and installing it in Blender 3.4
+(legacy add-on) and in bpy 4.5 (extension), then using it."""
+
+from __future__ import annotations
+
+import ast
+import json
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from conftest import ADDON_ZIP, HERE, REPO, require_native, run_blender
+
+
+@pytest.fixture(scope="module")
+def addon_zip():
+    if not ADDON_ZIP.is_file():
+        pytest.fail(f"{ADDON_ZIP} is missing: build it first (cmake --build build)")
+    return ADDON_ZIP
+
+
+def test_zip_layout(addon_zip):
+    names = zipfile.ZipFile(addon_zip).namelist()
+    files = {n for n in names if not n.endswith("/")}
+    assert all(n.startswith("atlas_defrag/") for n in names), names
+    for need in ("__init__.py", "blender_manifest.toml", "LICENSE", "batch.py", "job.py", "operators.py",
+                 "read_bpy.py", "write_bpy.py", "api.py", "compat.py"):
+        assert f"atlas_defrag/{need}" in files, need
+    assert any(n.startswith("atlas_defrag/_native") and n.endswith(".so") for n in files), files
+    # Every .py of the source folder is shipped (flat, no subpackages).
+    src = {p.name for p in (REPO / "addon" / "atlas_defrag").glob("*.py")}
+    assert src <= {n.split("/", 1)[1] for n in files}, src
+
+
+def test_manifest_and_bl_info():
+    import tomllib
+    man = tomllib.loads((REPO / "blender_manifest.toml").read_text())
+    assert man["schema_version"] == "1.0.0"
+    assert man["id"] == "atlas_defrag" and man["version"] == "0.1.0"
+    assert man["blender_version_min"] == "4.2.0"
+    assert man["platforms"] == ["linux-x64"] and man["license"] == ["SPDX:MIT"]
+    assert man["type"] == "add-on"
+    tree = ast.parse((REPO / "addon" / "atlas_defrag" / "__init__.py").read_text())
+    bl_info = next(ast.literal_eval(n.value) for n in tree.body
+                   if isinstance(n, ast.Assign) and getattr(n.targets[0], "id", "") == "bl_info")
+    assert bl_info["version"] == (0, 1, 0) and bl_info["blender"] <= (3, 4, 0)
+    assert ".".join(map(str, bl_info["version"])) == man["version"]
+
+
+def test_no_absolute_package_imports():
+    """Relative imports only: as an extension the package is bl_ext.<repo>.atlas_defrag."""
+    for path in (REPO / "addon" / "atlas_defrag").glob("*.py"):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                assert not node.module.startswith("atlas_defrag"), (path.name, node.module)
+            if isinstance(node, ast.Import):
+                assert not any(a.name.startswith("atlas_defrag") for a in node.names), path.name
+
+
+def test_manifest_validates_with_blender_tool(addon_zip):
+    import bpy
+    tool = Path(bpy.__file__).parent / f"{bpy.app.version[0]}.{bpy.app.version[1]}" / "scripts" / \
+        "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
+    if not tool.is_file():
+        pytest.fail(f"extension tool not found at {tool}")
+    proc = subprocess.run([sys.executable, str(tool), "validate", str(addon_zip)], capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def _check(res, user_dir):
+    assert res.get("ok"), res.get("error")
+    assert res["operator"]
+    assert res["package"].startswith(str(user_dir)), res["package"]
+    assert res["native"].startswith(str(user_dir)), res["native"]
+
+
+def test_install_legacy_blender34(addon_zip, tmp_path):
+    require_native()
+    user = tmp_path / "scripts"
+    out = tmp_path / "result.json"
+    proc = run_blender(["--python", str(HERE / "bl_install.py"), "--", "--zip", str(addon_zip), "--out", str(out)],
+                       env={"BLENDER_USER_SCRIPTS": str(user), "BLENDER_USER_CONFIG": str(tmp_path / "config")})
+    assert out.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
+    res = json.loads(out.read_text())
+    assert res["blender"].startswith("3."), res
+    _check(res, user)
+    assert res["enabled"] == ["atlas_defrag"]
+
+
+def test_install_extension_bpy45(addon_zip, tmp_path):
+    require_native()
+    user = tmp_path / "resources"
+    out = tmp_path / "result.json"
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(user))
+    env.pop("PYTHONPATH", None)  # the installed copy, not the build folder
+    proc = subprocess.run([sys.executable, str(HERE / "bl_install.py"), "--zip", str(addon_zip), "--out", str(out)],
+                          capture_output=True, text=True, timeout=900, env=env)
+    assert out.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
+    res = json.loads(out.read_text())
+    assert res["blender"].startswith("4."), res
+    _check(res, user)
+    assert res["enabled"] == ["bl_ext.user_default.atlas_defrag"]

@@ -1,0 +1,137 @@
+"""The native module on the real scans and on bad input."""
+import numpy as np
+import pytest
+
+# Independent counts from ../shared/models/README.md.
+EXPECTED_CHARTS = {"meshroom": 711, "smithsonian": 2367, "tetra": 159}
+
+
+def args(scan):
+    return scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED_CHARTS))
+def test_chart_count_matches_the_independent_count(native, scans, name):
+    graph = native.chart_graph(*args(scans(name)))
+    assert graph["chart_count"] == EXPECTED_CHARTS[name]
+    assert graph["face_chart"].min() == 0
+    assert graph["face_chart"].max() == EXPECTED_CHARTS[name] - 1
+
+
+def test_glb_seam_vertices_are_welded(native, scans):
+    scan = scans("smithsonian")
+    graph = native.chart_graph(*args(scan))
+    assert graph["welded_vertices"] < len(scan.positions)
+
+
+@pytest.fixture(scope="module")
+def tetra_result(native, scans):
+    scan = scans("tetra")
+    return scan, native.defragment(*args(scan))
+
+
+def test_defragment_reduces_charts_and_seams(tetra_result):
+    scan, result = tetra_result
+    report = result["report"]
+    assert report["charts_before"] == 159
+    assert report["charts_after"] < report["charts_before"]
+    assert report["seam_after"] < report["seam_before"]
+    assert report["texels_after"] <= report["texels_before"]
+    assert result["uvs"].shape == scan.uvs.shape
+    assert np.isfinite(result["uvs"]).all()
+    assert (result["uvs"] >= 0).all() and (result["uvs"] <= 1).all()
+
+
+def test_new_atlas_has_no_flips_and_no_shared_texels(native, tetra_result):
+    scan, result = tetra_result
+    m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
+    assert m["new"]["charts"] == result["report"]["charts_after"]
+    assert m["new"]["overlap_texels"] == 0
+    # Flips may only come from charts kept as they were in the input.
+    assert m["new"]["flipped_faces"] <= m["old"]["flipped_faces"]
+
+
+# Issue 3's target. Missed today (about 3.7% on this scan): see the notes on issue 3.
+@pytest.mark.xfail(strict=True, reason="density-loss target (<1% of area) not reached yet")
+def test_density_loss_target(native, tetra_result):
+    scan, result = tetra_result
+    m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
+    assert m["map"]["density_loss_area_share"] < 0.01
+
+
+def test_bake_keeps_colours(native, scans, tetra_result):
+    import scan_io
+
+    scan, result = tetra_result
+    old = [scan_io.load_image(p) for p in scan.page_images]
+    new = native.bake(scan.uvs, scan.face_page, old, result["uvs"], result["face_page"], result["page_sizes"])
+    assert [im.shape[:2] for im in new] == [tuple(s[::-1]) for s in result["page_sizes"]]
+    fidelity = native.compare_colors(scan.positions, scan.triangles, scan.uvs, scan.face_page, old,
+                                     result["uvs"], result["face_page"], new, samples=100000)
+    assert fidelity["psnr_db"] > 30
+
+
+def test_progress_and_cancel(native, scans):
+    scan = scans("tetra")
+    stages = []
+    native.defragment(*args(scan), progress=lambda stage, fraction: stages.append(stage))
+    assert "charts" in stages and "pack" in stages
+    token = native.CancelToken()
+
+    def cancel_on_first_report(stage, fraction):
+        token.cancel()
+
+    uvs_before = scan.uvs.copy()
+    with pytest.raises(native.Cancelled):
+        native.defragment(*args(scan), progress=cancel_on_first_report, cancel=token)
+    assert token.cancelled
+    np.testing.assert_array_equal(scan.uvs, uvs_before)
+
+
+def tiny():
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
+    triangles = np.array([[0, 1, 2], [1, 3, 2]], np.int32)
+    uvs = positions[triangles][:, :, :2] * 0.5
+    return positions, triangles, uvs, np.zeros(2, np.int32), np.array([[64, 64]], np.int32)
+
+
+@pytest.mark.parametrize("mutate, message", [
+    (lambda a: (a[0][:, :2],) + a[1:], r"positions must have shape \(V, 3\), got \(4, 2\)"),
+    (lambda a: (a[0], a[1].astype(float)) + a[2:], "triangles must be an integer array"),
+    (lambda a: (a[0], a[1] + 10) + a[2:], "vertex index 10 out of range"),
+    (lambda a: (a[0], -a[1] - 1) + a[2:], "vertex index -1 out of range"),
+    (lambda a: (np.where(a[0] == 1, np.nan, a[0]),) + a[1:], r"positions has a non-finite value \(NaN or inf\)"),
+    (lambda a: a[:2] + (np.full_like(a[2], np.inf),) + a[3:], "uvs has a non-finite value"),
+    (lambda a: a[:2] + (a[2][:1],) + a[3:], "must describe the 2 triangles"),
+    (lambda a: a[:3] + (np.array([0, 3], np.int32),) + a[4:], "uses page 3 but only 1 page"),
+    (lambda a: a[:4] + (np.array([[0, 64]], np.int32),), "page 0 has size 0x64"),
+    (lambda a: (np.zeros((0, 3)), np.zeros((0, 3), np.int32), np.zeros((0, 3, 2)), np.zeros(0, np.int32), a[4]),
+     "mesh has no vertices"),
+])
+def test_bad_input_names_the_problem(native, mutate, message):
+    with pytest.raises(ValueError, match=message):
+        native.defragment(*mutate(tiny()))
+
+
+def test_bad_options_name_the_problem(native):
+    with pytest.raises(ValueError, match="unknown option 'colour'"):
+        native.defragment(*tiny(), options={"colour": 1})
+    with pytest.raises(ValueError, match="weighting must be 'uv' or '3d'"):
+        native.defragment(*tiny(), options={"weighting": "area"})
+
+
+def test_untextured_faces_pass_through(native):
+    positions, triangles, uvs, _, sizes = tiny()
+    result = native.defragment(positions, triangles, uvs, np.array([0, -1], np.int32), sizes)
+    assert result["face_page"][1] == -1
+    np.testing.assert_array_equal(result["uvs"][1], uvs[1])
+
+
+def test_non_manifold_and_degenerate_faces_do_not_crash(native):
+    # A fin of three quads on one edge, plus a zero-area face and a zero-UV-area face.
+    positions = np.array([[0, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [-1, 0, 0], [-1, 1, 0], [0, 0, 1], [0, 1, 1]], float)
+    triangles = np.array([[0, 2, 3], [0, 3, 1], [4, 0, 1], [4, 1, 5], [0, 6, 7], [0, 7, 1], [0, 0, 1]], np.int32)
+    uvs = np.random.default_rng(1).random((7, 3, 2))
+    uvs[6] = uvs[6][0]
+    result = native.defragment(positions, triangles, uvs, np.zeros(7, np.int32), np.array([[128, 128]], np.int32))
+    assert np.isfinite(result["uvs"]).all()
