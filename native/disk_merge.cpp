@@ -127,7 +127,8 @@ std::optional<int> DiskClusters::merged_euler(int a, int b) {
   const int euler = euler_[a] + euler_[b] - fans_joined + shared_edges;
   // A disk, or a step towards one: a chart with holes (chi < 1) absorbing an
   // island fills a hole and raises chi. Anything else adds a hole or a handle.
-  if (euler == 1 || euler > std::min(euler_[a], euler_[b])) return euler;
+  // chi == 2 would close a sphere: no boundary left to flatten.
+  if (euler == 1 || (euler < 1 && euler > std::min(euler_[a], euler_[b]))) return euler;
   return std::nullopt;
 }
 

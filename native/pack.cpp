@@ -7,7 +7,6 @@
 #include <numeric>
 #include <optional>
 #include <sstream>
-#include <cstdio>
 
 #include "chart_raster.hpp"
 #include "page_occupancy.hpp"
@@ -242,9 +241,7 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
     return std::min(max_side, round_up_to_quantum(virtual_width - to_virtual));
   };
   auto pack = [&](int width) {
-    auto r = pack_one_page(order, charts, frame, width + to_virtual, max_virtual, control);
-    fprintf(stderr, "probe %d -> %s %d x %d\n", width, r ? "ok" : "fail", r ? r->pages[0].width : 0, r ? r->pages[0].height : 0);
-    return r;
+    return pack_one_page(order, charts, frame, width + to_virtual, max_virtual, control);
   };
   int width = width_for(std::max<double>(narrowest, std::sqrt(dilated_area / kExpectedDensity)));
   std::optional<Layout> best = pack(width);
