@@ -1,7 +1,6 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/LU>
-#include <Eigen/SVD>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -127,8 +126,10 @@ Colour texel(const Image<T>& img, int x, int y) {
 // Smallest texel-space stretch of a placement on a w x h page: local distance d is at
 // least d * this many texels.
 double min_texel_scale(const Placement& pl, int w, int h) {
-  const Eigen::Matrix2d texel_linear = Eigen::Vector2d(w, h).asDiagonal() * pl.linear;
-  return Eigen::JacobiSVD<Eigen::Matrix2d>(texel_linear).singularValues().minCoeff();
+  const Eigen::Matrix2d m = Eigen::Vector2d(w, h).asDiagonal() * pl.linear;
+  // Smaller singular value of a 2x2 matrix: sigma^2 = (|m|^2 - sqrt(|m|^4 - 4 det^2)) / 2.
+  const double f = m.squaredNorm(), d = m.determinant();
+  return std::sqrt(std::max(0.0, (f - std::sqrt(std::max(0.0, f * f - 4 * d * d))) / 2));
 }
 
 // Chart of texel centre (x, y) of page `page` when it lies at least `inset` texels inside
@@ -368,7 +369,7 @@ TEST(Bake, TiltedNormalTurnsWithItsChart8Bit) {
 // Distance in texels from texel centre (x, y) to the rectangle a chart covers.
 double distance_to_chart(const ChartedSquare& s, const Placement& pl, int w, int h, int x, int y) {
   Eigen::Vector2d lo(1e9, 1e9), hi(-1e9, -1e9);
-  for (const Eigen::Vector2d corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 0), Eigen::Vector2d(0, 1),
+  for (const Eigen::Vector2d& corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 0), Eigen::Vector2d(0, 1),
                                        Eigen::Vector2d(1, 1)}) {
     const Eigen::Vector2d uv = pl.offset + pl.linear * (s.chart_size() * corner);
     lo = lo.cwiseMin(Eigen::Vector2d(uv.x() * w, uv.y() * h));

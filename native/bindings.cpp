@@ -350,6 +350,17 @@ py::dict measure_py(const py::object& positions, const py::object& triangles, co
   return d;
 }
 
+std::vector<PageSize> image_sizes(const py::list& images, const char* name) {
+  if (images.empty()) throw py::value_error(std::string(name) + " must not be empty");
+  std::vector<PageSize> sizes;
+  for (const auto& img : images) {
+    const py::array a = py::array::ensure(img);
+    if (!a || a.ndim() != 3) throw py::value_error(std::string(name) + " must be (H, W, C) arrays");
+    sizes.push_back({static_cast<int>(a.shape(1)), static_cast<int>(a.shape(0))});
+  }
+  return sizes;
+}
+
 template <class T>
 ColorFidelity compare_typed(const Mesh& mesh, const py::list& old_images, const UvAtlas& new_atlas,
                             const py::list& new_images, int samples, unsigned seed) {
@@ -363,18 +374,8 @@ ColorFidelity compare_typed(const Mesh& mesh, const py::list& old_images, const 
 py::dict compare_colors_py(const py::object& positions, const py::object& triangles, const py::object& old_uvs,
                            const py::object& old_face_page, const py::list& old_images, const py::object& new_uvs,
                            const py::object& new_face_page, const py::list& new_images, int samples, unsigned seed) {
-  std::vector<PageSize> old_pages, new_pages;
-  for (const auto& img : old_images) {
-    const py::array a = py::array::ensure(img);
-    if (!a || a.ndim() != 3) throw py::value_error("old_images must be (H, W, C) arrays");
-    old_pages.push_back({static_cast<int>(a.shape(1)), static_cast<int>(a.shape(0))});
-  }
-  for (const auto& img : new_images) {
-    const py::array a = py::array::ensure(img);
-    if (!a || a.ndim() != 3) throw py::value_error("new_images must be (H, W, C) arrays");
-    new_pages.push_back({static_cast<int>(a.shape(1)), static_cast<int>(a.shape(0))});
-  }
-  if (old_pages.empty() || new_pages.empty()) throw py::value_error("old_images and new_images must not be empty");
+  const std::vector<PageSize> old_pages = image_sizes(old_images, "old_images");
+  const std::vector<PageSize> new_pages = image_sizes(new_images, "new_images");
   const auto pos = checked<double>(positions, "positions", {3}, "(V, 3)");
   const auto tri = checked<long long>(triangles, "triangles", {3}, "(F, 3)");
   const Layout old_l = layout(old_uvs, old_face_page, tri.shape(0), "old_uvs", "old_face_page");

@@ -177,19 +177,29 @@ std::vector<int> largest_first(const std::vector<ScaledChart>& charts) {
   return order;
 }
 
-// Tries both orientations and keeps the one whose top ends lowest (a long
-// chart lies down), which keeps the packed region low and compact.
+// Both orientations are tried; the one whose top ends lowest wins (a long
+// chart lies down), which keeps the packed region low and compact. Each is
+// first dropped onto the horizon, then holes below are searched for a lower
+// spot unless the page recently had no hole for a chart that large.
 bool place_chart(PageOccupancy& page, const ScaledChart& chart, Placement& placement) {
   const int flat_first = chart.turned[1].mask.height < chart.turned[0].mask.height ? 1 : 0;
+  const std::array<int, 2> turns = {flat_first, 1 - flat_first};
   std::optional<Eigen::Vector2i> best;
   int best_turn = 0, best_top = page.height() + 1;
-  for (int turn : {flat_first, 1 - flat_first}) {
-    const PlacementShape& shape = chart.turned[turn];
-    const auto at = page.find_spot(shape, best_top - 1);
-    if (!at) continue;
+  auto keep_if_lower = [&](int turn, const std::optional<Eigen::Vector2i>& at) {
+    if (!at) return false;
     best = at;
     best_turn = turn;
-    best_top = at->y() + shape.mask.height;
+    best_top = at->y() + chart.turned[turn].mask.height;
+    return true;
+  };
+  for (int turn : turns) keep_if_lower(turn, page.lowest_drop(chart.turned[turn], best_top - 1));
+  // Without a drop spot the holes are the only chance, whatever the memory says.
+  if (!best || page.holes_may_fit(chart.turned[0])) {
+    bool in_hole = false;
+    for (int turn : turns)
+      in_hole |= keep_if_lower(turn, page.first_fit(chart.turned[turn], best_top - 1));
+    if (!in_hole) page.note_no_hole_fits(chart.turned[0]);
   }
   if (!best) return false;
   page.occupy(chart.turned[best_turn], best->x(), best->y());

@@ -1,16 +1,14 @@
 #include "page_occupancy.hpp"
 
 #include <algorithm>
-#include <cstdlib>
 
+long long g_calls=0, g_rows=0, g_found=0, g_merges=0, g_loop=0, g_filter=0;
 namespace atlas {
 namespace {
 
-constexpr int kBlock = 64;  // rows / columns summarised together
-// Rows of holes fully examined per search before settling for the drop: hole
-// filling gains a few percent of page area, an unbounded scan costs a pass
-// over the whole page for every chart.
-constexpr int kHoleRowBudget = 32;
+constexpr int kBlock = 64;           // rows / columns summarised together
+constexpr int kLongRun = 24;         // free runs at least this long are also listed apart
+constexpr double kMissMargin = 0.9;  // see holes_may_fit
 
 // Keeps the offsets x of `candidates` at which the chart run lies inside one
 // free run f: f.begin <= x + run.begin and x + run.end <= f.end, i.e.
@@ -39,6 +37,19 @@ void keep_offsets_inside(const std::vector<Span>& free_runs, Span run,
   }
 }
 
+// Replaces the runs meeting [lo, hi) by `fresh` (which lies inside it),
+// keeping only runs at least min_length long.
+void replace_runs(std::vector<Span>& runs, int lo, int hi, const std::vector<Span>& fresh,
+                  int min_length) {
+  auto first = std::lower_bound(runs.begin(), runs.end(), lo,
+                                [](const Span& s, int x) { return s.end <= x; });
+  auto last = std::lower_bound(first, runs.end(), hi,
+                               [](const Span& s, int x) { return s.begin < x; });
+  first = runs.erase(first, last);
+  for (const Span& s : fresh)
+    if (s.end - s.begin >= min_length) first = runs.insert(first, s) + 1;
+}
+
 }  // namespace
 
 PageOccupancy::PageOccupancy(int width, int height)
@@ -50,16 +61,6 @@ PageOccupancy::PageOccupancy(int width, int height)
       horizon_(width, 0),
       block_lowest_horizon_((width + kBlock - 1) / kBlock, 0) {}
 
-std::optional<Eigen::Vector2i> PageOccupancy::find_spot(const PlacementShape& shape,
-                                                        int top_limit) const {
-  if (shape.mask.width > width_) return std::nullopt;
-  const auto drop = lowest_drop(shape, top_limit);
-  // Only a hole strictly lower than the drop is worth taking.
-  const int hole_limit = drop ? drop->y() + shape.mask.height - 1 : top_limit;
-  if (const auto hole = first_fit_in_holes(shape, hole_limit)) return hole;
-  return drop;
-}
-
 // Everything above the horizon is free, so the shape dropped at column x
 // rests at y(x) = max over its columns i of horizon[x + i] - column_bottom[i].
 // Any subset of columns bounds y(x) from below; with the lowest horizon per
@@ -67,22 +68,24 @@ std::optional<Eigen::Vector2i> PageOccupancy::find_spot(const PlacementShape& sh
 // by increasing bound and the search stops when no block can beat the best.
 std::optional<Eigen::Vector2i> PageOccupancy::lowest_drop(const PlacementShape& shape,
                                                           int top_limit) const {
+  if (shape.mask.width > width_) return std::nullopt;
   const int x_count = width_ - shape.mask.width + 1;
-  const int blocks = (x_count + kBlock - 1) / kBlock, last_block = (width_ - 1) / kBlock;
-  std::vector<std::pair<int, int>>& bounds = block_bounds_;  // (bound, block)
-  bounds.clear();
-  for (int b = 0; b < blocks; ++b) {
+  const int last_block = (width_ - 1) / kBlock;
+  block_bounds_.clear();
+  for (int b = 0; b * kBlock < x_count; ++b) {
     int bound = 0;
     for (int i : shape.key_columns) {
-      const int lowest = std::min(block_lowest_horizon_[b + i / kBlock],
-                                  block_lowest_horizon_[std::min(last_block, b + (i + kBlock - 1) / kBlock)]);
+      // Columns x + i for x in block b lie in these two horizon blocks.
+      const int lowest =
+          std::min(block_lowest_horizon_[b + i / kBlock],
+                   block_lowest_horizon_[std::min(last_block, b + (i + kBlock - 1) / kBlock)]);
       bound = std::max(bound, lowest - shape.column_bottom[i]);
     }
-    bounds.push_back({bound, b});
+    block_bounds_.push_back({bound, b});
   }
-  std::sort(bounds.begin(), bounds.end());
+  std::sort(block_bounds_.begin(), block_bounds_.end());
   int best_y = std::min(height_, top_limit) - shape.mask.height + 1, best_x = -1;
-  for (const auto& [bound, b] : bounds) {
+  for (const auto& [bound, b] : block_bounds_) {
     if (bound >= best_y) break;
     for (int x = b * kBlock; x < std::min(x_count, (b + 1) * kBlock); ++x) {
       int y = bound;
@@ -100,23 +103,25 @@ std::optional<Eigen::Vector2i> PageOccupancy::lowest_drop(const PlacementShape& 
   return Eigen::Vector2i(best_x, best_y);
 }
 
-// A spot below top_limit, found by scanning rows downwards from there: the
-// holes just under the horizon are the freshest and largest. Rows are first
-// filtered in O(1) by their longest free runs; at most kHoleRowBudget rows
-// that pass are scanned in full.
-std::optional<Eigen::Vector2i> PageOccupancy::first_fit_in_holes(const PlacementShape& shape,
-                                                                 int top_limit) const {
+// Scans rows upwards. Each row is first filtered in O(1) by its longest free
+// runs; rows that pass are tested exactly. Rows above the stored ones are
+// free, so the scan ends there at the latest.
+std::optional<Eigen::Vector2i> PageOccupancy::first_fit(const PlacementShape& shape,
+                                                        int top_limit) const {
+  if (shape.mask.width > width_) return std::nullopt;
+  const int y_last = std::min(height_, top_limit) - shape.mask.height;
   const int widest = shape.widest_row;
-  static const int kb = getenv("HB") ? atoi(getenv("HB")) : kHoleRowBudget; int budget = kb;
-  for (int y = std::min(height_, top_limit) - shape.mask.height; y >= 0; --y) {
+  ++g_calls;
+  for (int y = 0; y <= y_last; ++y) {
     // The widest chart run needs a free run at least as long under it.
-    const int row = previous_row_with_free_run(y + widest, shape.longest_run[widest]);
-    if (row < widest) return std::nullopt;
+    const int row = next_row_with_free_run(y + widest, shape.longest_run[widest]);
+    if (row < 0 || row - widest > y_last) return std::nullopt;
     y = row - widest;
+    ++g_filter;
     if (!rows_have_long_free_runs(shape, y)) continue;
-    if (budget-- == 0) return std::nullopt;
+    ++g_rows;
     const int x = leftmost_fit_in_row(shape, y);
-    if (x >= 0) return Eigen::Vector2i(x, y);
+    if (x >= 0) { ++g_found; return Eigen::Vector2i(x, y);}
   }
   return std::nullopt;
 }
@@ -128,9 +133,13 @@ int PageOccupancy::leftmost_fit_in_row(const PlacementShape& shape, int y) const
   candidates_.assign(1, {0, width_ - shape.mask.width + 1});
   const int stored_rows = std::min(shape.mask.height, used_height_ - y);  // rows above are free
   for (int r : shape.row_order) {
+    ++g_loop;
     if (r >= stored_rows) continue;
+    const FreeRow& row = rows_[y + r];
     for (int i = shape.row_start[r]; i < shape.row_start[r + 1]; ++i) {
-      keep_offsets_inside(free_runs_[y + r], shape.runs[i], candidates_, kept_);
+      const Span run = shape.runs[i];
+      ++g_merges; keep_offsets_inside(run.end - run.begin >= kLongRun ? row.long_runs : row.runs, run,
+                          candidates_, kept_);
       candidates_.swap(kept_);
       if (candidates_.empty()) return -1;
     }
@@ -147,17 +156,22 @@ bool PageOccupancy::rows_have_long_free_runs(const PlacementShape& shape, int y)
   return true;
 }
 
-// Last row <= from whose longest free run is >= length, or -1.
-int PageOccupancy::previous_row_with_free_run(int from, int length) const {
-  for (int row = std::min(from, height_ - 1); row >= 0;) {
-    if (row % kBlock == kBlock - 1 && block_longest_free_run_[row / kBlock] < length) {
-      row -= kBlock;
+// First row >= from whose longest free run is >= length, or -1.
+int PageOccupancy::next_row_with_free_run(int from, int length) const {
+  for (int row = from; row < height_;) {
+    if (row % kBlock == 0 && block_longest_free_run_[row / kBlock] < length) {
+      row += kBlock;
       continue;
     }
     if (longest_free_run_[row] >= length) return row;
-    --row;
+    ++row;
   }
   return -1;
+}
+
+void PageOccupancy::note_no_hole_fits(const PlacementShape& shape) {
+  hole_miss_texels_ =
+      std::min(hole_miss_texels_, static_cast<long long>(kMissMargin * shape.texels));
 }
 
 void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
@@ -165,7 +179,7 @@ void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
   if (y + mask.height > used_height_) {
     used_height_ = y + mask.height;
     words_.resize(static_cast<size_t>(used_height_) * words_per_row_, 0);
-    free_runs_.resize(used_height_, std::vector<Span>{{0, width_}});
+    rows_.resize(used_height_, FreeRow{{{0, width_}}, {{0, width_}}});
   }
   used_width_ = std::max(used_width_, x + mask.width);
   const int shift = x & 63, base = x >> 6;
@@ -176,13 +190,20 @@ void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
       page[base + k] |= bits[k] << shift;
       if (shift && base + k + 1 < words_per_row_) page[base + k + 1] |= bits[k] >> (64 - shift);
     }
-    update_row(y + r);
+    update_row(y + r, x, x + mask.width);
   }
   for (int b = y / kBlock; b <= (y + mask.height - 1) / kBlock; ++b) {
     const auto first = longest_free_run_.begin() + b * kBlock;
     const auto last = longest_free_run_.begin() + std::min(height_, (b + 1) * kBlock);
     block_longest_free_run_[b] = *std::max_element(first, last);
   }
+
+  // Free texels the shape covers from above (between the horizon and its
+  // lower outline) become a hole: charts that small may fit again.
+  long long pocket = 0;
+  for (int i : shape.column_order)
+    pocket += std::max(0, y + shape.column_bottom[i] - horizon_[x + i]);
+  hole_miss_texels_ = std::max(hole_miss_texels_, pocket + 1);
   for (int i = 0; i < mask.width; ++i)
     horizon_[x + i] = std::max(horizon_[x + i], y + shape.column_top[i]);
   for (int b = x / kBlock; b <= (x + mask.width - 1) / kBlock; ++b) {
@@ -192,19 +213,35 @@ void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
   }
 }
 
-// Rebuilds the free runs of stored row y from its bits.
-void PageOccupancy::update_row(int y) {
-  const std::uint64_t* row = words_.data() + static_cast<size_t>(y) * words_per_row_;
-  std::vector<Span>& runs = free_runs_[y];
-  runs.clear();
-  int longest = 0;
-  for (int x = find_bit(row, 0, width_, false); x < width_;) {
-    const int end = find_bit(row, x, width_, true);
-    runs.push_back({x, end});
-    longest = std::max(longest, end - x);
-    x = find_bit(row, end, width_, false);
+// Row y changed inside [x_begin, x_end): rebuilds only the free runs that met
+// that range, from the row's bits.
+void PageOccupancy::update_row(int y, int x_begin, int x_end) {
+  FreeRow& row = rows_[y];
+  const auto first = std::lower_bound(row.runs.begin(), row.runs.end(), x_begin,
+                                      [](const Span& s, int x) { return s.end <= x; });
+  const auto last = std::lower_bound(first, row.runs.end(), x_end,
+                                     [](const Span& s, int x) { return s.begin < x; });
+  if (first == last) return;
+  const int lo = first->begin, hi = std::prev(last)->end;
+  bool lost_longest = false;
+  for (auto s = first; s != last; ++s) lost_longest |= s->end - s->begin == longest_free_run_[y];
+
+  const std::uint64_t* bits = words_.data() + static_cast<size_t>(y) * words_per_row_;
+  std::vector<Span>& fresh = kept_;
+  fresh.clear();
+  for (int x = find_bit(bits, lo, hi, false); x < hi;) {
+    const int end = find_bit(bits, x, hi, true);
+    fresh.push_back({x, end});
+    x = find_bit(bits, end, hi, false);
   }
-  longest_free_run_[y] = longest;
+  replace_runs(row.runs, lo, hi, fresh, 0);
+  replace_runs(row.long_runs, lo, hi, fresh, kLongRun);
+  // Runs only shrink, so the longest changes only if one of the longest went.
+  if (lost_longest) {
+    int longest = 0;
+    for (const Span& s : row.runs) longest = std::max(longest, s.end - s.begin);
+    longest_free_run_[y] = longest;
+  }
 }
 
 }  // namespace atlas

@@ -1,7 +1,8 @@
-// Occupied texels of one page under construction, and the search for a spot
+// Occupied texels of one page under construction, and the searches for a spot
 // where a dilated chart mask fits without touching any of them.
 #pragma once
 #include <Eigen/Core>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -19,29 +20,44 @@ class PageOccupancy {
   int used_width() const { return used_width_; }
   int used_height() const { return used_height_; }
 
-  // Offset of mask texel (0, 0) at which no set texel of the shape lands on an
-  // occupied one and y + mask.height <= top_limit: the lowest (then leftmost)
-  // spot where the shape, dropped straight down, comes to rest on the
-  // horizon, unless a bounded scan of the holes below it finds a lower one.
-  std::optional<Eigen::Vector2i> find_spot(const PlacementShape& shape, int top_limit) const;
+  // Both searches give the offset of mask texel (0, 0) at which no set texel
+  // of the shape lands on an occupied one and y + mask.height <= top_limit.
+  //
+  // The lowest spot where the shape, dropped straight down, comes to rest on
+  // the horizon. Cost ~ page width / 64 plus a few blocks of 64 columns.
+  std::optional<Eigen::Vector2i> lowest_drop(const PlacementShape& shape, int top_limit) const;
+  // The lowest (then leftmost) spot anywhere, holes under the horizon
+  // included: a row-by-row scan, costly when nothing fits.
+  std::optional<Eigen::Vector2i> first_fit(const PlacementShape& shape, int top_limit) const;
+
+  // Memory of failed hole searches, so that charts of a size the holes could
+  // not take lately skip the costly scan: a miss rules out charts of >= 90%
+  // of its texels until a drop covers a pocket of free texels that large.
+  bool holes_may_fit(const PlacementShape& shape) const { return shape.texels < hole_miss_texels_; }
+  void note_no_hole_fits(const PlacementShape& shape);
 
   // Marks the shape's set texels, mask texel (0, 0) at page texel (x, y).
   void occupy(const PlacementShape& shape, int x, int y);
 
  private:
-  std::optional<Eigen::Vector2i> lowest_drop(const PlacementShape& shape, int top_limit) const;
-  std::optional<Eigen::Vector2i> first_fit_in_holes(const PlacementShape& shape,
-                                                    int top_limit) const;
+  // Free runs of one stored row, left to right; the long ones again apart,
+  // since a long chart run only needs to be tried against those.
+  struct FreeRow {
+    std::vector<Span> runs;
+    std::vector<Span> long_runs;
+  };
+
   int leftmost_fit_in_row(const PlacementShape& shape, int y) const;
   bool rows_have_long_free_runs(const PlacementShape& shape, int y) const;
-  int previous_row_with_free_run(int from, int length) const;
-  void update_row(int y);
+  int next_row_with_free_run(int from, int length) const;
+  void update_row(int y, int x_begin, int x_end);
 
   int width_, height_, words_per_row_;
   int used_width_ = 0, used_height_ = 0;
+  long long hole_miss_texels_ = std::numeric_limits<long long>::max();
   // Rows [0, used_height_) only: every row above is empty.
   std::vector<std::uint64_t> words_;
-  std::vector<std::vector<Span>> free_runs_;  // per stored row, left to right
+  std::vector<FreeRow> rows_;
   // Longest free run of every row (width_ above used_height_), and its maximum
   // per block of rows: rows that cannot take a chart's widest run are skipped.
   std::vector<int> longest_free_run_;
@@ -50,8 +66,8 @@ class PageOccupancy {
   // free. Its minimum per block of columns lets the drop skip whole blocks.
   std::vector<int> horizon_;
   std::vector<int> block_lowest_horizon_;
-  // Scratch for one row scan. The search is const but reuses these buffers,
-  // so a page must not be searched from two threads at once.
+  // Scratch for the searches. They are const but reuse these buffers, so a
+  // page must not be searched from two threads at once.
   mutable std::vector<Span> candidates_, kept_;
   mutable std::vector<std::pair<int, int>> block_bounds_;
 };

@@ -57,6 +57,7 @@ PlacementShape make_placement_shape(TexelMask mask) {
     for (int x = find_bit(row, 0, mask.width, true); x < mask.width;) {
       const int end = find_bit(row, x, mask.width, false);
       shape.runs.push_back({x, end});
+      shape.texels += end - x;
       longest = std::max(longest, end - x);
       x = find_bit(row, end, mask.width, true);
     }

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cstddef>
 
-#include "sample_texture.hpp"
 #include "texel_encoding.hpp"
 
 namespace atlas {

@@ -4,10 +4,9 @@
 #include <Eigen/Core>
 
 #include "bake.hpp"
+#include "texel_encoding.hpp"
 
 namespace atlas {
-
-constexpr int kMaxTexelChannels = 4;
 
 // The parallelogram one new texel covers in the old page: its edges are the old-texel
 // offsets of a one-texel step along new x and new y (columns of the 2x2 Jacobian of

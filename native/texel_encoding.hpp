@@ -4,6 +4,10 @@
 
 namespace atlas {
 
+// Texels hold 1 to 4 channels (grey, grey + alpha, RGB, RGBA): the baker keeps
+// per-texel scratch values on the stack.
+constexpr int kMaxTexelChannels = 4;
+
 template <class T>
 inline T encode_texel(double value);
 

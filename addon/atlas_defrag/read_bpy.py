@@ -53,10 +53,11 @@ class ReadResult:
     warnings: List[str] = field(default_factory=list)
 
 
-def mesh_signature(obj) -> tuple:
-    """Cheap fingerprint used to refuse writing onto a mesh edited meanwhile."""
-    me = obj.data
-    return (obj.name, me.name, len(me.vertices), len(me.loops), len(me.polygons),
+def mesh_signature(obj, me=None) -> tuple:
+    """Cheap fingerprint used to refuse writing onto a mesh edited meanwhile
+    (me: the mesh data to count, a synced copy in Edit mode)."""
+    me = me or obj.data
+    return (obj.name, obj.data.name, len(me.vertices), len(me.loops), len(me.polygons),
             tuple(uv.name for uv in me.uv_layers), len(obj.material_slots))
 
 
@@ -256,11 +257,21 @@ def read_pixels(img) -> np.ndarray:
 def read(obj, uv_map: Optional[str] = None) -> ReadResult:
     """Collects everything the job needs. Raises DefragError with the reason."""
     layer = check_object(obj, uv_map)
-    if obj.mode == "EDIT":
-        obj.update_from_editmode()
-        layer = check_object(obj, layer.name)
-    me = obj.data
-    uv_name = layer.name
+    if obj.mode != "EDIT":
+        return _read(obj, obj.data, layer.name)
+    # In Edit mode the mesh arrays are stale and 4.x hides the UV data: read a
+    # synced copy (removed again; the object is not touched).
+    import bpy
+    obj.update_from_editmode()
+    copy = obj.data.copy()
+    try:
+        return _read(obj, copy, layer.name)
+    finally:
+        bpy.data.meshes.remove(copy)
+
+
+def _read(obj, me, uv_name: str) -> ReadResult:
+    layer = me.uv_layers[uv_name]
     render_uv = _render_uv_name(me)
     active_uv = me.uv_layers.active.name if me.uv_layers.active else uv_name
     warnings: List[str] = []
@@ -269,7 +280,7 @@ def read(obj, uv_map: Optional[str] = None) -> ReadResult:
     compat.calc_loop_triangles(me)
     n_tris = len(me.loop_triangles)
     if n_tris == 0:
-        raise DefragError(f"Mesh '{me.name}' has no faces")
+        raise DefragError(f"Mesh '{obj.data.name}' has no faces")
     positions = np.empty(len(me.vertices) * 3, dtype=np.float32)
     me.vertices.foreach_get("co", positions)
     tri_verts = np.empty(n_tris * 3, dtype=np.int32)
@@ -373,7 +384,7 @@ def read(obj, uv_map: Optional[str] = None) -> ReadResult:
                       face_page=face_page.astype(np.int32)),
         pages=pages, images=images)
     return ReadResult(
-        job=job, object_name=obj.name, mesh_name=me.name, uv_map=uv_name, active_uv=active_uv,
+        job=job, object_name=obj.name, mesh_name=obj.data.name, uv_map=uv_name, active_uv=active_uv,
         render_uv=render_uv, n_loops=n_loops, tri_loops=tri_loops, tri_polygons=tri_polys,
         slot_of_face=slot_of_face.astype(np.int32), materials=list(materials.values()),
-        signature=mesh_signature(obj), warnings=warnings)
+        signature=mesh_signature(obj, me), warnings=warnings)

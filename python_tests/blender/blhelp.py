@@ -40,7 +40,9 @@ def model_path(key: str) -> str:
 
 # --------------------------------------------------------------------------- scenes
 def reset() -> None:
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    """An empty scene. (read_homefile keeps enabled add-ons, unlike
+    read_factory_settings; Blender runs with --factory-startup anyway.)"""
+    bpy.ops.wm.read_homefile(use_empty=True)
 
 
 def import_model(path: str):
@@ -135,8 +137,19 @@ def tree_state(mat) -> dict:
 def object_state(obj_name: str, pixels=True) -> dict:
     """Everything the operator may touch, hashed: compare before/after."""
     obj = bpy.data.objects[obj_name]
-    me = obj.data
-    d = {"mode": obj.mode, "mesh": me.name}
+    if obj.mode == "EDIT":
+        # Mesh arrays are stale while editing (and 4.x hides UV data): hash a synced copy.
+        obj.update_from_editmode()
+        copy = obj.data.copy()
+        try:
+            return _object_state(obj, copy, pixels)
+        finally:
+            bpy.data.meshes.remove(copy)
+    return _object_state(obj, obj.data, pixels)
+
+
+def _object_state(obj, me, pixels) -> dict:
+    d = {"mode": obj.mode, "mesh": obj.data.name}
     d["uv_maps"] = [uv.name for uv in me.uv_layers]
     d["uv_active"] = me.uv_layers.active.name if me.uv_layers.active else None
     d["uv_render"] = [uv.name for uv in me.uv_layers if uv.active_render]

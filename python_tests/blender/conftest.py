@@ -21,7 +21,7 @@ import pytest
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
 BUILD = Path(os.environ.get("ATLAS_BUILD_DIR", REPO / "build")).resolve()
-ADDON_PARENT = Path(os.environ.get("ATLAS_ADDON_PARENT", BUILD / "addon")).resolve()
+ADDON_PARENT = Path(os.path.abspath(os.environ.get("ATLAS_ADDON_PARENT", BUILD / "addon")))
 ADDON_ZIP = BUILD / "atlas_defrag-0.1.0.zip"
 BLENDER = os.environ.get("BLENDER", "blender")
 
@@ -53,7 +53,7 @@ def pkg():
     import bpy  # noqa: F401
 
     import atlas_defrag
-    if not Path(atlas_defrag.__file__).resolve().is_relative_to(ADDON_PARENT):
+    if Path(os.path.abspath(atlas_defrag.__file__)).parent.parent != ADDON_PARENT:
         pytest.fail(f"atlas_defrag imported from {atlas_defrag.__file__}, not {ADDON_PARENT}")
     atlas_defrag.register()
     yield atlas_defrag

@@ -85,7 +85,10 @@ class _raises:
         return issubclass(typ, self.exc)
 
 
-def run_operator(pkg, **props):
+def run_operator(pkg, undo=False, **props):
+    """Runs the operator; undo=True pushes its undo step as the UI does."""
+    if undo:
+        return bpy.ops.uv.defragment_atlas("EXEC_DEFAULT", True, **props)
     return bpy.ops.uv.defragment_atlas("EXEC_DEFAULT", **props)
 
 
@@ -100,7 +103,7 @@ def operator_on_model(pkg, model="tetra", **props):
     name = obj.name
     before = H.object_state(name)
     H.undo_push("before defragment")
-    result = run_operator(pkg, **props)
+    result = run_operator(pkg, undo=True, **props)
     assert result == {"FINISHED"}, result
     check_result(name, before, None)
     H.undo()
@@ -117,7 +120,7 @@ def edit_mode_undo(pkg):
     bpy.ops.object.mode_set(mode="EDIT")
     before = H.object_state(name)
     H.undo_push("before defragment")
-    assert run_operator(pkg) == {"FINISHED"}
+    assert run_operator(pkg, undo=True) == {"FINISHED"}
     obj = bpy.data.objects[name]
     assert obj.mode == "EDIT", obj.mode
     bpy.ops.object.mode_set(mode="OBJECT")

@@ -16,7 +16,7 @@ from conftest import ADDON_PARENT, BLENDER, require_native, run_blender
 
 BATCH = ADDON_PARENT / "atlas_defrag" / "batch.py"
 BOX_GLB = H.ASSIMP / "glTF2" / "BoxTextured-glTF-Binary" / "BoxTextured.glb"
-UNTEXTURED_OBJ = H.ASSIMP / "OBJ" / "box.obj"
+NO_UV_OBJ = H.ASSIMP / "OBJ" / "box.obj"  # no texture coordinates at all
 
 
 def blender34_batch(*args):
@@ -113,8 +113,8 @@ def test_batch_failures(tmp_path, runner):
     proc = run(tmp_path / "missing.obj", tmp_path / "o.obj", "--report", tmp_path / "r.json")
     assert proc.returncode == 1 and "input not found" in proc.stderr, proc.stderr[-2000:]
     assert json.loads((tmp_path / "r.json").read_text())["status"] == "error"
-    proc = run(UNTEXTURED_OBJ, tmp_path / "o2.obj")
-    assert proc.returncode == 1 and "no image texture" in proc.stderr.lower(), proc.stderr[-2000:]
+    proc = run(NO_UV_OBJ, tmp_path / "o2.obj")
+    assert proc.returncode == 1 and "has no uv map" in proc.stderr.lower(), proc.stderr[-2000:]
     assert not (tmp_path / "o2.obj").exists()
     proc = run(H.model_path("tetra"), tmp_path / "o3.fbx")
     assert proc.returncode == 1 and "unsupported output" in proc.stderr, proc.stderr[-2000:]

@@ -65,8 +65,7 @@ def test_no_absolute_package_imports():
 
 def test_manifest_validates_with_blender_tool(addon_zip):
     import bpy
-    tool = Path(bpy.__file__).parent / f"{bpy.app.version[0]}.{bpy.app.version[1]}" / "scripts" / \
-        "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
+    tool = Path(bpy.utils.system_resource("SCRIPTS")) / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
     if not tool.is_file():
         pytest.fail(f"extension tool not found at {tool}")
     proc = subprocess.run([sys.executable, str(tool), "validate", str(addon_zip)], capture_output=True,

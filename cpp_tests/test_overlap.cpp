@@ -1,0 +1,120 @@
+// Overlap detection and the backtracking that splits overlapping charts.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "aggregate.hpp"
+#include "charts.hpp"
+#include "cut_to_disk.hpp"
+#include "overlap.hpp"
+#include "test_meshes.hpp"
+
+using namespace atlas;
+
+namespace {
+
+// A strip winding 3 turns up a helix, width along the radius: each short
+// piece is nearly flat, but flattening the whole strip without distortion
+// curls it like an annulus, so it must cross itself.
+Mesh helical_strip(int segments, int segments_per_chart) {
+  RowMatrixX3d positions(2 * (segments + 1), 3);
+  for (int i = 0; i <= segments; ++i) {
+    const double t = 6.0 * 3.14159265358979 * i / segments;
+    for (int side = 0; side < 2; ++side) {
+      const double r = 1.0 + 0.5 * side;
+      positions.row(2 * i + side) << r * std::cos(t), r * std::sin(t), 0.05 * t;
+    }
+  }
+  RowMatrixX3i triangles(2 * segments, 3);
+  std::vector<int> chart(2 * segments);
+  for (int i = 0; i < segments; ++i) {
+    const int a = 2 * i, b = 2 * i + 1, c = 2 * i + 3, d = 2 * i + 2;
+    triangles.row(2 * i) << a, b, c;
+    triangles.row(2 * i + 1) << a, c, d;
+    chart[2 * i] = chart[2 * i + 1] = i / segments_per_chart;
+  }
+  return atlas::testing::with_chart_uvs(positions, triangles, chart);
+}
+
+std::vector<int> identity(int n) {
+  std::vector<int> v(n);
+  for (int i = 0; i < n; ++i) v[i] = i;
+  return v;
+}
+
+}  // namespace
+
+TEST(Overlap, DetectsCrossingBoundary) {
+  // An open fan around vertex 0; moving its last vertex across the fan makes
+  // the boundary edge 3-4 cross the boundary edge 1-2.
+  RowMatrixX3i t(3, 3);
+  t << 0, 1, 2, 0, 2, 3, 0, 3, 4;
+  RowMatrixX2d uv(5, 2);
+  uv << 0, 0, 1, 0, 0, 1, -1, 0, 0, -1;
+  EXPECT_FALSE(boundary_self_intersects(t, uv));
+  uv.row(4) << 1.5, 0.5;
+  EXPECT_TRUE(boundary_self_intersects(t, uv));
+}
+
+// SLIM may unroll the strip (energy ~4.15) or curl it (energy 4, overlapping,
+// then split): either way no piece may overlap and every face must be placed.
+TEST(Overlap, HelicalStripEndsWithoutOverlap) {
+  const Mesh mesh = helical_strip(480, 8);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const ChartGraph graph = build_chart_graph(mesh, topology, {});
+  ASSERT_EQ(graph.chart_count(), 60);
+  const Aggregation merged = aggregate_charts(mesh, topology, graph, {}, RunControl());
+  ASSERT_EQ(merged.chart_count(), 1);
+
+  std::vector<std::vector<int>> chart_faces(graph.chart_count());
+  for (int f = 0; f < mesh.face_count(); ++f) chart_faces[graph.face_chart[f]].push_back(f);
+  FlattenStats stats;
+  const auto pieces =
+      flatten_without_overlap(mesh, topology, graph, chart_faces, merged.members[0], {}, RunControl(), stats);
+  size_t faces = 0;
+  for (const FlatChart& piece : pieces) {
+    faces += piece.faces.size();
+    // Corner-indexed triangles have no shared vertices, so rebuild sharing by position.
+    RowMatrixX3i t(static_cast<Eigen::Index>(piece.faces.size()), 3);
+    for (size_t i = 0; i < piece.faces.size(); ++i)
+      for (int k = 0; k < 3; ++k) t(i, k) = mesh.triangles(piece.faces[i], k);
+    RowMatrixX2d uv = RowMatrixX2d::Zero(mesh.vertex_count(), 2);
+    for (size_t i = 0; i < piece.faces.size(); ++i)
+      for (int k = 0; k < 3; ++k) uv.row(t(i, k)) = piece.corner_uv.row(3 * i + k);
+    EXPECT_FALSE(boundary_self_intersects(t, uv));
+    EXPECT_TRUE(piece.corner_uv.allFinite());
+  }
+  EXPECT_EQ(faces, static_cast<size_t>(mesh.face_count()));
+}
+
+TEST(Overlap, ClosedSurfaceIsSplitIntoDisks) {
+  const Mesh torus = atlas::testing::torus(24, 12, 4);
+  const MeshTopology topology = build_topology(torus.triangles, torus.vertex_count());
+  const ChartGraph graph = build_chart_graph(torus, topology, {});
+  std::vector<std::vector<int>> chart_faces(graph.chart_count());
+  for (int f = 0; f < torus.face_count(); ++f) chart_faces[graph.face_chart[f]].push_back(f);
+  std::vector<int> all(graph.chart_count());
+  for (int c = 0; c < graph.chart_count(); ++c) all[c] = c;
+  FlattenStats stats;
+  const auto pieces = flatten_without_overlap(torus, topology, graph, chart_faces, all, {}, RunControl(), stats);
+  EXPECT_GE(stats.not_disk, 1);
+  EXPECT_GE(pieces.size(), 2u);
+  size_t faces = 0;
+  for (const FlatChart& piece : pieces) faces += piece.faces.size();
+  EXPECT_EQ(faces, static_cast<size_t>(torus.face_count()));
+}
+
+TEST(CutToDisk, AnnulusOpensIntoADisk) {
+  const Mesh ring = atlas::testing::annulus(3, 24, 24);
+  RowMatrixX3i t = ring.triangles;
+  std::vector<int> source = identity(ring.vertex_count());
+  EXPECT_TRUE(cut_to_disk(t, source));
+  EXPECT_GT(static_cast<int>(source.size()), ring.vertex_count());  // the cut doubled a path
+}
+
+TEST(CutToDisk, TorusIsNotADisk) {
+  const Mesh torus = atlas::testing::torus(12, 8, 12);
+  RowMatrixX3i t = torus.triangles;
+  std::vector<int> source = identity(torus.vertex_count());
+  EXPECT_FALSE(cut_to_disk(t, source));
+}
