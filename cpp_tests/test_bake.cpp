@@ -288,6 +288,24 @@ TEST(Bake, OldUvsOutsideThePageWrap) {
   for (std::size_t i = 0; i < inside.texels.size(); ++i) ASSERT_NEAR(inside.texels[i], wrapped.texels[i], 1e-5);
 }
 
+TEST(Bake, ChartsMovedByWholeTexelsAreCopiedExactly) {
+  // Noise texture: any resampling blur or half-texel shift would change texels.
+  auto none = [](int, const Eigen::Vector2d&) { return Colour{}; };
+  const Eigen::Matrix2d scale = 0.5 * Eigen::Matrix2d::Identity();  // 32 texels on a 64 page
+  Scene<std::uint8_t> sc = scene<std::uint8_t>({{scale, Eigen::Vector2d(8, 8) / 64, 0}},
+                                               {{scale, Eigen::Vector2d(20, 13) / 64, 0}}, 64, {{64, 64}}, 3,
+                                               0.0, none, Colour{}, 1, 4);
+  std::uint32_t state = 12345;
+  for (std::uint8_t& v : sc.old_images[0].texels) v = (state = state * 1664525u + 1013904223u) >> 24;
+  const Image<std::uint8_t> out = sc.bake()[0];
+  const Image<std::uint8_t>& old_page = sc.old_images[0];
+  for (int y = 13; y < 13 + 32; ++y)
+    for (int x = 20; x < 20 + 32; ++x)
+      for (int k = 0; k < 3; ++k)
+        ASSERT_EQ(out.texels[(y * 64 + x) * 3 + k], old_page.texels[((y - 5) * 64 + x - 12) * 3 + k])
+            << x << "," << y;
+}
+
 // Charts turned a quarter, mirrored in x, mirrored in y, and kept, on one 128 x 128 page.
 std::vector<Placement> reoriented_placements() {
   const double s = 0.6;

@@ -60,8 +60,10 @@ double weight_surface(const Cluster& c1, const Link& l) {
 class Aggregator {
  public:
   Aggregator(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-             const AggregateOptions& options)
-      : options_(options), graph_(graph), disks_(mesh, topology, graph.face_chart, graph.chart_count()),
+             const AggregateOptions& options, std::vector<double> corner_angle)
+      : options_(options),
+        graph_(graph),
+        disks_(mesh, topology, graph.face_chart, graph.chart_count(), std::move(corner_angle)),
         clusters_(graph.chart_count()) {
     for (int f = 0; f < mesh.face_count(); ++f) {
       if (graph.face_chart[f] < 0) continue;
@@ -184,8 +186,9 @@ class Aggregator {
 }  // namespace
 
 Aggregation aggregate_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                             const AggregateOptions& options, const RunControl& control) {
-  Aggregator aggregator(mesh, topology, graph, options);
+                             const AggregateOptions& options, const RunControl& control,
+                             std::vector<double> corner_angle) {
+  Aggregator aggregator(mesh, topology, graph, options, std::move(corner_angle));
   aggregator.run(control);
   return aggregator.result();
 }

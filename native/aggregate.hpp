@@ -30,7 +30,9 @@ struct Aggregation {
   int chart_count() const { return static_cast<int>(members.size()); }
 };
 
+// corner_angle: see DiskClusters; empty skips the fold-over check.
 Aggregation aggregate_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                             const AggregateOptions& options, const RunControl& control);
+                             const AggregateOptions& options, const RunControl& control,
+                             std::vector<double> corner_angle = {});
 
 }  // namespace atlas

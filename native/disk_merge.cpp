@@ -11,13 +11,14 @@ int prev_corner(int c) { return 3 * (c / 3) + (c % 3 + 2) % 3; }
 }  // namespace
 
 DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-                           int cluster_count)
+                           int cluster_count, std::vector<double> corner_angle)
     : mesh_(mesh),
       topology_(topology),
       face_cluster_(std::move(face_cluster)),
       faces_(cluster_count),
       euler_(cluster_count, 0),
       manifold_(cluster_count, 0),
+      corner_angle_(std::move(corner_angle)),
       edge_stamp_(topology.edge_count(), 0),
       vertex_stamp_(mesh.vertex_count(), 0) {
   for (int f = 0; f < mesh.face_count(); ++f)
@@ -95,6 +96,29 @@ int DiskClusters::fan_count(int v, int a, int b) const {
   return fans;
 }
 
+// True when v stays on the boundary of a u b (some edge at v is not shared by
+// two faces of the union) while the union's reference angles around v add up
+// to nearly a full turn or more. A slack of 2% keeps the two boundary edges at
+// v from touching after flattening.
+bool DiskClusters::wraps_too_far(int v, int a, int b) const {
+  if (corner_angle_.empty()) return false;
+  constexpr double kFullTurn = 2 * 3.14159265358979323846;
+  double angle = 0;
+  bool open = false;
+  for (int i = topology_.vertex_offsets[v]; i < topology_.vertex_offsets[v + 1]; ++i) {
+    const int c = topology_.vertex_corners[i];
+    if (!in(c / 3, a, b)) continue;
+    angle += corner_angle_[c];
+    for (int e : {topology_.corner_edge[c], topology_.corner_edge[prev_corner(c)]}) {
+      int inside = 0;
+      for (int j = topology_.edge_offsets[e]; j < topology_.edge_offsets[e + 1]; ++j)
+        inside += in(topology_.edge_corners[j] / 3, a, b);
+      open = open || inside < 2;
+    }
+  }
+  return open && angle > 0.98 * kFullTurn;
+}
+
 std::optional<int> DiskClusters::merged_euler(int a, int b) {
   if (a == b || !manifold_[a] || !manifold_[b]) return std::nullopt;
   if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
@@ -118,6 +142,7 @@ std::optional<int> DiskClusters::merged_euler(int a, int b) {
         bool touches_b = false;
         for (int i = topology_.vertex_offsets[v]; i < topology_.vertex_offsets[v + 1]; ++i)
           touches_b = touches_b || face_cluster_[topology_.vertex_corners[i] / 3] == b;
+        if (touches_b && wraps_too_far(v, a, b)) return std::nullopt;
         if (touches_b) fans_joined += fan_count(v, a, a) + fan_count(v, b, b) - fan_count(v, a, b);
       }
     }

@@ -13,8 +13,12 @@ namespace atlas {
 class DiskClusters {
  public:
   // face_cluster[f] in [0, cluster_count) or -1 for faces that take no part.
+  // corner_angle (3F, may be empty) holds each corner's angle in its reference
+  // triangle: when given, a merge that leaves a boundary vertex with more than
+  // a full turn of reference angle is refused, because any flattening close to
+  // the references must fold over there.
   DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-               int cluster_count);
+               int cluster_count, std::vector<double> corner_angle = {});
 
   // Euler characteristic chi = V - E + F of the union of a and b, counting a
   // vertex once per fan of faces around it (pinches are split), when the shared
@@ -35,6 +39,7 @@ class DiskClusters {
   int euler_of(int c);
   bool manifold_inside(int c);
   int fan_count(int v, int a, int b) const;
+  bool wraps_too_far(int v, int a, int b) const;
   bool in(int f, int a, int b) const { return face_cluster_[f] == a || face_cluster_[f] == b; }
 
   const Mesh& mesh_;
@@ -43,6 +48,7 @@ class DiskClusters {
   std::vector<std::vector<int>> faces_;
   std::vector<int> euler_;
   std::vector<char> manifold_;
+  std::vector<double> corner_angle_;
   // Visit stamps, so each check touches only the smaller cluster's faces.
   std::vector<unsigned> edge_stamp_, vertex_stamp_;
   unsigned stamp_ = 0;

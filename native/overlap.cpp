@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <queue>
 #include <unordered_map>
 
@@ -27,28 +28,35 @@ bool segments_meet(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const Eig
   return on(p, q, r, d1) || on(p, q, s, d2) || on(r, s, p, d3) || on(r, s, q, d4);
 }
 
-std::vector<std::pair<int, int>> boundary_edges(const RowMatrixX3i& triangles) {
-  std::vector<std::pair<int, int>> directed;
+struct BoundaryEdge {
+  int from, to, face;
+};
+
+// Directed boundary edges (used by one face only), with their face.
+std::vector<BoundaryEdge> boundary_edges(const RowMatrixX3i& triangles) {
+  std::vector<std::pair<std::pair<int, int>, int>> keyed;  // (undirected key, corner)
   for (Eigen::Index f = 0; f < triangles.rows(); ++f)
-    for (int k = 0; k < 3; ++k) directed.emplace_back(triangles(f, k), triangles(f, (k + 1) % 3));
-  std::vector<std::pair<int, int>> keys(directed.size());
-  for (size_t i = 0; i < directed.size(); ++i)
-    keys[i] = {std::min(directed[i].first, directed[i].second), std::max(directed[i].first, directed[i].second)};
-  std::vector<std::pair<int, int>> sorted = keys;
-  std::sort(sorted.begin(), sorted.end());
-  std::vector<std::pair<int, int>> out;
-  for (size_t i = 0; i < keys.size(); ++i) {
-    const auto range = std::equal_range(sorted.begin(), sorted.end(), keys[i]);
-    if (range.second - range.first == 1) out.push_back(directed[i]);
+    for (int k = 0; k < 3; ++k) {
+      const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
+      keyed.push_back({{std::min(a, b), std::max(a, b)}, static_cast<int>(3 * f + k)});
+    }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<BoundaryEdge> out;
+  for (size_t i = 0; i < keyed.size(); ++i) {
+    const bool alone = (i == 0 || keyed[i - 1].first != keyed[i].first) &&
+                       (i + 1 == keyed.size() || keyed[i + 1].first != keyed[i].first);
+    if (!alone) continue;
+    const int c = keyed[i].second;
+    out.push_back({triangles(c / 3, c % 3), triangles(c / 3, (c % 3 + 1) % 3), c / 3});
   }
   return out;
 }
 
 }  // namespace
 
-bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
+std::optional<std::pair<int, int>> boundary_crossing(const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
   const auto edges = boundary_edges(triangles);
-  if (edges.size() < 3) return false;
+  if (edges.size() < 3) return std::nullopt;
   Eigen::Vector2d lo(uv.col(0).minCoeff(), uv.col(1).minCoeff());
   Eigen::Vector2d hi(uv.col(0).maxCoeff(), uv.col(1).maxCoeff());
   // About one segment per cell on average keeps the pair tests near linear.
@@ -59,7 +67,7 @@ bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d&
     return std::clamp(static_cast<int>((v - origin) / size), 0, n - 1);
   };
   for (size_t i = 0; i < edges.size(); ++i) {
-    const Eigen::Vector2d a = uv.row(edges[i].first), b = uv.row(edges[i].second);
+    const Eigen::Vector2d a = uv.row(edges[i].from), b = uv.row(edges[i].to);
     const int x0 = cell_of(std::min(a.x(), b.x()), lo.x(), cell.x()), x1 = cell_of(std::max(a.x(), b.x()), lo.x(), cell.x());
     const int y0 = cell_of(std::min(a.y(), b.y()), lo.y(), cell.y()), y1 = cell_of(std::max(a.y(), b.y()), lo.y(), cell.y());
     for (int y = y0; y <= y1; ++y)
@@ -68,12 +76,17 @@ bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d&
   for (const auto& bucket : grid)
     for (size_t i = 0; i < bucket.size(); ++i)
       for (size_t j = i + 1; j < bucket.size(); ++j) {
-        const auto& e = edges[bucket[i]];
-        const auto& g = edges[bucket[j]];
-        if (e.first == g.first || e.first == g.second || e.second == g.first || e.second == g.second) continue;
-        if (segments_meet(uv.row(e.first), uv.row(e.second), uv.row(g.first), uv.row(g.second))) return true;
+        const BoundaryEdge& e = edges[bucket[i]];
+        const BoundaryEdge& g = edges[bucket[j]];
+        if (e.from == g.from || e.from == g.to || e.to == g.from || e.to == g.to) continue;
+        if (segments_meet(uv.row(e.from), uv.row(e.to), uv.row(g.from), uv.row(g.to)))
+          return std::make_pair(e.face, g.face);
       }
-  return false;
+  return std::nullopt;
+}
+
+bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
+  return boundary_crossing(triangles, uv).has_value();
 }
 
 namespace {
@@ -165,11 +178,15 @@ FlatChart from_solution(const LocalChart& c, const ChartSolution& s) {
   return out;
 }
 
-// Regrows the members into disk groups from two far-apart seeds. Every group
-// is strictly smaller than the input, so the recursion ends.
+// Regrows the members into disk groups from two seeds that grow in turn, the
+// smaller group first: the largest member, and the culprit (the original chart
+// at a boundary crossing, so the crossing ends up between the groups) or else
+// the member farthest from the largest. Every group is strictly smaller than
+// the input, so the recursion ends.
 std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                                             const std::vector<std::vector<int>>& chart_faces,
-                                            const std::vector<int>& members) {
+                                            const std::vector<double>& corner_angle,
+                                            const std::vector<int>& members, int culprit) {
   const int m = static_cast<int>(members.size());
   std::unordered_map<int, int> local;
   for (int i = 0; i < m; ++i) local[members[i]] = i;
@@ -183,26 +200,29 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology
   std::vector<int> label(mesh.face_count(), -1);
   for (int i = 0; i < m; ++i)
     for (int f : chart_faces[members[i]]) label[f] = i;
-  DiskClusters disks(mesh, topology, label, m);
+  DiskClusters disks(mesh, topology, label, m, corner_angle);
 
   auto area = [&](int i) { return graph.charts[members[i]].area_uv; };
-  int seed0 = 0;
-  for (int i = 1; i < m; ++i)
-    if (area(i) > area(seed0)) seed0 = i;
-  // The member farthest from seed0 in the adjacency graph seeds the other group.
-  std::vector<int> distance(m, -1);
-  std::queue<int> bfs;
-  bfs.push(seed0);
-  distance[seed0] = 0;
-  while (!bfs.empty()) {
-    const int i = bfs.front();
-    bfs.pop();
-    for (int n : neighbours[i])
-      if (distance[n] < 0) distance[n] = distance[i] + 1, bfs.push(n);
-  }
-  int seed1 = seed0 == 0 ? 1 : 0;
+  const int culprit_index = culprit < 0 ? -1 : static_cast<int>(std::find(members.begin(), members.end(), culprit) - members.begin());
+  int seed0 = culprit_index == 0 ? 1 : 0;
   for (int i = 0; i < m; ++i)
-    if (i != seed0 && distance[i] > distance[seed1]) seed1 = i;
+    if (i != culprit_index && area(i) > area(seed0)) seed0 = i;
+  int seed1 = culprit_index;
+  if (culprit_index < 0) {
+    std::vector<int> distance(m, -1);
+    std::queue<int> bfs;
+    bfs.push(seed0);
+    distance[seed0] = 0;
+    while (!bfs.empty()) {
+      const int i = bfs.front();
+      bfs.pop();
+      for (int n : neighbours[i])
+        if (distance[n] < 0) distance[n] = distance[i] + 1, bfs.push(n);
+    }
+    seed1 = seed0 == 0 ? 1 : 0;
+    for (int i = 0; i < m; ++i)
+      if (i != seed0 && distance[i] > distance[seed1]) seed1 = i;
+  }
 
   // Two seeds grow in turn, the smaller group first; members neither can take
   // seed further groups of their own, so pieces stay as large as topology allows.
@@ -250,16 +270,17 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology
   return out;
 }
 
-bool usable(const ChartSolution& s, const RowMatrixX3i& triangles, FlattenStats& stats) {
-  if (!s.failure.empty() || s.flipped > 0) return ++stats.solver_failed, false;
-  if (boundary_self_intersects(triangles, s.uv)) return ++stats.overlapped, false;
-  return true;
+// Of the two faces at a boundary crossing, the original chart with less area.
+int smaller_chart(const ChartGraph& graph, int face_a, int face_b) {
+  const int a = graph.face_chart[face_a], b = graph.face_chart[face_b];
+  return graph.charts[a].area_uv <= graph.charts[b].area_uv ? a : b;
 }
 
 }  // namespace
 
 std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
+                                               const std::vector<double>& corner_angle,
                                                const std::vector<int>& members, const SlimOptions& options,
                                                const RunControl& control, FlattenStats& stats) {
   std::vector<FlatChart> done;
@@ -274,16 +295,23 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
     std::vector<int> faces;
     for (int c : group) faces.insert(faces.end(), chart_faces[c].begin(), chart_faces[c].end());
     LocalChart local = localize(mesh, topology, std::move(faces));
+    int culprit = -1;
     if (!cut_to_disk(local.triangles, local.vertices)) {
       ++stats.not_disk;
     } else {
       const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
-      if (usable(solution, local.triangles, stats)) {
+      if (!solution.failure.empty() || solution.flipped > 0) {
+        ++stats.solver_failed;
+      } else if (const auto crossing = boundary_crossing(local.triangles, solution.uv)) {
+        ++stats.overlapped;
+        culprit = smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second]);
+      } else {
         done.push_back(from_solution(local, solution));
         continue;
       }
     }
-    for (auto& piece : split_members(mesh, topology, graph, chart_faces, group)) pending.push_back(std::move(piece));
+    for (auto& piece : split_members(mesh, topology, graph, chart_faces, corner_angle, group, culprit))
+      pending.push_back(std::move(piece));
   }
   return done;
 }

@@ -2,6 +2,8 @@
 // split back into two groups of its original charts, each solved again. A group
 // holding a single original chart keeps its original UVs, so this always ends.
 #pragma once
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include "charts.hpp"
@@ -15,6 +17,8 @@ namespace atlas {
 // shared end vertex). Uses a uniform grid over the boundary's bounding box.
 // triangles are local vertex indices into uv.
 bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d& uv);
+// The faces of the first two boundary edges found crossing, if any.
+std::optional<std::pair<int, int>> boundary_crossing(const RowMatrixX3i& triangles, const RowMatrixX2d& uv);
 
 // A chart as it leaves the parameterization stage.
 struct FlatChart {
@@ -35,10 +39,12 @@ struct FlattenStats {
 
 // Flattens one aggregated chart (its original charts `members`), splitting on
 // overlap or solver failure until every piece is valid.
-// chart_faces[c] lists the faces of original chart c.
+// chart_faces[c] lists the faces of original chart c; corner_angle (may be
+// empty) is passed to the DiskClusters that regrow split charts.
 std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology,
                                                const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
+                                               const std::vector<double>& corner_angle,
                                                const std::vector<int>& members,
                                                const SlimOptions& options, const RunControl& control,
                                                FlattenStats& stats);

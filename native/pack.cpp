@@ -7,8 +7,10 @@
 #include <numeric>
 #include <optional>
 #include <sstream>
+#include <cstdio>
 
 #include "chart_raster.hpp"
+#include "coarse_mask.hpp"
 #include "page_occupancy.hpp"
 
 namespace atlas {
@@ -17,10 +19,18 @@ namespace {
 constexpr int kSideQuantum = 4;  // page sides are rounded up to multiples of this
 // First guess of packing density when sizing a page; the width search corrects it.
 constexpr double kExpectedDensity = 0.8;
-constexpr int kSquareProbes = 4;        // widths tried to make the default page near-square
+constexpr int kSquareProbes = 2;  // widths tried after the first to make the default page square
+constexpr double kSquareTolerance = 0.03;
 constexpr int kScaleBisections = 8;     // fixed page / budget scale search steps
 constexpr int kMaxShrinkAttempts = 24;  // budget: give up after this many shrinks
 constexpr double kScaleTolerance = 1.005;
+// Holes are searched on a grid of kHoleCell x kHoleCell texel cells: 16x less
+// work than texel by texel, at the price of spots on multiples of 4 texels.
+constexpr int kHoleCell = 4;
+// A chart that found no hole rules out holes for charts of >= this fraction
+// of its texels on that page; charts come largest first, so holes are tried
+// again each time charts have shrunk by another 10%.
+constexpr double kHoleMissMargin = 0.9;
 
 // Pages are packed in a virtual frame reaching `margin` = padding / 2 texels
 // beyond every border: dilated masks must stay inside it, so a chart's own
@@ -34,6 +44,7 @@ struct Frame {
 // One chart rasterised at the current scale, in both orientations.
 struct ScaledChart {
   std::array<PlacementShape, 2> turned;  // dilated masks at 0 and 90 degrees
+  std::array<PlacementShape, 2> cells;   // the same on the hole grid
   std::array<Eigen::RowVector2d, 2> shift = {Eigen::RowVector2d::Zero(),
                                              Eigen::RowVector2d::Zero()};  // whole texels
   std::array<long long, 2> texels = {0, 0};                                // before dilation
@@ -133,6 +144,9 @@ ScaledChart scale_chart(const RowMatrixX2d& uv, double scale, int padding) {
     TexelMask mask = rasterize_chart(corners);
     chart.texels[turn] = count_set_texels(mask);
     chart.turned[turn] = make_placement_shape(dilate_mask(mask, padding));
+    const TexelMask& dilated = chart.turned[turn].mask;
+    chart.cells[turn] = make_placement_shape(
+        coarsen_mask(dilated, 0, 0, kHoleCell, dilated.width, dilated.height));
   }
   return chart;
 }
@@ -177,15 +191,38 @@ std::vector<int> largest_first(const std::vector<ScaledChart>& charts) {
   return order;
 }
 
+// A page being filled: its texels, for drops, and the same on the hole grid
+// (a cell is occupied when any of its texels is), for hole searches.
+struct Page {
+  PageOccupancy texels;
+  PageOccupancy cells;
+  long long hole_miss_texels = std::numeric_limits<long long>::max();
+
+  Page(int width, int height)
+      : texels(width, height), cells(width / kHoleCell, height / kHoleCell) {}
+};
+
+// Lowest spot in a hole of the page for one orientation, with its top below
+// top_limit. A spot on the hole grid is the texel spot kHoleCell times it.
+std::optional<Eigen::Vector2i> spot_in_hole(const Page& page, const ScaledChart& chart, int turn,
+                                            int top_limit) {
+  const int room = top_limit - chart.turned[turn].mask.height;  // for the texel y
+  if (room < 0) return std::nullopt;
+  const PlacementShape& cells = chart.cells[turn];
+  const auto at = page.cells.first_fit(cells, room / kHoleCell + cells.mask.height);
+  if (!at) return std::nullopt;
+  return Eigen::Vector2i(*at * kHoleCell);
+}
+
 // Both orientations are tried; the one whose top ends lowest wins (a long
 // chart lies down), which keeps the packed region low and compact. Each is
-// first dropped onto the horizon, then holes below are searched for a lower
-// spot unless the page recently had no hole for a chart that large.
-bool place_chart(PageOccupancy& page, const ScaledChart& chart, Placement& placement) {
+// dropped onto the horizon, then holes below are searched for a lower spot
+// unless the page recently had no hole for a chart that large.
+bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
   const int flat_first = chart.turned[1].mask.height < chart.turned[0].mask.height ? 1 : 0;
   const std::array<int, 2> turns = {flat_first, 1 - flat_first};
   std::optional<Eigen::Vector2i> best;
-  int best_turn = 0, best_top = page.height() + 1;
+  int best_turn = 0, best_top = page.texels.height() + 1;
   auto keep_if_lower = [&](int turn, const std::optional<Eigen::Vector2i>& at) {
     if (!at) return false;
     best = at;
@@ -193,16 +230,24 @@ bool place_chart(PageOccupancy& page, const ScaledChart& chart, Placement& place
     best_top = at->y() + chart.turned[turn].mask.height;
     return true;
   };
-  for (int turn : turns) keep_if_lower(turn, page.lowest_drop(chart.turned[turn], best_top - 1));
-  // Without a drop spot the holes are the only chance, whatever the memory says.
-  if (!best || page.holes_may_fit(chart.turned[0])) {
+  for (int turn : turns)
+    keep_if_lower(turn, page.texels.lowest_drop(chart.turned[turn], best_top - 1));
+  // Without a drop spot the holes are the only chance, whatever was missed before.
+  const long long texels = chart.turned[0].texels;
+  if (!best || texels < page.hole_miss_texels) {
     bool in_hole = false;
-    for (int turn : turns)
-      in_hole |= keep_if_lower(turn, page.first_fit(chart.turned[turn], best_top - 1));
-    if (!in_hole) page.note_no_hole_fits(chart.turned[0]);
+    for (int turn : turns) in_hole |= keep_if_lower(turn, spot_in_hole(page, chart, turn, best_top - 1));
+    if (!in_hole)
+      page.hole_miss_texels =
+          std::min(page.hole_miss_texels, static_cast<long long>(kHoleMissMargin * texels));
   }
   if (!best) return false;
-  page.occupy(chart.turned[best_turn], best->x(), best->y());
+  const PlacementShape& shape = chart.turned[best_turn];
+  page.texels.occupy(shape, best->x(), best->y());
+  const TexelMask cells = coarsen_mask(shape.mask, best->x(), best->y(), kHoleCell,
+                                       page.cells.width(), page.cells.height());
+  if (cells.width > 0)
+    page.cells.occupy(make_placement_shape(cells), cells.origin_x, cells.origin_y);
   placement.x = best->x();
   placement.y = best->y();
   placement.turn = best_turn;
@@ -221,13 +266,13 @@ std::optional<Layout> pack_one_page(const std::vector<int>& order,
                                     int width, int height, const RunControl& control) {
   Layout layout;
   layout.placement.resize(charts.size());
-  PageOccupancy page(width, height);
+  Page page(width, height);
   for (int c : order) {
     control.throw_if_cancelled();
     if (!place_chart(page, charts[c], layout.placement[c])) return std::nullopt;
   }
-  layout.pages.push_back(
-      {trimmed_side(page.used_width(), frame), trimmed_side(page.used_height(), frame)});
+  layout.pages.push_back({trimmed_side(page.texels.used_width(), frame),
+                          trimmed_side(page.texels.used_height(), frame)});
   return layout;
 }
 
@@ -251,7 +296,9 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
     return std::min(max_side, round_up_to_quantum(virtual_width - to_virtual));
   };
   auto pack = [&](int width) {
-    return pack_one_page(order, charts, frame, width + to_virtual, max_virtual, control);
+    auto layout = pack_one_page(order, charts, frame, width + to_virtual, max_virtual, control);
+    fprintf(stderr, "probe %d -> %d x %d\n", width, layout ? layout->pages[0].width : 0, layout ? layout->pages[0].height : 0);
+    return layout;
   };
   int width = width_for(std::max<double>(narrowest, std::sqrt(dilated_area / kExpectedDensity)));
   std::optional<Layout> best = pack(width);
@@ -261,13 +308,15 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
   }
   if (!best) return std::nullopt;
   auto area = [](const Layout& l) { return page_texels(l.pages); };
+  int height = best->pages[0].height;
   for (int probe = 0; probe < kSquareProbes; ++probe) {
-    const PageSize last = best->pages[0];
-    const int next = width_for(std::sqrt(static_cast<double>(width) * last.height) + to_virtual);
-    if (std::abs(next - width) <= kSideQuantum) break;
+    const int next = width_for(std::sqrt(static_cast<double>(width) * height) + to_virtual);
+    // Near enough to square: another probe would change the area by little.
+    if (std::abs(next - width) <= std::max<double>(kSideQuantum, kSquareTolerance * width)) break;
     width = next;
     auto candidate = pack(width);
     if (!candidate) break;
+    height = candidate->pages[0].height;
     if (area(*candidate) < area(*best)) best = std::move(candidate);
   }
   return best;
@@ -280,7 +329,7 @@ Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledCh
   const int side = max_side + 2 * frame.margin;
   Layout layout;
   layout.placement.resize(charts.size());
-  std::vector<PageOccupancy> pages;
+  std::vector<Page> pages;
   for (int c : order) {
     control.throw_if_cancelled();
     Placement& placement = layout.placement[c];
@@ -293,9 +342,9 @@ Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledCh
         throw std::logic_error("pack_many_pages: chart larger than an empty page");
     }
   }
-  for (const PageOccupancy& page : pages)
-    layout.pages.push_back(
-        {trimmed_side(page.used_width(), frame), trimmed_side(page.used_height(), frame)});
+  for (const Page& page : pages)
+    layout.pages.push_back({trimmed_side(page.texels.used_width(), frame),
+                            trimmed_side(page.texels.used_height(), frame)});
 
   const int last = static_cast<int>(pages.size()) - 1;
   std::vector<int> last_order;

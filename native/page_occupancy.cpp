@@ -1,14 +1,19 @@
 #include "page_occupancy.hpp"
 
 #include <algorithm>
+#include <cmath>
 
-long long g_calls=0, g_rows=0, g_found=0, g_merges=0, g_loop=0, g_filter=0;
 namespace atlas {
 namespace {
 
 constexpr int kBlock = 64;           // rows / columns summarised together
 constexpr int kLongRun = 24;         // free runs at least this long are also listed apart
-constexpr double kMissMargin = 0.9;  // see holes_may_fit
+
+constexpr int kSizeClasses = 40;  // sizes 2^(k/2), k < 40, cover any page side
+
+// Size class of a side: the largest k with class_side(k) <= side.
+int size_class(int side) { return std::min(kSizeClasses - 1, static_cast<int>(2.0 * std::log2(side))); }
+int class_side(int k) { return static_cast<int>(std::pow(2.0, 0.5 * k)); }
 
 // Keeps the offsets x of `candidates` at which the chart run lies inside one
 // free run f: f.begin <= x + run.begin and x + run.end <= f.end, i.e.
@@ -59,7 +64,8 @@ PageOccupancy::PageOccupancy(int width, int height)
       longest_free_run_(height, width),
       block_longest_free_run_((height + kBlock - 1) / kBlock, width),
       horizon_(width, 0),
-      block_lowest_horizon_((width + kBlock - 1) / kBlock, 0) {}
+      block_lowest_horizon_((width + kBlock - 1) / kBlock, 0),
+      rectangle_floor_(kSizeClasses * kSizeClasses, 0) {}
 
 // Everything above the horizon is free, so the shape dropped at column x
 // rests at y(x) = max over its columns i of horizon[x + i] - column_bottom[i].
@@ -111,17 +117,14 @@ std::optional<Eigen::Vector2i> PageOccupancy::first_fit(const PlacementShape& sh
   if (shape.mask.width > width_) return std::nullopt;
   const int y_last = std::min(height_, top_limit) - shape.mask.height;
   const int widest = shape.widest_row;
-  ++g_calls;
-  for (int y = 0; y <= y_last; ++y) {
+  for (int y = std::max(0, core_floor(shape) - shape.core_bottom); y <= y_last; ++y) {
     // The widest chart run needs a free run at least as long under it.
     const int row = next_row_with_free_run(y + widest, shape.longest_run[widest]);
     if (row < 0 || row - widest > y_last) return std::nullopt;
     y = row - widest;
-    ++g_filter;
     if (!rows_have_long_free_runs(shape, y)) continue;
-    ++g_rows;
     const int x = leftmost_fit_in_row(shape, y);
-    if (x >= 0) { ++g_found; return Eigen::Vector2i(x, y);}
+    if (x >= 0) return Eigen::Vector2i(x, y);
   }
   return std::nullopt;
 }
@@ -133,12 +136,11 @@ int PageOccupancy::leftmost_fit_in_row(const PlacementShape& shape, int y) const
   candidates_.assign(1, {0, width_ - shape.mask.width + 1});
   const int stored_rows = std::min(shape.mask.height, used_height_ - y);  // rows above are free
   for (int r : shape.row_order) {
-    ++g_loop;
     if (r >= stored_rows) continue;
     const FreeRow& row = rows_[y + r];
     for (int i = shape.row_start[r]; i < shape.row_start[r + 1]; ++i) {
       const Span run = shape.runs[i];
-      ++g_merges; keep_offsets_inside(run.end - run.begin >= kLongRun ? row.long_runs : row.runs, run,
+      keep_offsets_inside(run.end - run.begin >= kLongRun ? row.long_runs : row.runs, run,
                           candidates_, kept_);
       candidates_.swap(kept_);
       if (candidates_.empty()) return -1;
@@ -169,9 +171,43 @@ int PageOccupancy::next_row_with_free_run(int from, int length) const {
   return -1;
 }
 
-void PageOccupancy::note_no_hole_fits(const PlacementShape& shape) {
-  hole_miss_texels_ =
-      std::min(hole_miss_texels_, static_cast<long long>(kMissMargin * shape.texels));
+// Lowest row on which a free rectangle as large as the shape's core could
+// stand, rounded down to a size class (sides 2^(k/2)) so that the answer can
+// be cached and reused by later charts. A class's floor is at least those of
+// the classes one step smaller in either side.
+int PageOccupancy::core_floor(const PlacementShape& shape) const {
+  const int w_class = size_class(shape.core_columns.end - shape.core_columns.begin);
+  const int h_class = size_class(shape.core_height);
+  int& floor = rectangle_floor_[w_class * kSizeClasses + h_class];
+  if (w_class > 0) floor = std::max(floor, rectangle_floor_[(w_class - 1) * kSizeClasses + h_class]);
+  if (h_class > 0) floor = std::max(floor, rectangle_floor_[w_class * kSizeClasses + h_class - 1]);
+  floor = next_free_rectangle_row(class_side(w_class), class_side(h_class), floor);
+  return floor;
+}
+
+// Lowest row >= from on which a free width x height rectangle stands (rows
+// above the stored ones are free). A row under the rectangle without a free
+// run that long rules out every bottom row up to it.
+int PageOccupancy::next_free_rectangle_row(int width, int height, int from) const {
+  const Span run = {0, width};
+  for (int y = from; y < used_height_;) {
+    const int rows = std::min(height, used_height_ - y);
+    int blocked = rows - 1;
+    while (blocked >= 0 && longest_free_run_[y + blocked] >= width) --blocked;
+    if (blocked >= 0) {
+      y += blocked + 1;
+      continue;
+    }
+    candidates_.assign(1, {0, width_ - width + 1});
+    for (int r = 0; r < rows && !candidates_.empty(); ++r) {
+      keep_offsets_inside(width >= kLongRun ? rows_[y + r].long_runs : rows_[y + r].runs, run,
+                          candidates_, kept_);
+      candidates_.swap(kept_);
+    }
+    if (!candidates_.empty()) return y;
+    ++y;
+  }
+  return std::max(from, used_height_);
 }
 
 void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
@@ -198,12 +234,6 @@ void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
     block_longest_free_run_[b] = *std::max_element(first, last);
   }
 
-  // Free texels the shape covers from above (between the horizon and its
-  // lower outline) become a hole: charts that small may fit again.
-  long long pocket = 0;
-  for (int i : shape.column_order)
-    pocket += std::max(0, y + shape.column_bottom[i] - horizon_[x + i]);
-  hole_miss_texels_ = std::max(hole_miss_texels_, pocket + 1);
   for (int i = 0; i < mask.width; ++i)
     horizon_[x + i] = std::max(horizon_[x + i], y + shape.column_top[i]);
   for (int b = x / kBlock; b <= (x + mask.width - 1) / kBlock; ++b) {

@@ -2,7 +2,6 @@
 // where a dilated chart mask fits without touching any of them.
 #pragma once
 #include <Eigen/Core>
-#include <limits>
 #include <optional>
 #include <vector>
 
@@ -30,12 +29,6 @@ class PageOccupancy {
   // included: a row-by-row scan, costly when nothing fits.
   std::optional<Eigen::Vector2i> first_fit(const PlacementShape& shape, int top_limit) const;
 
-  // Memory of failed hole searches, so that charts of a size the holes could
-  // not take lately skip the costly scan: a miss rules out charts of >= 90%
-  // of its texels until a drop covers a pocket of free texels that large.
-  bool holes_may_fit(const PlacementShape& shape) const { return shape.texels < hole_miss_texels_; }
-  void note_no_hole_fits(const PlacementShape& shape);
-
   // Marks the shape's set texels, mask texel (0, 0) at page texel (x, y).
   void occupy(const PlacementShape& shape, int x, int y);
 
@@ -47,6 +40,8 @@ class PageOccupancy {
     std::vector<Span> long_runs;
   };
 
+  int core_floor(const PlacementShape& shape) const;
+  int next_free_rectangle_row(int width, int height, int from) const;
   int leftmost_fit_in_row(const PlacementShape& shape, int y) const;
   bool rows_have_long_free_runs(const PlacementShape& shape, int y) const;
   int next_row_with_free_run(int from, int length) const;
@@ -54,7 +49,6 @@ class PageOccupancy {
 
   int width_, height_, words_per_row_;
   int used_width_ = 0, used_height_ = 0;
-  long long hole_miss_texels_ = std::numeric_limits<long long>::max();
   // Rows [0, used_height_) only: every row above is empty.
   std::vector<std::uint64_t> words_;
   std::vector<FreeRow> rows_;
@@ -66,6 +60,9 @@ class PageOccupancy {
   // free. Its minimum per block of columns lets the drop skip whole blocks.
   std::vector<int> horizon_;
   std::vector<int> block_lowest_horizon_;
+  // Per size class (see core_floor): no free rectangle of that size has its
+  // bottom row below this. Occupying only removes free texels, so it only rises.
+  mutable std::vector<int> rectangle_floor_;
   // Scratch for the searches. They are const but reuse these buffers, so a
   // page must not be searched from two threads at once.
   mutable std::vector<Span> candidates_, kept_;

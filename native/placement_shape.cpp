@@ -6,7 +6,7 @@
 namespace atlas {
 namespace {
 
-constexpr int kKeyColumns = 8;
+constexpr size_t kKeyColumns = 8;
 
 // Widest row first, then rows spread over the height (0, h-1, h/2, h/4,
 // 3h/4, ...): an obstacle anywhere under the chart is met after few tests.
@@ -27,6 +27,36 @@ std::vector<int> spread_row_order(int height, int widest_row) {
   for (; step >= 1; step /= 2)
     for (int r = step; r < height; r += 2 * step) queue(r);
   return order;
+}
+
+// Grows a rectangle from the widest row's longest run one row at a time,
+// towards whichever neighbour row keeps it wider, and keeps the largest area
+// seen. Each row contributes its longest run, so the rectangle is all set.
+void find_core_rectangle(const std::vector<Span>& longest_span, int widest_row,
+                         PlacementShape& shape) {
+  const int h = static_cast<int>(longest_span.size());
+  int lo = widest_row, hi = widest_row;
+  Span span = longest_span[widest_row];
+  long long best_area = 0;
+  auto overlap = [](Span a, Span b) { return Span{std::max(a.begin, b.begin), std::min(a.end, b.end)}; };
+  while (span.end > span.begin) {
+    const long long area = static_cast<long long>(span.end - span.begin) * (hi - lo + 1);
+    if (area > best_area) {
+      best_area = area;
+      shape.core_columns = span;
+      shape.core_bottom = lo;
+      shape.core_height = hi - lo + 1;
+    }
+    const Span below = lo > 0 ? overlap(span, longest_span[lo - 1]) : Span{0, 0};
+    const Span above = hi + 1 < h ? overlap(span, longest_span[hi + 1]) : Span{0, 0};
+    if (below.end - below.begin >= above.end - above.begin) {
+      span = below;
+      --lo;
+    } else {
+      span = above;
+      ++hi;
+    }
+  }
 }
 
 // For each column, the first row (in the order `rows` visits them) holding a
@@ -50,22 +80,25 @@ PlacementShape make_placement_shape(TexelMask mask) {
   PlacementShape shape;
   const int h = mask.height;
   shape.row_start.reserve(h + 1);
+  std::vector<Span> longest_span;  // per row
   for (int r = 0; r < h; ++r) {
     shape.row_start.push_back(static_cast<int>(shape.runs.size()));
     const std::uint64_t* row = mask.row(r);
-    int longest = 0;
+    Span longest = {0, 0};
     for (int x = find_bit(row, 0, mask.width, true); x < mask.width;) {
       const int end = find_bit(row, x, mask.width, false);
       shape.runs.push_back({x, end});
       shape.texels += end - x;
-      longest = std::max(longest, end - x);
+      if (end - x > longest.end - longest.begin) longest = {x, end};
       x = find_bit(row, end, mask.width, true);
     }
-    shape.longest_run.push_back(longest);
-    if (longest > shape.longest_run[shape.widest_row]) shape.widest_row = r;
+    longest_span.push_back(longest);
+    shape.longest_run.push_back(longest.end - longest.begin);
+    if (shape.longest_run[r] > shape.longest_run[shape.widest_row]) shape.widest_row = r;
   }
   shape.row_start.push_back(static_cast<int>(shape.runs.size()));
   shape.row_order = spread_row_order(h, shape.widest_row);
+  find_core_rectangle(longest_span, shape.widest_row, shape);
 
   std::vector<int> bottom_up(h);
   std::iota(bottom_up.begin(), bottom_up.end(), 0);
@@ -79,10 +112,10 @@ PlacementShape make_placement_shape(TexelMask mask) {
   std::stable_sort(shape.column_order.begin(), shape.column_order.end(),
                    [&](int a, int b) { return shape.column_bottom[a] < shape.column_bottom[b]; });
   // The lowest column plus ones spread evenly over the set columns.
-  shape.key_columns.push_back(shape.column_order.front());
   std::vector<int> set_columns = shape.column_order;
   std::sort(set_columns.begin(), set_columns.end());
-  for (int k = 0; k < kKeyColumns; ++k)
+  if (!set_columns.empty()) shape.key_columns.push_back(shape.column_order.front());
+  for (size_t k = 0; k < kKeyColumns && !set_columns.empty(); ++k)
     shape.key_columns.push_back(set_columns[k * (set_columns.size() - 1) / (kKeyColumns - 1)]);
   shape.mask = std::move(mask);
   return shape;

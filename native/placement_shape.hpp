@@ -20,6 +20,11 @@ struct PlacementShape {
   std::vector<int> longest_run;   // per row
   int widest_row = 0;             // row holding the longest run
   std::vector<int> row_order;     // rows in the order the hole search tests them
+  // A large rectangle of set texels: columns core_columns, rows
+  // [core_bottom, core_bottom + core_height). Wherever the shape fits, a free
+  // rectangle this size does too, which bounds the hole search from below.
+  Span core_columns = {0, 1};
+  int core_bottom = 0, core_height = 1;
   std::vector<int> column_bottom; // per column: lowest set row, mask.height if none
   std::vector<int> column_top;    // per column: highest set row + 1, 0 if none
   std::vector<int> column_order;  // set columns, lowest column_bottom first

@@ -110,4 +110,24 @@ ReferenceTriangles repaired_reference_triangles(const RowMatrixX3i& triangles,
   return out;
 }
 
+std::vector<double> reference_corner_angles(const Mesh& mesh) {
+  RowMatrixX2d uv = RowMatrixX2d::Zero(3 * mesh.face_count(), 2);
+  for (int f = 0; f < mesh.face_count(); ++f)
+    if (mesh.face_page[f] >= 0)
+      for (int k = 0; k < 3; ++k) uv.row(3 * f + k) = mesh.uv_texels(f, k).transpose();
+  // Reflection does not change angles, so no face needs to be mirrored here.
+  const ReferenceTriangles reference = repaired_reference_triangles(
+      mesh.triangles, mesh.positions, uv, Eigen::VectorXi::Zero(mesh.face_count()));
+  std::vector<double> angle(3 * mesh.face_count());
+  for (int c = 0; c < 3 * mesh.face_count(); ++c) {
+    const int f = c / 3, k = c % 3;
+    const Eigen::Vector2d p = reference.corners.row(c);
+    const Eigen::Vector2d u = Eigen::Vector2d(reference.corners.row(3 * f + (k + 1) % 3)) - p;
+    const Eigen::Vector2d w = Eigen::Vector2d(reference.corners.row(3 * f + (k + 2) % 3)) - p;
+    // angle = atan2(|u x w|, u . w)
+    angle[c] = std::atan2(std::abs(u.x() * w.y() - u.y() * w.x()), u.dot(w));
+  }
+  return angle;
+}
+
 }  // namespace atlas

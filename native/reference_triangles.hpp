@@ -2,6 +2,8 @@
 // in texels, oriented like the mesh and repaired where it is unusable, so that
 // the distortion energy of the map reference -> new UV is finite everywhere.
 #pragma once
+#include <vector>
+
 #include "mesh.hpp"
 
 namespace atlas {
@@ -26,5 +28,10 @@ ReferenceTriangles repaired_reference_triangles(const RowMatrixX3i& triangles,
                                                 const RowMatrixX3d& positions,
                                                 const RowMatrixX2d& reference_uv,
                                                 const Eigen::VectorXi& mirrored);
+
+// The angle of every face corner (3F, radians) in the face's repaired
+// reference triangle, over the whole mesh: the angles the flattening will try
+// to keep. Untextured faces get the angles of their 3D triangle.
+std::vector<double> reference_corner_angles(const Mesh& mesh);
 
 }  // namespace atlas

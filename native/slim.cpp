@@ -179,6 +179,23 @@ void assemble_proxy(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& 
   for (int slot : system.diagonal_slots) values[slot] += proximal_weight;
 }
 
+// Assembles and factorizes the proxy. Near-degenerate faces get huge SLIM
+// weights, and round-off can then break the Cholesky factorization of a large
+// chart: each retry strengthens the proximal term (scaled to the mean diagonal),
+// which keeps the system definite and only shortens the step.
+bool factorize_proxy(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x, double proximal_weight,
+                     ProxySystem& system) {
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    assemble_proxy(faces, x, proximal_weight, system);
+    system.solver.factorize(system.matrix);
+    if (system.solver.info() == Eigen::Success) return true;
+    double diagonal = 0;
+    for (int slot : system.diagonal_slots) diagonal += system.matrix.valuePtr()[slot];
+    proximal_weight = std::max(100 * proximal_weight, 1e-6 * diagonal / system.diagonal_slots.size());
+  }
+  return false;
+}
+
 // sum_f A_f psi(J_f); +inf as soon as one face flips or degenerates.
 double total_energy(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x) {
   double energy = 0;
@@ -266,9 +283,8 @@ std::string minimize_energy(std::vector<ProxyFace>& faces, const SlimOptions& op
   solution.iterations = 0;
   while (solution.iterations < options.max_iterations) {
     control.throw_if_cancelled();
-    assemble_proxy(faces, x, options.proximal_weight, system);
-    system.solver.factorize(system.matrix);
-    if (system.solver.info() != Eigen::Success) return "SLIM: proxy system is not positive definite";
+    if (!factorize_proxy(faces, x, options.proximal_weight, system))
+      return "SLIM: proxy system is not positive definite";
     system.solution = system.solver.solve(system.rhs);
     direction = system.solution - x;
     if (!direction.allFinite()) return "SLIM: proxy solve produced non-finite values";
