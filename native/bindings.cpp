@@ -183,6 +183,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["splits_not_disk"] = r.splits_not_disk;
   d["splits_solver"] = r.splits_solver;
   d["splits_overlap"] = r.splits_overlap;
+  d["splits_density"] = r.splits_density;
   d["seam_before"] = r.seam_before;
   d["seam_after"] = r.seam_after;
   d["texels_before"] = r.texels_before;

@@ -270,6 +270,28 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology
   return out;
 }
 
+// The original chart that lost the most texel density, when faces covering
+// over 1% of the chart's surface end with less than half their original texel
+// area (eq.: new UV area / original UV area < 1/2); -1 when the chart keeps its
+// detail. SLIM balances distortion, it does not bound it: this bounds the loss.
+int density_culprit(const Mesh& mesh, const ChartGraph& graph, const LocalChart& local, const RowMatrixX2d& uv) {
+  std::unordered_map<int, double> lost;
+  double lost_total = 0, area_total = 0;
+  for (size_t i = 0; i < local.faces.size(); ++i) {
+    const int f = local.faces[i];
+    const double area_3d = triangle_area(mesh.positions.row(mesh.triangles(f, 0)), mesh.positions.row(mesh.triangles(f, 1)),
+                                         mesh.positions.row(mesh.triangles(f, 2)));
+    area_total += area_3d;
+    const double before = std::abs(signed_area(mesh.uv_texels(f, 0), mesh.uv_texels(f, 1), mesh.uv_texels(f, 2)));
+    const double after = std::abs(signed_area(uv.row(local.triangles(i, 0)), uv.row(local.triangles(i, 1)),
+                                              uv.row(local.triangles(i, 2))));
+    if (before > 0 && after < 0.5 * before) lost[graph.face_chart[f]] += area_3d, lost_total += area_3d;
+  }
+  if (lost_total <= 0.01 * area_total) return -1;
+  return std::max_element(lost.begin(), lost.end(), [](const auto& a, const auto& b) { return a.second < b.second; })
+      ->first;
+}
+
 // Of the two faces at a boundary crossing, the original chart with less area.
 int smaller_chart(const ChartGraph& graph, int face_a, int face_b) {
   const int a = graph.face_chart[face_a], b = graph.face_chart[face_b];
@@ -305,6 +327,8 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
       } else if (const auto crossing = boundary_crossing(local.triangles, solution.uv)) {
         ++stats.overlapped;
         culprit = smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second]);
+      } else if ((culprit = density_culprit(mesh, graph, local, solution.uv)) >= 0) {
+        ++stats.density_lost;
       } else {
         done.push_back(from_solution(local, solution));
         continue;

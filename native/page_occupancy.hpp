@@ -2,6 +2,7 @@
 // where a dilated chart mask fits without touching any of them.
 #pragma once
 #include <Eigen/Core>
+#include <array>
 #include <optional>
 #include <vector>
 
@@ -33,12 +34,11 @@ class PageOccupancy {
   void occupy(const PlacementShape& shape, int x, int y);
 
  private:
-  // Free runs of one stored row, left to right; the long ones again apart,
-  // since a long chart run only needs to be tried against those.
-  struct FreeRow {
-    std::vector<Span> runs;
-    std::vector<Span> long_runs;
-  };
+  // Free runs of one stored row, left to right, in tiers: tier k lists only
+  // runs at least 4^k long, since a chart run of length L need only be
+  // tried against runs of the highest tier with 4^k <= L.
+  static constexpr int kRunTiers = 4;
+  using FreeRow = std::array<std::vector<Span>, kRunTiers>;
 
   int core_floor(const PlacementShape& shape) const;
   int next_free_rectangle_row(int width, int height, int from) const;

@@ -32,6 +32,7 @@ struct PipelineReport {
   int splits_not_disk = 0;     // charts split back, by reason (see FlattenStats)
   int splits_solver = 0;
   int splits_overlap = 0;
+  int splits_density = 0;
   double seam_before = 0, seam_after = 0;  // seam length / sqrt(area)
   long long texels_before = 0, texels_after = 0;
   double packing_efficiency = 0;

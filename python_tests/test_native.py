@@ -51,8 +51,7 @@ def test_new_atlas_has_no_flips_and_no_shared_texels(native, tetra_result):
     assert m["new"]["flipped_faces"] <= m["old"]["flipped_faces"]
 
 
-# Issue 3's target. Missed today (about 3.7% on this scan): see the notes on issue 3.
-@pytest.mark.xfail(strict=True, reason="density-loss target (<1% of area) not reached yet")
+# Issue 3's target: under 1% of the surface keeps less than half its texel density.
 def test_density_loss_target(native, tetra_result):
     scan, result = tetra_result
     m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
