@@ -292,6 +292,14 @@ int density_culprit(const Mesh& mesh, const ChartGraph& graph, const LocalChart&
       ->first;
 }
 
+// True when some face of the chart winds against the chart's orientation in UV.
+bool folds_over(const Mesh& mesh, const ChartGraph& graph, const std::vector<int>& faces) {
+  const double orientation = graph.charts[graph.face_chart[faces.front()]].signed_area_uv;
+  for (int f : faces)
+    if (signed_area(mesh.uv_texels(f, 0), mesh.uv_texels(f, 1), mesh.uv_texels(f, 2)) * orientation < 0) return true;
+  return false;
+}
+
 // Of the two faces at a boundary crossing, the original chart with less area.
 int smaller_chart(const ChartGraph& graph, int face_a, int face_b) {
   const int a = graph.face_chart[face_a], b = graph.face_chart[face_b];
@@ -310,30 +318,42 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
   while (!pending.empty()) {
     const std::vector<int> group = std::move(pending.back());
     pending.pop_back();
-    if (group.size() == 1) {
+    // A lone original chart is copied, unless it folds over itself: then it is
+    // flattened like a merged one, and copied only if that fails.
+    const bool single = group.size() == 1;
+    if (single && !folds_over(mesh, graph, chart_faces[group[0]])) {
       done.push_back(keep_original(mesh, chart_faces[group[0]]));
       continue;
     }
     std::vector<int> faces;
     for (int c : group) faces.insert(faces.end(), chart_faces[c].begin(), chart_faces[c].end());
     LocalChart local = localize(mesh, topology, std::move(faces));
+    FlattenStats why;
     int culprit = -1;
     if (!cut_to_disk(local.triangles, local.vertices)) {
-      ++stats.not_disk;
+      ++why.not_disk;
     } else {
       const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
       if (!solution.failure.empty() || solution.flipped > 0) {
-        ++stats.solver_failed;
+        ++why.solver_failed;
       } else if (const auto crossing = boundary_crossing(local.triangles, solution.uv)) {
-        ++stats.overlapped;
+        ++why.overlapped;
         culprit = smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second]);
       } else if ((culprit = density_culprit(mesh, graph, local, solution.uv)) >= 0) {
-        ++stats.density_lost;
+        ++why.density_lost;
       } else {
         done.push_back(from_solution(local, solution));
         continue;
       }
     }
+    if (single) {
+      done.push_back(keep_original(mesh, chart_faces[group[0]]));
+      continue;
+    }
+    stats.not_disk += why.not_disk;
+    stats.solver_failed += why.solver_failed;
+    stats.overlapped += why.overlapped;
+    stats.density_lost += why.density_lost;
     for (auto& piece : split_members(mesh, topology, graph, chart_faces, corner_angle, group, culprit))
       pending.push_back(std::move(piece));
   }

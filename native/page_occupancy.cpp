@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 
+long long g_calls=0, g_rows=0, g_found=0, g_merges=0, g_filter=0, g_fr=0;
 namespace atlas {
 namespace {
 
@@ -125,14 +126,17 @@ std::optional<Eigen::Vector2i> PageOccupancy::first_fit(const PlacementShape& sh
   if (shape.mask.width > width_) return std::nullopt;
   const int y_last = std::min(height_, top_limit) - shape.mask.height;
   const int widest = shape.widest_row;
+  ++g_calls; long long r0 = g_rows;
   for (int y = getenv("NOFLOOR") ? 0 : std::max(0, core_floor(shape) - shape.core_bottom); y <= y_last; ++y) {
     // The widest chart run needs a free run at least as long under it.
     const int row = next_row_with_free_run(y + widest, shape.longest_run[widest]);
     if (row < 0 || row - widest > y_last) return std::nullopt;
     y = row - widest;
+    ++g_filter;
     if (!rows_have_long_free_runs(shape, y)) continue;
+    ++g_rows;
     const int x = leftmost_fit_in_row(shape, y);
-    if (x >= 0) return Eigen::Vector2i(x, y);
+    if (x >= 0) { ++g_found; g_fr += g_rows - r0; return Eigen::Vector2i(x, y);}
   }
   return std::nullopt;
 }
@@ -148,7 +152,7 @@ int PageOccupancy::leftmost_fit_in_row(const PlacementShape& shape, int y) const
     const FreeRow& row = rows_[y + r];
     for (int i = shape.row_start[r]; i < shape.row_start[r + 1]; ++i) {
       const Span run = shape.runs[i];
-      keep_offsets_inside(row[tier_for(run.end - run.begin, kRunTiers)], run,
+      ++g_merges; keep_offsets_inside(row[tier_for(run.end - run.begin, kRunTiers)], run,
                           candidates_, kept_);
       candidates_.swap(kept_);
       if (candidates_.empty()) return -1;

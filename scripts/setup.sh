@@ -6,7 +6,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 missing=()
-for pkg in blender libeigen3-dev googletest libgtest-dev cmake g++ make python3-venv assimp-testmodels; do
+for pkg in blender python3-numpy libeigen3-dev googletest libgtest-dev cmake g++ make python3-venv \
+           assimp-testmodels xvfb xauth; do
   dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
 done
 if [ ${#missing[@]} -gt 0 ]; then

@@ -110,12 +110,17 @@ def _numpy_bool_alias():
         pass
 
 
+def _has_op(module, name: str) -> bool:
+    # hasattr() is always true on bpy.ops modules: ask for the listing.
+    return name in dir(module)
+
+
 def import_model(path: str):
     import bpy
     ext = os.path.splitext(path)[1].lower()
     before = set(bpy.data.objects)
     if ext == ".obj":
-        if hasattr(bpy.ops.wm, "obj_import"):
+        if _has_op(bpy.ops.wm, "obj_import"):
             bpy.ops.wm.obj_import(filepath=path)
         else:
             bpy.ops.import_scene.obj(filepath=path)
@@ -123,7 +128,7 @@ def import_model(path: str):
         _numpy_bool_alias()
         bpy.ops.import_scene.gltf(filepath=path)
     elif ext == ".ply":
-        if hasattr(bpy.ops.wm, "ply_import"):
+        if _has_op(bpy.ops.wm, "ply_import"):
             bpy.ops.wm.ply_import(filepath=path)
         else:
             bpy.ops.import_mesh.ply(filepath=path)

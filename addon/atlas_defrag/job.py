@@ -400,8 +400,3 @@ def summary(report: dict) -> str:
             f"seam {num('seam_before', '{:.4g}')} -> {num('seam_after', '{:.4g}')}, "
             f"pages {num('pages_before')} -> {num('pages_after')}, "
             f"time {'?' if secs is None else f'{secs:.1f}'} s")
-
-
-def group_key(page_maps: Sequence[Tuple[str, str, bool, int]]) -> tuple:
-    """Key of a material group: (role, colorspace, is_float, channels) of every map."""
-    return tuple(sorted(page_maps, key=lambda t: role_sort_key(t[0])))

@@ -1,8 +1,6 @@
 # SPDX-License-Identifier: MIT
 """The operator, its dialog and its menu entries."""
 
-from __future__ import annotations
-
 import threading
 import time
 

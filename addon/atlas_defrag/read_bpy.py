@@ -99,8 +99,9 @@ def _vector_source(node, render_uv: str) -> Tuple[str, Optional[str]]:
     """How an Image Texture node gets its coordinates.
 
     Returns (kind, uv_name): kind 'implicit' (unlinked: render UV map),
-    'uvnode' (UV Map node), 'texcoord' (Texture Coordinate UV output) or
-    'other' (a transform or other coordinates: not a plain UV lookup).
+    'uvnode' (UV Map node), 'texcoord' (Texture Coordinate UV output), 'wrap'
+    (a UV map through glTF wrap emulation) or 'other' (a transform or other
+    coordinates: not a plain UV lookup).
     """
     sock = node.inputs.get("Vector")
     if sock is None or not sock.is_linked:
@@ -113,7 +114,47 @@ def _vector_source(node, render_uv: str) -> Tuple[str, Optional[str]]:
         return "uvnode", src.uv_map or render_uv
     if src.bl_idname == "ShaderNodeTexCoord" and link.from_socket.identifier == "UV":
         return "texcoord", render_uv
+    uv = _wrap_emulation_source(link, render_uv)
+    if uv is not None:
+        return "wrap", uv
     return "other", None
+
+
+# Nodes the glTF importer puts between a UV map and an image to emulate
+# mirrored-repeat wrapping: the identity for UVs inside [0, 1], which is where
+# the new layout puts every chart.
+_WRAP_NODES = {"ShaderNodeSeparateXYZ", "ShaderNodeCombineXYZ", "NodeReroute"}
+_WRAP_MATH = {"PINGPONG", "WRAP", "FRACT"}
+
+
+def _wrap_emulation_source(link, render_uv: str) -> Optional[str]:
+    """The UV map read through a wrap-emulation chain, or None if the chain
+    does anything else (a Mapping node, other maths, other coordinates)."""
+    found = set()
+    stack = [link]
+    seen = set()
+    while stack:
+        lk = stack.pop()
+        node = lk.from_node
+        if node.name in seen:
+            continue
+        seen.add(node.name)
+        if node.bl_idname == "ShaderNodeUVMap":
+            found.add(node.uv_map or render_uv)
+            continue
+        if node.bl_idname == "ShaderNodeTexCoord" and lk.from_socket.identifier == "UV":
+            found.add(render_uv)
+            continue
+        if node.bl_idname == "ShaderNodeMath" and node.operation in _WRAP_MATH:
+            pass
+        elif node.bl_idname not in _WRAP_NODES:
+            return None
+        for inp in node.inputs:
+            if inp.is_linked:
+                stack.extend(inp.links)
+            elif node.bl_idname == "ShaderNodeCombineXYZ" and inp.identifier != "Z":
+                return None  # a constant coordinate: not a UV lookup
+    return found.pop() if len(found) == 1 else None
 
 
 def _downstream_roles(node) -> Tuple[List[str], bool, List[str]]:
@@ -365,9 +406,10 @@ def _read(obj, me, uv_name: str) -> ReadResult:
         slot_of_face = np.full(n_tris, -1, dtype=np.int32)
         face_page = np.full(n_tris, -1, dtype=np.int32)
     if not pages or not np.any(face_page >= 0):
+        why = ("; " + "; ".join(warnings)) if warnings else ""
         raise DefragError(
             f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "
-            f"its Principled BSDF through UV map '{uv_name}'")
+            f"its Principled BSDF through UV map '{uv_name}'{why}")
 
     for page in pages:
         for m in page.maps:

@@ -42,8 +42,13 @@ class _Journal:
                 pass
 
 
+_IMAGE_EXT = re.compile(r"\.(png|jpe?g|tga|tiff?|exr|bmp|webp|hdr|j2c|jp2)(?=_defrag|$)", re.IGNORECASE)
+
+
 def _safe_file_stem(name: str) -> str:
-    stem = re.sub(r"[^\w\-.]+", "_", name).strip("._") or "image"
+    """File name for an image name: 'photo.jpg_defrag' -> 'photo_defrag'."""
+    stem = _IMAGE_EXT.sub("", name)
+    stem = re.sub(r"[^\w\-.]+", "_", stem).strip("._") or "image"
     return stem
 
 

@@ -27,7 +27,7 @@ import bpy  # noqa: E402
 
 import atlas_defrag  # noqa: E402
 import blhelp as H  # noqa: E402
-import scenarios as S  # noqa: E402
+import bl_scenarios as S  # noqa: E402
 
 atlas_defrag.register()
 RESULT = {"blender": bpy.app.version_string, "background": bpy.app.background, "steps": {}}

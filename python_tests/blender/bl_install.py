@@ -41,7 +41,7 @@ def main():
         native = importlib.import_module(module + "._native")
         res["native"] = native.__file__
         res["operator"] = hasattr(bpy.types, "UV_OT_defragment_atlas")
-        import scenarios
+        import bl_scenarios as scenarios
         res["value"] = scenarios.SCENARIOS[args.scenario](pkg)
         res["ok"] = True
     except BaseException:

@@ -29,7 +29,7 @@ def main():
     import atlas_defrag
     if not hasattr(bpy.types, "UV_OT_defragment_atlas"):
         atlas_defrag.register()
-    import scenarios
+    import bl_scenarios as scenarios
     results = {"blender": bpy.app.version_string, "package": atlas_defrag.__file__, "results": {}}
     for name in args.scenarios:
         t = time.perf_counter()

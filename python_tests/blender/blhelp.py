@@ -55,7 +55,10 @@ def import_model(path: str):
             np.bool = bool  # Blender 3.x glTF importer with numpy >= 1.24
         bpy.ops.import_scene.gltf(filepath=path)
     elif ext == ".ply":
-        bpy.ops.wm.ply_import(filepath=path)
+        if "ply_import" in dir(bpy.ops.wm):
+            bpy.ops.wm.ply_import(filepath=path)
+        else:
+            bpy.ops.import_mesh.ply(filepath=path)
     else:
         raise ValueError(path)
     meshes = [o for o in bpy.context.scene.objects if o.type == "MESH"]

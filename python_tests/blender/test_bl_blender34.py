@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-import scenarios as S
-from conftest import ADDON_PARENT, HERE, require_native, run_blender
+import bl_scenarios as S
+from blenv import ADDON_PARENT, HERE, require_native, run_blender
 
 # Scenarios run together in one Blender process per group (keeps startup cost low;
 # every scenario starts from factory settings).

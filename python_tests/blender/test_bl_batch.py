@@ -12,7 +12,7 @@ import time
 import pytest
 
 import blhelp as H
-from conftest import ADDON_PARENT, BLENDER, require_native, run_blender
+from blenv import ADDON_PARENT, BLENDER, require_native, run_blender
 
 BATCH = ADDON_PARENT / "atlas_defrag" / "batch.py"
 BOX_GLB = H.ASSIMP / "glTF2" / "BoxTextured-glTF-Binary" / "BoxTextured.glb"
@@ -132,3 +132,20 @@ def test_batch_many_in_parallel(tmp_path):
     assert (out / "BoxTextured.report.json").is_file()
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
     assert proc.returncode == 0 and proc.stdout.count("skipped") == 2, proc.stdout + proc.stderr
+
+
+@pytest.mark.parametrize("runner", ["blender34", "bpy45"])
+def test_batch_ply_with_texture_comment(tmp_path, runner):
+    """PLY carries no material: the image named by 'comment TextureFile' is used."""
+    src = (H.ASSIMP / "PLY" / "cube_uv.ply").read_text().splitlines()
+    src.insert(2, "comment TextureFile tex.jpg")
+    ply = tmp_path / "cube.ply"
+    ply.write_text("\n".join(src) + "\n")
+    (tmp_path / "tex.jpg").write_bytes((H.ASSIMP / "OBJ" / "SpiderTex.jpg").read_bytes())
+    run = blender34_batch if runner == "blender34" else bpy45_batch
+    out = tmp_path / "out" / "cube.obj"
+    proc = run(ply, out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    _, maps = _read_obj_output(out)
+    assert maps == ["tex_defrag.png"], maps
+    assert (out.parent / "tex_defrag.png").is_file()

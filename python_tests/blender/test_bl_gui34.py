@@ -10,7 +10,7 @@ import subprocess
 
 import pytest
 
-from conftest import ADDON_PARENT, BLENDER, HERE, require_blender, require_native
+from blenv import ADDON_PARENT, BLENDER, HERE, require_blender, require_native
 
 
 @pytest.fixture(scope="module")

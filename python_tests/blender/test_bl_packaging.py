@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ADDON_ZIP, HERE, REPO, require_native, run_blender
+from blenv import ADDON_ZIP, HERE, REPO, require_native, run_blender
 
 
 @pytest.fixture(scope="module")

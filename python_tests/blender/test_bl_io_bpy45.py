@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import blhelp as H
-import scenarios as S
+import bl_scenarios as S
 
 
 identity_result = S.identity_result
@@ -154,3 +154,18 @@ def test_operator_registered_in_menus(pkg):
     for menu in ("IMAGE_MT_uvs", "VIEW3D_MT_uv_map"):
         funcs = getattr(bpy.types, menu)._dyn_ui_initialize()
         assert pkg.operators.menu_func in funcs, menu
+
+
+def test_read_gltf_wrap_emulation_and_transforms(pkg):
+    """glTF mirrored-repeat emulation (maths between UV map and image) is a
+    plain UV lookup; a texture transform (Mapping) is not, and says so."""
+    H.reset()
+    obj = H.import_model(str(H.ASSIMP / "glTF2" / "BoxTextured-glTF" / "BoxTextured.gltf"))
+    r = pkg.read_bpy.read(obj)
+    assert [m.image for m in r.job.pages[0].maps] == ["CesiumLogoFlat.png"]
+    H.reset()
+    obj = H.import_model(str(H.ASSIMP / "glTF2" / "textureTransform" / "TextureTransformTest.gltf"))
+    before = H.object_state(obj.name)
+    with pytest.raises(pkg.DefragError, match="coordinate transform"):
+        pkg.read_bpy.read(obj)
+    assert H.object_state(obj.name) == before

@@ -6,7 +6,7 @@ from __future__ import annotations
 import bpy
 import pytest
 
-import scenarios as S
+import bl_scenarios as S
 
 NATIVE_SCENARIOS = ["operator_tetra", "edit_mode_undo", "python_entry", "duplicate_materials_and_removal",
                     "save_beside_blend", "cancel_leaves_nothing", "worker_thread_run",
