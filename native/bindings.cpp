@@ -190,6 +190,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["texels_after"] = r.texels_after;
   d["packing_efficiency"] = r.packing_efficiency;
   d["scale"] = r.scale;
+  d["energy_initial_median"] = r.energy_initial_median;
   d["energy_median"] = r.energy_median;
   d["energy_max"] = r.energy_max;
   d["seconds"] = seconds;

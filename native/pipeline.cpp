@@ -130,15 +130,20 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
   result.report.packing_efficiency = total > 0 ? covered / total : 0;
 }
 
+double median(std::vector<double> values) {
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2];
+}
+
 void summarize_energy(const std::vector<FlatChart>& charts, PipelineReport& report) {
-  std::vector<double> energy;
+  std::vector<double> before, after;
   for (const FlatChart& c : charts)
-    if (!c.kept_original) energy.push_back(c.energy_final);
-  report.charts_solved = static_cast<int>(energy.size());
-  if (energy.empty()) return;
-  std::sort(energy.begin(), energy.end());
-  report.energy_median = energy[energy.size() / 2];
-  report.energy_max = energy.back();
+    if (!c.kept_original) before.push_back(c.energy_initial), after.push_back(c.energy_final);
+  report.charts_solved = static_cast<int>(after.size());
+  if (after.empty()) return;
+  report.energy_initial_median = median(before);
+  report.energy_median = median(after);
+  report.energy_max = *std::max_element(after.begin(), after.end());
 }
 
 }  // namespace

@@ -37,7 +37,9 @@ struct PipelineReport {
   long long texels_before = 0, texels_after = 0;
   double packing_efficiency = 0;
   double scale = 1;            // uniform texel scale the packer applied
-  double energy_median = 0, energy_max = 0;  // symmetric Dirichlet per area of solved charts
+  // Symmetric Dirichlet energy per unit reference area of the solved charts
+  // (4 is isometric): median at the initial embedding, then median and max after SLIM.
+  double energy_initial_median = 0, energy_median = 0, energy_max = 0;
   std::vector<StageTime> seconds;
 };
 

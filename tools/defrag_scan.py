@@ -104,7 +104,10 @@ def main(argv=None) -> int:
     r = result["report"]
     print(f"{args.input.name}: {len(scan.triangles)} faces")
     print(f"  charts        {r['charts_before']} -> {r['charts_after']} (aggregated {r['charts_aggregated']}, "
-          f"split back: {r['splits_overlap']} overlap, {r['splits_solver']} solver, {r['splits_not_disk']} topology)")
+          f"split back: {r['splits_overlap']} overlap, {r['splits_density']} density, {r['splits_solver']} solver, "
+          f"{r['splits_not_disk']} topology)")
+    print(f"  energy        median {r['energy_initial_median']:.2f} -> {r['energy_median']:.3f}, max {r['energy_max']:.2f} "
+          f"over {r['charts_solved']} flattened charts (4 = isometric)")
     print(f"  seam length   {r['seam_before']:.1f} -> {r['seam_after']:.1f} (3D length / sqrt(area))")
     print(f"  texels        {r['texels_before']:,} -> {r['texels_after']:,} "
           f"(packing efficiency {r['packing_efficiency']:.1%}, scale {r['scale']:.3f})")
