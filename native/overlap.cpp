@@ -178,12 +178,44 @@ FlatChart from_solution(const LocalChart& c, const ChartSolution& s) {
   return out;
 }
 
+struct SubMesh {
+  Mesh mesh;
+  MeshTopology topology;
+  std::vector<double> corner_angle;  // empty when the whole mesh had none
+};
+
+// The given faces as a mesh of their own, in the given order.
+SubMesh sub_mesh(const Mesh& mesh, const std::vector<int>& faces, const std::vector<double>& corner_angle) {
+  SubMesh sub;
+  const int n = static_cast<int>(faces.size());
+  std::unordered_map<int, int> vertex;
+  sub.mesh.triangles.resize(n, 3);
+  sub.mesh.corner_uv.resize(3 * n, 2);
+  sub.mesh.face_page.resize(n);
+  std::vector<int> source;
+  for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const auto [it, fresh] = vertex.emplace(mesh.triangles(faces[i], k), static_cast<int>(source.size()));
+      if (fresh) source.push_back(it->first);
+      sub.mesh.triangles(i, k) = it->second;
+      sub.mesh.corner_uv.row(3 * i + k) = mesh.corner_uv.row(3 * faces[i] + k);
+      if (!corner_angle.empty()) sub.corner_angle.push_back(corner_angle[3 * faces[i] + k]);
+    }
+    sub.mesh.face_page[i] = mesh.face_page[faces[i]];
+  }
+  sub.mesh.positions.resize(static_cast<Eigen::Index>(source.size()), 3);
+  for (size_t v = 0; v < source.size(); ++v) sub.mesh.positions.row(v) = mesh.positions.row(source[v]);
+  sub.mesh.pages = mesh.pages;
+  sub.topology = build_topology(sub.mesh.triangles, sub.mesh.vertex_count());
+  return sub;
+}
+
 // Regrows the members into disk groups from two seeds that grow in turn, the
 // smaller group first: the largest member, and the culprit (the original chart
 // at a boundary crossing, so the crossing ends up between the groups) or else
 // the member farthest from the largest. Every group is strictly smaller than
 // the input, so the recursion ends.
-std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& graph,
                                             const std::vector<std::vector<int>>& chart_faces,
                                             const std::vector<double>& corner_angle,
                                             const std::vector<int>& members, int culprit) {
@@ -197,10 +229,13 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology
     neighbours[a->second].push_back(b->second);
     neighbours[b->second].push_back(a->second);
   }
-  std::vector<int> label(mesh.face_count(), -1);
+  // DiskClusters on the members' faces alone: its work and memory then scale
+  // with this chart rather than with the whole scan.
+  std::vector<int> faces, label;
   for (int i = 0; i < m; ++i)
-    for (int f : chart_faces[members[i]]) label[f] = i;
-  DiskClusters disks(mesh, topology, label, m, corner_angle);
+    for (int f : chart_faces[members[i]]) faces.push_back(f), label.push_back(i);
+  const SubMesh sub = sub_mesh(mesh, faces, corner_angle);
+  DiskClusters disks(sub.mesh, sub.topology, label, m, sub.corner_angle);
 
   auto area = [&](int i) { return graph.charts[members[i]].area_uv; };
   const int culprit_index = culprit < 0 ? -1 : static_cast<int>(std::find(members.begin(), members.end(), culprit) - members.begin());
@@ -354,7 +389,7 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
     stats.solver_failed += why.solver_failed;
     stats.overlapped += why.overlapped;
     stats.density_lost += why.density_lost;
-    for (auto& piece : split_members(mesh, topology, graph, chart_faces, corner_angle, group, culprit))
+    for (auto& piece : split_members(mesh, graph, chart_faces, corner_angle, group, culprit))
       pending.push_back(std::move(piece));
   }
   return done;
