@@ -4,7 +4,9 @@
 #include <random>
 
 #include "chart_raster.hpp"
+#include "coarse_mask.hpp"
 #include "pack.hpp"
+#include "page_occupancy.hpp"
 
 namespace atlas {
 namespace {
@@ -142,6 +144,50 @@ TEST(RasterizeChart, CoversOverlappedTexelsOnly) {
   EXPECT_EQ(dot.width, 5);
   EXPECT_EQ(dot.origin_x, 5);
   EXPECT_EQ(count_set_texels(dot), 25);
+}
+
+TEST(CoarsenMask, CellIsSetWhenAnyTexelIs) {
+  // Texels 3..5 of row 2, placed at (6, 1): page texels 9..11 of row 3, i.e.
+  // cells 2 (texels 8..11) of cell row 0 for 4 x 4 cells.
+  TexelMask mask(8, 4, 0, 0);
+  set_bits(mask.row(2), 3, 6);
+  const TexelMask cells = coarsen_mask(mask, 6, 1, 4, 100, 100);
+  EXPECT_EQ(cells.origin_x, 1);
+  EXPECT_EQ(cells.origin_y, 0);
+  EXPECT_EQ(count_set_texels(cells), 1);
+  EXPECT_TRUE(cells.test(2 - cells.origin_x, 0));
+  // Cells beyond the grid are dropped.
+  EXPECT_EQ(coarsen_mask(mask, 6, 1, 4, 2, 100).width, 1);
+  EXPECT_EQ(coarsen_mask(mask, 6, 1, 4, 1, 100).width, 0);
+}
+
+// A bridge (an upside-down U) over an empty pocket, with 5-texel gaps at the
+// page sides: an 8 x 8 square dropped straight down rests on the deck, the
+// hole search finds the pocket under it.
+TEST(PageOccupancy, DropRestsOnTheDeckAndFirstFitFindsThePocket) {
+  PageOccupancy page(40, 64);
+  TexelMask bridge(30, 20, 0, 0);  // legs of 4 texels, deck of rows 16..19
+  for (int y = 0; y < 20; ++y) {
+    set_bits(bridge.row(y), 0, y < 16 ? 4 : 30);
+    set_bits(bridge.row(y), 26, 30);
+  }
+  page.occupy(bridge, 5, 0);
+  EXPECT_EQ(page.used_width(), 35);
+  EXPECT_EQ(page.used_height(), 20);
+  TexelMask square(8, 8, 0, 0);
+  for (int y = 0; y < 8; ++y) set_bits(square.row(y), 0, 8);
+  const PlacementShape shape = make_placement_shape(square);
+  const auto drop = page.lowest_drop(shape, page.height());
+  ASSERT_TRUE(drop);
+  EXPECT_EQ(*drop, Eigen::Vector2i(0, 20));
+  const auto hole = page.first_fit(shape, page.height());
+  ASSERT_TRUE(hole);
+  EXPECT_EQ(*hole, Eigen::Vector2i(9, 0));
+  // Nothing fits under a top limit of 7 rows; once the pocket holds one
+  // square, the next one goes beside it.
+  EXPECT_FALSE(page.lowest_drop(shape, 7));
+  page.occupy(square, 9, 0);
+  EXPECT_EQ(*page.first_fit(shape, page.height()), Eigen::Vector2i(17, 0));
 }
 
 TEST(PackCharts, RandomRectanglesNeverShareATexel) {

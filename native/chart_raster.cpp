@@ -10,14 +10,14 @@ namespace {
 // Texel squares are shrunk by this margin before the overlap test. It turns
 // "touches the border" into "does not overlap", and it is far larger than the
 // rounding of placed UVs (texels / page size * page size), so a chart
-// re-rasterised from page units marks exactly the texels it was packed with.
+// re-rasterised from page units marks the texels it was packed with.
 constexpr double kBorderSlack = 1e-6;
 
 struct TexelRun {
   int y, x_begin, x_end;  // texels [x_begin, x_end) of row y
 };
 
-// x extent of (triangle n strip y0 <= y <= y1). The intersection is convex,
+// x extent of the triangle cut to the strip y0 <= y <= y1. The cut is convex,
 // so its extent comes from the corners inside the strip and the points where
 // edges cross the strip's two lines. Returns false if it is empty.
 bool strip_x_extent(const Eigen::Vector2d p[3], double y0, double y1, double& lo, double& hi) {
@@ -46,7 +46,8 @@ int first_texel(double lo) { return static_cast<int>(std::ceil(lo - 1.0 + kBorde
 int last_texel(double hi) { return static_cast<int>(std::floor(hi - kBorderSlack)); }
 
 // One run per texel row the triangle overlaps: in each row the overlapped
-// texels are exactly those meeting the x extent of triangle n (shrunk row).
+// texels are exactly those meeting the x extent of the triangle cut to the
+// (shrunk) row, since a texel spans the row's full height.
 void append_triangle_runs(const Eigen::Vector2d p[3], std::vector<TexelRun>& runs) {
   const double y_min = std::min({p[0].y(), p[1].y(), p[2].y()});
   const double y_max = std::max({p[0].y(), p[1].y(), p[2].y()});
@@ -62,6 +63,7 @@ void append_triangle_runs(const Eigen::Vector2d p[3], std::vector<TexelRun>& run
 
 TexelMask rasterize_chart(const RowMatrixX2d& corner_texels) {
   std::vector<TexelRun> runs;
+  runs.reserve(corner_texels.rows());  // about one row per face for dense meshes
   for (Eigen::Index f = 0; f + 2 < corner_texels.rows(); f += 3) {
     const Eigen::Vector2d p[3] = {corner_texels.row(f).transpose(),
                                   corner_texels.row(f + 1).transpose(),

@@ -32,13 +32,16 @@ struct PackResult {
 
 // chart_uv[c] holds chart c's corner UVs in texels (3 rows per face, any placement).
 // Charts are rasterised conservatively, grown by options.padding, and placed
-// largest first at the lowest, then leftmost, free spot (0 or 90 degrees).
+// largest first, at 0 or 90 degrees: dropped onto the horizon of what is
+// already placed, or lower, into a hole under it (searched on a 4-texel grid).
 // Page size: by default the smallest near-square page (sides multiples of 4) or,
 // beyond max_page_size, the fewest pages of that size (the last one shrunk);
 // fixed_page_size: one page of exactly that side, charts scaled as large as fit
-// (density_scale is then ignored). Charts keep padding / 2 texels from page
-// borders. Throws InputError on bad options or rows not a multiple of 3;
-// non-finite corners are pulled onto their chart's mean corner.
+// (density_scale is then ignored). Charts keep at least padding / 2 texels from
+// page borders (pages wrap, so both borders together give the full padding).
+// Throws InputError on bad options, rows not a multiple of 3, or a budget or
+// fixed page too small for the charts' padding alone; non-finite corners are
+// pulled onto their chart's mean corner.
 PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
                        const RunControl& control);
 

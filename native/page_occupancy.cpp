@@ -2,19 +2,26 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 
-long long g_calls=0, g_rows=0, g_found=0, g_merges=0, g_filter=0, g_fr=0;
 namespace atlas {
 namespace {
 
-constexpr int kBlock = 64;           // rows / columns summarised together
+constexpr int kBlock = 64;            // rows / columns summarised together
+constexpr int kRectangleClasses = 40; // free rectangle sides 2^(k/2), k < 40
+constexpr int kBoundingClasses = 64;  // bounding box sides 2^(k/4), k < 64
 
-constexpr int kSizeClasses = 40;  // sizes 2^(k/2), k < 40, cover any page side
+// Rectangle size class of a side: the largest k with rectangle_side(k) <= side.
+int rectangle_class(int side) {
+  return std::min(kRectangleClasses - 1, static_cast<int>(2.0 * std::log2(side)));
+}
+int rectangle_side(int k) { return static_cast<int>(std::pow(2.0, 0.5 * k)); }
 
-// Size class of a side: the largest k with class_side(k) <= side.
-int size_class(int side) { return std::min(kSizeClasses - 1, static_cast<int>(2.0 * std::log2(side))); }
-int class_side(int k) { return static_cast<int>(std::pow(2.0, 0.5 * k)); }
+int bounding_class(const TexelMask& mask) {
+  auto side_class = [](int side) {
+    return std::min(kBoundingClasses - 1, static_cast<int>(4.0 * std::log2(side)));
+  };
+  return side_class(mask.width) * kBoundingClasses + side_class(mask.height);
+}
 
 // Shortest run listed in run tier k, and the tier to search for a run.
 int tier_length(int tier) { return 1 << (2 * tier); }
@@ -51,8 +58,8 @@ void keep_offsets_inside(const std::vector<Span>& free_runs, Span run,
   }
 }
 
-// Replaces the runs meeting [lo, hi) by `fresh` (which lies inside it),
-// keeping only runs at least min_length long.
+// Replaces the runs meeting [lo, hi) by the runs of `fresh` (which lies
+// inside it) at least min_length long.
 void replace_runs(std::vector<Span>& runs, int lo, int hi, const std::vector<Span>& fresh,
                   int min_length) {
   auto first = std::lower_bound(runs.begin(), runs.end(), lo,
@@ -61,7 +68,7 @@ void replace_runs(std::vector<Span>& runs, int lo, int hi, const std::vector<Spa
                                [](const Span& s, int x) { return s.begin < x; });
   first = runs.erase(first, last);
   for (const Span& s : fresh)
-    if (s.end - s.begin >= min_length) first = runs.insert(first, s) + 1;
+    if (s.end - s.begin >= min_length) first = std::next(runs.insert(first, s));
 }
 
 }  // namespace
@@ -74,7 +81,8 @@ PageOccupancy::PageOccupancy(int width, int height)
       block_longest_free_run_((height + kBlock - 1) / kBlock, width),
       horizon_(width, 0),
       block_lowest_horizon_((width + kBlock - 1) / kBlock, 0),
-      rectangle_floor_(kSizeClasses * kSizeClasses, 0) {}
+      rectangle_floor_(kRectangleClasses * kRectangleClasses, 0),
+      resume_row_(kBoundingClasses * kBoundingClasses, 0) {}
 
 // Everything above the horizon is free, so the shape dropped at column x
 // rests at y(x) = max over its columns i of horizon[x + i] - column_bottom[i].
@@ -118,27 +126,70 @@ std::optional<Eigen::Vector2i> PageOccupancy::lowest_drop(const PlacementShape& 
   return Eigen::Vector2i(best_x, best_y);
 }
 
-// Scans rows upwards. Each row is first filtered in O(1) by its longest free
-// runs; rows that pass are tested exactly. Rows above the stored ones are
-// free, so the scan ends there at the latest.
+// Rows are first filtered in O(1) by their longest free runs, and only rows
+// that pass are tested exactly. Rows above the stored ones are free, so the
+// scan ends there at the latest.
 std::optional<Eigen::Vector2i> PageOccupancy::first_fit(const PlacementShape& shape,
                                                         int top_limit) const {
   if (shape.mask.width > width_) return std::nullopt;
   const int y_last = std::min(height_, top_limit) - shape.mask.height;
   const int widest = shape.widest_row;
-  ++g_calls; long long r0 = g_rows;
-  for (int y = getenv("NOFLOOR") ? 0 : std::max(0, core_floor(shape) - shape.core_bottom); y <= y_last; ++y) {
+  int& resume = resume_row_[bounding_class(shape.mask)];
+  for (int y = std::max(resume, core_floor(shape) - shape.core_bottom); y <= y_last; ++y) {
     // The widest chart run needs a free run at least as long under it.
     const int row = next_row_with_free_run(y + widest, shape.longest_run[widest]);
-    if (row < 0 || row - widest > y_last) return std::nullopt;
+    if (row < 0 || row - widest > y_last) break;
     y = row - widest;
-    ++g_filter;
     if (!rows_have_long_free_runs(shape, y)) continue;
-    ++g_rows;
     const int x = leftmost_fit_in_row(shape, y);
-    if (x >= 0) { ++g_found; g_fr += g_rows - r0; return Eigen::Vector2i(x, y);}
+    if (x >= 0) {
+      resume = y;
+      return Eigen::Vector2i(x, y);
+    }
   }
+  resume = std::max(resume, y_last + 1);
   return std::nullopt;
+}
+
+// Lowest row on which a free rectangle as large as the shape's core could
+// stand. Sides are rounded down to a size class (2^(k/2)) so that the answer
+// is cached and reused by later charts; a class's floor is at least those of
+// the classes one step smaller in either side.
+int PageOccupancy::core_floor(const PlacementShape& shape) const {
+  const int w_class = rectangle_class(shape.core_columns.end - shape.core_columns.begin);
+  const int h_class = rectangle_class(shape.core_height);
+  int& floor = rectangle_floor_[w_class * kRectangleClasses + h_class];
+  if (w_class > 0)
+    floor = std::max(floor, rectangle_floor_[(w_class - 1) * kRectangleClasses + h_class]);
+  if (h_class > 0)
+    floor = std::max(floor, rectangle_floor_[w_class * kRectangleClasses + h_class - 1]);
+  floor = next_free_rectangle_row(rectangle_side(w_class), rectangle_side(h_class), floor);
+  return floor;
+}
+
+// Lowest row >= from on which a free width x height rectangle stands (rows
+// above the stored ones are free). A row under the rectangle without a free
+// run that long rules out every bottom row up to it.
+int PageOccupancy::next_free_rectangle_row(int width, int height, int from) const {
+  const Span run = {0, width};
+  const int tier = tier_for(width, kRunTiers);
+  for (int y = from; y < used_height_;) {
+    const int rows = std::min(height, used_height_ - y);
+    int blocked = rows - 1;
+    while (blocked >= 0 && longest_free_run_[y + blocked] >= width) --blocked;
+    if (blocked >= 0) {
+      y += blocked + 1;
+      continue;
+    }
+    candidates_.assign(1, {0, width_ - width + 1});
+    for (int r = 0; r < rows && !candidates_.empty(); ++r) {
+      keep_offsets_inside(rows_[y + r][tier], run, candidates_, kept_);
+      candidates_.swap(kept_);
+    }
+    if (!candidates_.empty()) return y;
+    ++y;
+  }
+  return std::max(from, used_height_);
 }
 
 // Leftmost x at which the shape fits with its bottom on row y, or -1. Starts
@@ -152,8 +203,7 @@ int PageOccupancy::leftmost_fit_in_row(const PlacementShape& shape, int y) const
     const FreeRow& row = rows_[y + r];
     for (int i = shape.row_start[r]; i < shape.row_start[r + 1]; ++i) {
       const Span run = shape.runs[i];
-      ++g_merges; keep_offsets_inside(row[tier_for(run.end - run.begin, kRunTiers)], run,
-                          candidates_, kept_);
+      keep_offsets_inside(row[tier_for(run.end - run.begin, kRunTiers)], run, candidates_, kept_);
       candidates_.swap(kept_);
       if (candidates_.empty()) return -1;
     }
@@ -183,53 +233,13 @@ int PageOccupancy::next_row_with_free_run(int from, int length) const {
   return -1;
 }
 
-// Lowest row on which a free rectangle as large as the shape's core could
-// stand, rounded down to a size class (sides 2^(k/2)) so that the answer can
-// be cached and reused by later charts. A class's floor is at least those of
-// the classes one step smaller in either side.
-int PageOccupancy::core_floor(const PlacementShape& shape) const {
-  const int w_class = size_class(shape.core_columns.end - shape.core_columns.begin);
-  const int h_class = size_class(shape.core_height);
-  int& floor = rectangle_floor_[w_class * kSizeClasses + h_class];
-  if (w_class > 0) floor = std::max(floor, rectangle_floor_[(w_class - 1) * kSizeClasses + h_class]);
-  if (h_class > 0) floor = std::max(floor, rectangle_floor_[w_class * kSizeClasses + h_class - 1]);
-  floor = next_free_rectangle_row(class_side(w_class), class_side(h_class), floor);
-  return floor;
-}
-
-// Lowest row >= from on which a free width x height rectangle stands (rows
-// above the stored ones are free). A row under the rectangle without a free
-// run that long rules out every bottom row up to it.
-int PageOccupancy::next_free_rectangle_row(int width, int height, int from) const {
-  const Span run = {0, width};
-  for (int y = from; y < used_height_;) {
-    const int rows = std::min(height, used_height_ - y);
-    int blocked = rows - 1;
-    while (blocked >= 0 && longest_free_run_[y + blocked] >= width) --blocked;
-    if (blocked >= 0) {
-      y += blocked + 1;
-      continue;
-    }
-    candidates_.assign(1, {0, width_ - width + 1});
-    for (int r = 0; r < rows && !candidates_.empty(); ++r) {
-      keep_offsets_inside(rows_[y + r][tier_for(width, kRunTiers)], run,
-                          candidates_, kept_);
-      candidates_.swap(kept_);
-    }
-    if (!candidates_.empty()) return y;
-    ++y;
-  }
-  return std::max(from, used_height_);
-}
-
-void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
-  const TexelMask& mask = shape.mask;
+void PageOccupancy::occupy(const TexelMask& mask, int x, int y) {
   if (y + mask.height > used_height_) {
     used_height_ = y + mask.height;
     words_.resize(static_cast<size_t>(used_height_) * words_per_row_, 0);
-    FreeRow empty_row;
-    empty_row.fill({{0, width_}});
-    rows_.resize(used_height_, empty_row);
+    FreeRow empty;
+    empty.fill({{0, width_}});
+    rows_.resize(used_height_, empty);
   }
   used_width_ = std::max(used_width_, x + mask.width);
   const int shift = x & 63, base = x >> 6;
@@ -247,21 +257,14 @@ void PageOccupancy::occupy(const PlacementShape& shape, int x, int y) {
     const auto last = longest_free_run_.begin() + std::min(height_, (b + 1) * kBlock);
     block_longest_free_run_[b] = *std::max_element(first, last);
   }
-
-  for (int i = 0; i < mask.width; ++i)
-    horizon_[x + i] = std::max(horizon_[x + i], y + shape.column_top[i]);
-  for (int b = x / kBlock; b <= (x + mask.width - 1) / kBlock; ++b) {
-    const auto first = horizon_.begin() + b * kBlock;
-    const auto last = horizon_.begin() + std::min(width_, (b + 1) * kBlock);
-    block_lowest_horizon_[b] = *std::min_element(first, last);
-  }
+  update_horizon(mask, x, y);
 }
 
 // Row y changed inside [x_begin, x_end): rebuilds only the free runs that met
 // that range, from the row's bits.
 void PageOccupancy::update_row(int y, int x_begin, int x_end) {
   FreeRow& row = rows_[y];
-  std::vector<Span>& all = row[0];
+  const std::vector<Span>& all = row[0];
   const auto first = std::lower_bound(all.begin(), all.end(), x_begin,
                                       [](const Span& s, int x) { return s.end <= x; });
   const auto last = std::lower_bound(first, all.end(), x_end,
@@ -279,12 +282,24 @@ void PageOccupancy::update_row(int y, int x_begin, int x_end) {
     fresh.push_back({x, end});
     x = find_bit(bits, end, hi, false);
   }
-  for (int tier = 0; tier < kRunTiers; ++tier) replace_runs(row[tier], lo, hi, fresh, tier_length(tier));
+  for (int tier = 0; tier < kRunTiers; ++tier)
+    replace_runs(row[tier], lo, hi, fresh, tier_length(tier));
   // Runs only shrink, so the longest changes only if one of the longest went.
   if (lost_longest) {
     int longest = 0;
     for (const Span& s : all) longest = std::max(longest, s.end - s.begin);
     longest_free_run_[y] = longest;
+  }
+}
+
+void PageOccupancy::update_horizon(const TexelMask& mask, int x, int y) {
+  const std::vector<int> top = first_set_row_per_column(mask, true);
+  for (int i = 0; i < mask.width; ++i)
+    if (top[i] >= 0) horizon_[x + i] = std::max(horizon_[x + i], y + top[i] + 1);
+  for (int b = x / kBlock; b <= (x + mask.width - 1) / kBlock; ++b) {
+    const auto first = horizon_.begin() + b * kBlock;
+    const auto last = horizon_.begin() + std::min(width_, (b + 1) * kBlock);
+    block_lowest_horizon_[b] = *std::min_element(first, last);
   }
 }
 

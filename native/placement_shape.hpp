@@ -1,6 +1,6 @@
 // A dilated chart mask prepared for placement: its runs of set texels per
-// row (for the hole search) and its lower and upper outline per column (for
-// dropping it onto the page horizon).
+// row (for the hole search) and its lower outline per column (for dropping it
+// onto the page horizon).
 #pragma once
 #include <vector>
 
@@ -25,12 +25,12 @@ struct PlacementShape {
   // rectangle this size does too, which bounds the hole search from below.
   Span core_columns = {0, 1};
   int core_bottom = 0, core_height = 1;
-  std::vector<int> column_bottom; // per column: lowest set row, mask.height if none
-  std::vector<int> column_top;    // per column: highest set row + 1, 0 if none
-  std::vector<int> column_order;  // set columns, lowest column_bottom first
-  std::vector<int> key_columns;   // a few set columns spread over the width, for bounds
+  std::vector<int> column_bottom;  // per column: lowest set row, mask.height if none
+  std::vector<int> column_order;   // set columns, lowest column_bottom first
+  std::vector<int> key_columns;    // a few set columns spread over the width, for bounds
 };
 
+// Requires a mask with at least one set texel.
 PlacementShape make_placement_shape(TexelMask mask);
 
 }  // namespace atlas

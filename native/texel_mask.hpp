@@ -48,16 +48,6 @@ inline int count_trailing_zeros(std::uint64_t w) {  // w != 0
 #endif
 }
 
-inline int count_leading_zeros(std::uint64_t w) {  // w != 0
-#if defined(_MSC_VER)
-  unsigned long i;
-  _BitScanReverse64(&i, w);
-  return 63 - static_cast<int>(i);
-#else
-  return __builtin_clzll(w);
-#endif
-}
-
 inline int count_bits(std::uint64_t w) {
 #if defined(_MSC_VER)
   return static_cast<int>(__popcnt64(w));
@@ -103,16 +93,22 @@ inline int find_bit(const std::uint64_t* row, int begin, int end, bool value) {
   return end;
 }
 
-// Last set texel in [begin, end), or -1 if none.
-inline int last_set_bit(const std::uint64_t* row, int begin, int end) {
-  if (begin >= end) return -1;
-  for (int k = (end - 1) >> 6; k >= (begin >> 6); --k) {
-    const int lo = k == (begin >> 6) ? begin & 63 : 0;
-    const int hi = k == ((end - 1) >> 6) ? ((end - 1) & 63) + 1 : 64;
-    const std::uint64_t hits = row[k] & word_bits(lo, hi);
-    if (hits) return (k << 6) + 63 - count_leading_zeros(hits);
+// Per column, the row of the first set texel met when scanning rows upwards
+// (from_top = false) or downwards (from_top = true); -1 for empty columns.
+inline std::vector<int> first_set_row_per_column(const TexelMask& mask, bool from_top) {
+  std::vector<int> first(mask.width, -1);
+  std::vector<std::uint64_t> seen(mask.words_per_row, 0);
+  for (int i = 0; i < mask.height; ++i) {
+    const int r = from_top ? mask.height - 1 - i : i;
+    const std::uint64_t* row = mask.row(r);
+    for (int k = 0; k < mask.words_per_row; ++k) {
+      // Each set bit is visited only the first time its column shows one.
+      for (std::uint64_t fresh = row[k] & ~seen[k]; fresh; fresh &= fresh - 1)
+        first[(k << 6) + count_trailing_zeros(fresh)] = r;
+      seen[k] |= row[k];
+    }
   }
-  return -1;
+  return first;
 }
 
 }  // namespace atlas
