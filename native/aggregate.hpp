@@ -18,10 +18,6 @@ struct AggregateOptions {
   // A collapse is made only while the smaller chart covers less than this
   // fraction of the total area; 1 lets charts grow as far as topology allows.
   double min_chart_fraction = 1.0;
-  // A merged chart must stay flattenable without folding over itself: its
-  // area-weighted normal |sum n_f A_f| / sum A_f may not fall below this
-  // (1: flat; about 0.64 for a hemisphere cap of 100 degrees). 0 disables.
-  double min_normal_coherence = 0.0;
 };
 
 struct Aggregation {

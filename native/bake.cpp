@@ -429,8 +429,13 @@ std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<Ima
     baked[p].texels.resize(static_cast<std::size_t>(new_pages[p].width) * new_pages[p].height * channels);
     is_set[p].assign(static_cast<std::size_t>(new_pages[p].width) * new_pages[p].height, 0);
   }
+  // Sampling is most of the work; the fill of each page takes the rest.
   rasterize(BakeJob<T>{faces, old_pages, options}, bins, baked, is_set, control);
-  for (std::size_t p = 0; p < baked.size(); ++p) pull_push_fill(baked[p], is_set[p], control);
+  control.progress("bake", 0.8);
+  for (std::size_t p = 0; p < baked.size(); ++p) {
+    pull_push_fill(baked[p], is_set[p], control);
+    control.progress("bake", 0.8 + 0.2 * double(p + 1) / baked.size());
+  }
   return baked;
 }
 

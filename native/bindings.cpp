@@ -1,7 +1,7 @@
 // The thin Python layer: numpy arrays in, numpy arrays and dicts out. Every
-// call checks shapes and dtypes here (ValueError naming the argument), releases
-// the GIL while the native stages run, forwards progress to an optional Python
-// callable and honours an optional CancelToken.
+// call checks shapes and dtypes here (ValueError naming the argument) and
+// releases the GIL while the native stages run; defragment and bake forward
+// progress to an optional Python callable and honour an optional CancelToken.
 #include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -70,6 +70,21 @@ std::vector<PageSize> page_sizes(const py::handle& obj, const char* name) {
   return pages;
 }
 
+// An integer array narrowed to int, refusing values that would wrap around.
+Eigen::VectorXi int_values(const py::array_t<long long, py::array::c_style | py::array::forcecast>& a, const char* name) {
+  Eigen::VectorXi out(a.size());
+  for (py::ssize_t i = 0; i < a.size(); ++i) {
+    const long long v = a.data()[i];
+    if (v < INT32_MIN || v > INT32_MAX) {
+      std::ostringstream msg;
+      msg << name << "[" << i << "] = " << v << " is out of range";
+      throw py::value_error(msg.str());
+    }
+    out[i] = static_cast<int>(v);
+  }
+  return out;
+}
+
 struct Layout {
   RowMatrixX2d corner_uv;
   Eigen::VectorXi face_page;
@@ -85,28 +100,26 @@ Layout layout(const py::handle& uvs, const py::handle& face_page, Eigen::Index f
         << uv.shape(0) << " and " << page.shape(0);
     throw py::value_error(msg.str());
   }
-  return {to_matrix<RowMatrixX2d>(uv, 3 * faces, 2), to_matrix<Eigen::VectorXi>(page, faces, 1)};
+  return {to_matrix<RowMatrixX2d>(uv, 3 * faces, 2), int_values(page, page_name)};
 }
 
 Mesh mesh_from(const py::handle& positions, const py::handle& triangles, const py::handle& uvs,
-               const py::handle& face_page, const py::handle& sizes) {
+               const py::handle& face_page, const std::vector<PageSize>& pages) {
   const auto pos = checked<double>(positions, "positions", {3}, "(V, 3)");
   const auto tri = checked<long long>(triangles, "triangles", {3}, "(F, 3)");
   const Layout l = layout(uvs, face_page, tri.shape(0), "uvs", "face_page");
-  // Indices beyond int range are out of range by definition; clamp to keep the message exact.
   RowMatrixX3i t(tri.shape(0), 3);
   for (py::ssize_t f = 0; f < tri.shape(0); ++f)
     for (int k = 0; k < 3; ++k) {
       const long long v = tri.at(f, k);
-      t(f, k) = v < 0 || v > INT32_MAX ? -1 : static_cast<int>(v);
-      if (t(f, k) < 0) {
+      if (v < 0 || v >= pos.shape(0)) {
         std::ostringstream msg;
         msg << "triangle " << f << " has vertex index " << v << " out of range [0, " << pos.shape(0) << ")";
         throw py::value_error(msg.str());
       }
+      t(f, k) = static_cast<int>(v);
     }
-  return make_mesh(to_matrix<RowMatrixX3d>(pos, pos.shape(0), 3), t, l.corner_uv, l.face_page,
-                   page_sizes(sizes, "page_sizes"));
+  return make_mesh(to_matrix<RowMatrixX3d>(pos, pos.shape(0), 3), t, l.corner_uv, l.face_page, pages);
 }
 
 struct CancelToken {
@@ -200,12 +213,13 @@ py::dict report_dict(const PipelineReport& r) {
 py::dict defragment_py(const py::object& positions, const py::object& triangles, const py::object& uvs,
                        const py::object& face_page, const py::object& sizes, const py::object& face_group,
                        const py::object& options, const py::object& progress, const py::object& cancel) {
-  const Mesh mesh = mesh_from(positions, triangles, uvs, face_page, sizes);
+  const Mesh mesh = mesh_from(positions, triangles, uvs, face_page, page_sizes(sizes, "page_sizes"));
   std::vector<int> groups;
   if (!face_group.is_none()) {
     const auto g = checked<long long>(face_group, "face_group", {}, "(F,)");
     if (g.shape(0) != mesh.face_count()) throw py::value_error("face_group must hold one group per triangle");
-    groups.assign(g.data(), g.data() + g.shape(0));
+    const Eigen::VectorXi values = int_values(g, "face_group");
+    groups.assign(values.data(), values.data() + values.size());
   }
   const PipelineOptions opts = pipeline_options(options);
   const RunControl control = control_from(progress, cancel);
@@ -224,7 +238,7 @@ py::dict defragment_py(const py::object& positions, const py::object& triangles,
 
 py::dict chart_graph_py(const py::object& positions, const py::object& triangles, const py::object& uvs,
                         const py::object& face_page, const py::object& sizes) {
-  const Mesh mesh = mesh_from(positions, triangles, uvs, face_page, sizes);
+  const Mesh mesh = mesh_from(positions, triangles, uvs, face_page, page_sizes(sizes, "page_sizes"));
   ChartGraph g;
   {
     py::gil_scoped_release release;
@@ -247,7 +261,9 @@ template <class T>
 std::vector<ImageView<T>> image_views(const py::list& images, const char* name, std::vector<py::array>& keep) {
   std::vector<ImageView<T>> views;
   for (size_t i = 0; i < images.size(); ++i) {
-    auto a = py::array_t<T, py::array::c_style>::ensure(images[i]);
+    const py::array raw = py::array::ensure(images[i]);
+    auto a = raw && raw.dtype().is(py::dtype::of<T>()) ? py::array_t<T, py::array::c_style>::ensure(raw)
+                                                        : py::array_t<T, py::array::c_style>();
     if (!a || a.ndim() != 3 || a.shape(2) < 1 || a.shape(2) > 4) {
       std::ostringstream msg;
       msg << name << "[" << i << "] must be an (H, W, C) array with 1 to 4 channels of the same dtype as the others";
@@ -323,7 +339,7 @@ py::dict atlas_dict(const AtlasMeasures& m) {
 py::dict measure_py(const py::object& positions, const py::object& triangles, const py::object& old_uvs,
                     const py::object& old_face_page, const py::object& old_sizes, const py::object& new_uvs,
                     const py::object& new_face_page, const py::object& new_sizes) {
-  const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, old_sizes);
+  const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, page_sizes(old_sizes, "old_page_sizes"));
   const Layout new_l = layout(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page");
   const std::vector<PageSize> new_pages = page_sizes(new_sizes, "new_page_sizes");
   const UvAtlas old_atlas = atlas_of(mesh);
@@ -378,11 +394,7 @@ py::dict compare_colors_py(const py::object& positions, const py::object& triang
                            const py::object& new_face_page, const py::list& new_images, int samples, unsigned seed) {
   const std::vector<PageSize> old_pages = image_sizes(old_images, "old_images");
   const std::vector<PageSize> new_pages = image_sizes(new_images, "new_images");
-  const auto pos = checked<double>(positions, "positions", {3}, "(V, 3)");
-  const auto tri = checked<long long>(triangles, "triangles", {3}, "(F, 3)");
-  const Layout old_l = layout(old_uvs, old_face_page, tri.shape(0), "old_uvs", "old_face_page");
-  RowMatrixX3i t = to_matrix<RowMatrixX3i>(tri, tri.shape(0), 3);
-  const Mesh mesh = make_mesh(to_matrix<RowMatrixX3d>(pos, pos.shape(0), 3), t, old_l.corner_uv, old_l.face_page, old_pages);
+  const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, old_pages);
   const Layout new_l = layout(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page");
   const UvAtlas new_atlas{&new_l.corner_uv, &new_l.face_page, &new_pages};
   const bool bytes = is_uint8_images(old_images, "old_images");

@@ -1,32 +1,25 @@
 #include "charts.hpp"
 
 #include <cmath>
-#include <numeric>
 #include <unordered_map>
 
 #include "geometry.hpp"
+#include "union_find.hpp"
 
 namespace atlas {
 namespace {
 
-struct UnionFind {
-  std::vector<int> parent;
-  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  }
-  void unite(int a, int b) { parent[find(a)] = find(b); }
-};
-
 // Charts numbered in order of their first face, so numbering is deterministic.
-std::vector<int> label_charts(const Mesh& mesh, const MeshTopology& topology, int& count) {
+// A chart never spans two face groups, even where the UVs run on.
+std::vector<int> label_charts(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& face_group,
+                              int& count) {
   UnionFind uf(mesh.face_count());
   for (int e = 0; e < topology.edge_count(); ++e) {
     if (!uv_continuous_across(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, e)) continue;
-    const int c0 = topology.edge_corners[topology.edge_offsets[e]];
-    const int c1 = topology.edge_corners[topology.edge_offsets[e] + 1];
-    if (mesh.face_page[c0 / 3] >= 0) uf.unite(c0 / 3, c1 / 3);
+    const int f0 = topology.edge_corners[topology.edge_offsets[e]] / 3;
+    const int f1 = topology.edge_corners[topology.edge_offsets[e] + 1] / 3;
+    if (!face_group.empty() && face_group[f0] != face_group[f1]) continue;
+    if (mesh.face_page[f0] >= 0) uf.unite(f0, f1);
   }
   std::vector<int> label(mesh.face_count(), -1), root_label(mesh.face_count(), -1);
   count = 0;
@@ -48,13 +41,12 @@ double edge_length_uv(const Mesh& mesh, int c) {
   return (mesh.uv_texels(c / 3, c % 3) - mesh.uv_texels(c / 3, (c % 3 + 1) % 3)).norm();
 }
 
-void accumulate_face_stats(const Mesh& mesh, const std::vector<int>& face_group, ChartGraph& g) {
+void accumulate_face_stats(const Mesh& mesh, ChartGraph& g) {
   for (int f = 0; f < mesh.face_count(); ++f) {
     const int chart = g.face_chart[f];
     if (chart < 0) continue;
     ChartStats& s = g.charts[chart];
     s.page = mesh.face_page[f];
-    s.group = face_group.empty() ? 0 : face_group[f];
     ++s.faces;
     s.area_3d += triangle_area(mesh.positions.row(mesh.triangles(f, 0)), mesh.positions.row(mesh.triangles(f, 1)),
                                mesh.positions.row(mesh.triangles(f, 2)));
@@ -109,9 +101,9 @@ ChartGraph build_chart_graph(const Mesh& mesh, const MeshTopology& topology, con
     throw InputError("face_group must hold one group per triangle");
   ChartGraph g;
   int count = 0;
-  g.face_chart = label_charts(mesh, topology, count);
+  g.face_chart = label_charts(mesh, topology, face_group, count);
   g.charts.resize(count);
-  accumulate_face_stats(mesh, face_group, g);
+  accumulate_face_stats(mesh, g);
   accumulate_boundaries(mesh, topology, face_group, g);
   return g;
 }

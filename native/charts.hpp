@@ -11,7 +11,6 @@ namespace atlas {
 
 struct ChartStats {
   int page = 0;
-  int group = 0;               // faces of different groups never merge
   int faces = 0;
   double area_3d = 0;
   double area_uv = 0;          // texels^2, sum of unsigned face areas

@@ -1,14 +1,9 @@
 #include "cut_mesh.hpp"
 
-#include <numeric>
+#include "union_find.hpp"
 
 namespace atlas {
 namespace {
-
-int find(std::vector<int>& parent, int x) {
-  while (parent[x] != x) x = parent[x] = parent[parent[x]];
-  return x;
-}
 
 // Corner of face f sitting at vertex v.
 int corner_at(const Mesh& mesh, int f, int v) {
@@ -32,25 +27,24 @@ bool keeps_edge(const Mesh& mesh, const MeshTopology& topology, const ChartGraph
 Mesh cut_internal_seams(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph) {
   // Corners at the same vertex are joined across every edge that stays; each
   // resulting class of corners becomes one vertex of the cut surface.
-  std::vector<int> parent(3 * mesh.face_count());
-  std::iota(parent.begin(), parent.end(), 0);
+  UnionFind corners(3 * mesh.face_count());
   for (int e = 0; e < topology.edge_count(); ++e) {
     if (!keeps_edge(mesh, topology, graph, e)) continue;
     const int f0 = topology.edge_corners[topology.edge_offsets[e]] / 3;
     const int f1 = topology.edge_corners[topology.edge_offsets[e] + 1] / 3;
     for (int j = 0; j < 2; ++j) {
       const int v = topology.edge_vertices(e, j);
-      parent[find(parent, corner_at(mesh, f0, v))] = find(parent, corner_at(mesh, f1, v));
+      corners.unite(corner_at(mesh, f0, v), corner_at(mesh, f1, v));
     }
   }
   Mesh cut;
   cut.triangles.resize(mesh.face_count(), 3);
-  std::vector<int> vertex_of_root(parent.size(), -1);
+  const std::vector<int> vertex_of_corner = corners.dense_labels();
   std::vector<int> source_vertex;
-  for (int c = 0; c < static_cast<int>(parent.size()); ++c) {
-    int& id = vertex_of_root[find(parent, c)];
-    if (id < 0) id = static_cast<int>(source_vertex.size()), source_vertex.push_back(mesh.triangles(c / 3, c % 3));
-    cut.triangles(c / 3, c % 3) = id;
+  for (int c = 0; c < 3 * mesh.face_count(); ++c) {
+    const int v = vertex_of_corner[c];
+    if (v == static_cast<int>(source_vertex.size())) source_vertex.push_back(mesh.triangles(c / 3, c % 3));
+    cut.triangles(c / 3, c % 3) = v;
   }
   cut.positions.resize(static_cast<Eigen::Index>(source_vertex.size()), 3);
   for (size_t v = 0; v < source_vertex.size(); ++v) cut.positions.row(v) = mesh.positions.row(source_vertex[v]);

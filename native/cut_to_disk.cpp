@@ -2,9 +2,10 @@
 
 #include <algorithm>
 #include <map>
-#include <numeric>
 #include <queue>
 #include <set>
+
+#include "union_find.hpp"
 
 namespace atlas {
 namespace {
@@ -62,12 +63,7 @@ std::vector<int> path_between_loops(const RowMatrixX3i& t, const std::vector<int
 // Renumbers vertices so corners share a vertex only across edges not in `cut`.
 void split_along(RowMatrixX3i& t, std::vector<int>& vertex_source, const std::set<Edge>& cut) {
   const int corners = static_cast<int>(3 * t.rows());
-  std::vector<int> parent(corners);
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
+  UnionFind classes(corners);
   std::map<Edge, int> first_corner;  // corner starting the edge, first face seen
   for (int c = 0; c < corners; ++c) {
     const int a = t(c / 3, c % 3), b = t(c / 3, (c % 3 + 1) % 3);
@@ -78,15 +74,16 @@ void split_along(RowMatrixX3i& t, std::vector<int>& vertex_source, const std::se
     // The other face runs b -> a: its corner at b is it->second, at a the next one.
     const int o = it->second, o_next = 3 * (o / 3) + (o % 3 + 1) % 3;
     const int c_next = 3 * (c / 3) + (c % 3 + 1) % 3;
-    parent[find(c)] = find(o_next);
-    parent[find(c_next)] = find(o);
+    classes.unite(c, o_next);
+    classes.unite(c_next, o);
   }
-  std::vector<int> id_of_root(corners, -1), source;
+  const std::vector<int> vertex_of_corner = classes.dense_labels();
+  std::vector<int> source;
   RowMatrixX3i out(t.rows(), 3);
   for (int c = 0; c < corners; ++c) {
-    int& id = id_of_root[find(c)];
-    if (id < 0) id = static_cast<int>(source.size()), source.push_back(vertex_source[t(c / 3, c % 3)]);
-    out(c / 3, c % 3) = id;
+    const int v = vertex_of_corner[c];
+    if (v == static_cast<int>(source.size())) source.push_back(vertex_source[t(c / 3, c % 3)]);
+    out(c / 3, c % 3) = v;
   }
   t = std::move(out);
   vertex_source = std::move(source);

@@ -10,6 +10,7 @@
 #include "cut_to_disk.hpp"
 #include "disk_merge.hpp"
 #include "geometry.hpp"
+#include "union_find.hpp"
 
 namespace atlas {
 namespace {
@@ -97,11 +98,6 @@ struct LocalChart {
   std::vector<int> vertices;  // local -> mesh vertex
 };
 
-int find_root(std::vector<int>& parent, int x) {
-  while (parent[x] != x) x = parent[x] = parent[parent[x]];
-  return x;
-}
-
 // Local vertex numbering of a chart. Corners at one mesh vertex share a local
 // vertex only when their faces connect through edges inside the chart, so a
 // vertex where the chart merely touches itself (a pinch) is split in two.
@@ -111,8 +107,7 @@ LocalChart localize(const Mesh& mesh, const MeshTopology& topology, std::vector<
   const int n = static_cast<int>(c.faces.size());
   std::unordered_map<int, int> local_face;
   for (int i = 0; i < n; ++i) local_face[c.faces[i]] = i;
-  std::vector<int> parent(3 * n);
-  std::iota(parent.begin(), parent.end(), 0);
+  UnionFind corners(3 * n);
   auto local_corner_at = [&](int i, int v) {
     for (int k = 0; k < 3; ++k)
       if (mesh.triangles(c.faces[i], k) == v) return 3 * i + k;
@@ -127,16 +122,16 @@ LocalChart localize(const Mesh& mesh, const MeshTopology& topology, std::vector<
         if (other == local_face.end() || other->second == i) continue;
         for (int end = 0; end < 2; ++end) {
           const int v = topology.edge_vertices(e, end);
-          parent[find_root(parent, local_corner_at(i, v))] = find_root(parent, local_corner_at(other->second, v));
+          corners.unite(local_corner_at(i, v), local_corner_at(other->second, v));
         }
       }
     }
   c.triangles.resize(n, 3);
-  std::vector<int> vertex_of_root(3 * n, -1);
+  const std::vector<int> vertex_of_corner = corners.dense_labels();
   for (int corner = 0; corner < 3 * n; ++corner) {
-    int& id = vertex_of_root[find_root(parent, corner)];
-    if (id < 0) id = static_cast<int>(c.vertices.size()), c.vertices.push_back(mesh.triangles(c.faces[corner / 3], corner % 3));
-    c.triangles(corner / 3, corner % 3) = id;
+    const int v = vertex_of_corner[corner];
+    if (v == static_cast<int>(c.vertices.size())) c.vertices.push_back(mesh.triangles(c.faces[corner / 3], corner % 3));
+    c.triangles(corner / 3, corner % 3) = v;
   }
   return c;
 }

@@ -1,7 +1,8 @@
 // Overlaps (thesis 5.1): a merged chart whose new boundary crosses itself is
 // split back into two groups of its original charts, each solved again. So is
 // one whose flattening failed or lost too much texel density. A group holding a
-// single original chart keeps its original UVs, so this always ends.
+// single original chart keeps its original UVs (it is flattened only when it
+// folds over itself, and kept as it was if that fails), so this always ends.
 #pragma once
 #include <optional>
 #include <utility>

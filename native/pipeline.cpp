@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <exception>
+#include <limits>
 #include <map>
 #include <numeric>
 
@@ -101,7 +102,7 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
   std::map<int, std::vector<int>> by_group;
   for (size_t c = 0; c < charts.size(); ++c)
     by_group[face_group.empty() ? 0 : face_group[charts[c].faces.front()]].push_back(static_cast<int>(c));
-  double covered = 0, total = 0;
+  double covered = 0, total = 0, scale = std::numeric_limits<double>::infinity();
   for (const auto& [group, members] : by_group) {
     std::vector<char> used(mesh.pages.size(), 0);
     std::vector<RowMatrixX2d> uv;
@@ -110,7 +111,11 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
       for (int f : charts[c].faces) used[mesh.face_page[f]] = 1;
     }
     PackOptions options = base;
-    if (options.texel_budget <= 0 && options.fixed_page_size <= 0) options.texel_budget = page_texels(mesh.pages, used);
+    // By default the output may hold as many texels as the input, times the
+    // area scale the caller asked for.
+    if (options.texel_budget <= 0 && options.fixed_page_size <= 0)
+      options.texel_budget = static_cast<long long>(static_cast<double>(page_texels(mesh.pages, used)) *
+                                                    options.density_scale * options.density_scale);
     const PackResult packed = pack_charts(uv, options, control);
     const int first_page = static_cast<int>(result.pages.size());
     for (size_t i = 0; i < members.size(); ++i) {
@@ -125,9 +130,10 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
     const double texels = static_cast<double>(page_texels(packed.pages, {}));
     covered += packed.efficiency * texels;
     total += texels;
-    result.report.scale = std::min(result.report.scale, packed.scale);
+    scale = std::min(scale, packed.scale);
   }
   result.report.packing_efficiency = total > 0 ? covered / total : 0;
+  result.report.scale = by_group.empty() ? 1.0 : scale;
 }
 
 double median(std::vector<double> values) {
@@ -161,8 +167,9 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   for (int f = 0; f < welded.face_count(); ++f)
     if (welded.face_page[f] >= 0) used[welded.face_page[f]] = 1;
   report.texels_before = page_texels(welded.pages, used);
-  // Everything from here on works on the cut surface (see cut_mesh.hpp); its
-  // charts are the same, numbered the same.
+  // Everything from here on works on the cut surface (see cut_mesh.hpp). Its
+  // charts are the input's, except that a chart joined only across a winding
+  // flip falls in two.
   const Mesh mesh = cut_internal_seams(welded, welded_topology, welded_graph);
   const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
   const ChartGraph graph = build_chart_graph(mesh, topology, face_group);

@@ -16,7 +16,7 @@ namespace atlas {
 struct PipelineOptions {
   AggregateOptions aggregate;
   SlimOptions slim;
-  PackOptions pack;  // texel_budget 0 means "the input's texel count, per group"
+  PackOptions pack;  // texel_budget 0: the input's texel count per group, times density_scale^2
 };
 
 struct StageTime {
@@ -36,7 +36,7 @@ struct PipelineReport {
   double seam_before = 0, seam_after = 0;  // seam length / sqrt(area)
   long long texels_before = 0, texels_after = 0;
   double packing_efficiency = 0;
-  double scale = 1;            // uniform texel scale the packer applied
+  double scale = 1;            // smallest uniform texel scale the packer applied
   // Symmetric Dirichlet energy per unit reference area of the solved charts
   // (4 is isometric): median at the initial embedding, then median and max after SLIM.
   double energy_initial_median = 0, energy_median = 0, energy_max = 0;

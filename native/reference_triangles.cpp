@@ -111,21 +111,30 @@ ReferenceTriangles repaired_reference_triangles(const RowMatrixX3i& triangles,
 }
 
 std::vector<double> reference_corner_angles(const Mesh& mesh) {
-  RowMatrixX2d uv = RowMatrixX2d::Zero(3 * mesh.face_count(), 2);
-  for (int f = 0; f < mesh.face_count(); ++f)
-    if (mesh.face_page[f] >= 0)
-      for (int k = 0; k < 3; ++k) uv.row(3 * f + k) = mesh.uv_texels(f, k).transpose();
-  // Reflection does not change angles, so no face needs to be mirrored here.
-  const ReferenceTriangles reference = repaired_reference_triangles(
-      mesh.triangles, mesh.positions, uv, Eigen::VectorXi::Zero(mesh.face_count()));
   std::vector<double> angle(3 * mesh.face_count());
-  for (int c = 0; c < 3 * mesh.face_count(); ++c) {
-    const int f = c / 3, k = c % 3;
-    const Eigen::Vector2d p = reference.corners.row(c);
-    const Eigen::Vector2d u = Eigen::Vector2d(reference.corners.row(3 * f + (k + 1) % 3)) - p;
-    const Eigen::Vector2d w = Eigen::Vector2d(reference.corners.row(3 * f + (k + 2) % 3)) - p;
-    // angle = atan2(|u x w|, u . w)
-    angle[c] = std::atan2(std::abs(u.x() * w.y() - u.y() * w.x()), u.dot(w));
+  // Law of cosines: the angle at corner k between the edges leaving it,
+  // cos = (l_k^2 + l_{k+2}^2 - l_{k+1}^2) / (2 l_k l_{k+2}), l_k from corner k to k+1.
+  auto write = [&](int f, double l0, double l1, double l2) {
+    const double l[3] = {l0, l1, l2};
+    for (int k = 0; k < 3; ++k) {
+      const double a = l[k], b = l[(k + 2) % 3], opposite = l[(k + 1) % 3];
+      angle[3 * f + k] = std::acos(std::clamp((a * a + b * b - opposite * opposite) / (2 * a * b), -1.0, 1.0));
+    }
+  };
+  for (int f = 0; f < mesh.face_count(); ++f) {
+    const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1)),
+                          c = mesh.positions.row(mesh.triangles(f, 2));
+    if (mesh.face_page[f] >= 0) {
+      const Eigen::Vector2d u = mesh.uv_texels(f, 0), v = mesh.uv_texels(f, 1), w = mesh.uv_texels(f, 2);
+      if (well_shaped_2d(u, v, w)) {
+        write(f, (v - u).norm(), (w - v).norm(), (u - w).norm());
+        continue;
+      }
+    }
+    if (well_shaped_3d(a, b, c))
+      write(f, (b - a).norm(), (c - b).norm(), (a - c).norm());
+    else
+      write(f, 1, 1, 1);  // equilateral, as the repair uses
   }
   return angle;
 }

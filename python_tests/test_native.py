@@ -134,3 +134,25 @@ def test_non_manifold_and_degenerate_faces_do_not_crash(native):
     uvs[6] = uvs[6][0]
     result = native.defragment(positions, triangles, uvs, np.zeros(7, np.int32), np.array([[128, 128]], np.int32))
     assert np.isfinite(result["uvs"]).all()
+
+
+def test_wrapping_indices_are_refused(native):
+    positions, triangles, uvs, face_page, sizes = tiny()
+    with pytest.raises(ValueError, match=r"face_page\[0\] = 4294967296 is out of range"):
+        native.defragment(positions, triangles, uvs, np.array([2**32, 0], np.int64), sizes)
+    with pytest.raises(ValueError, match=r"face_group\[1\] = 4294967296 is out of range"):
+        native.defragment(positions, triangles, uvs, face_page, sizes, face_group=np.array([0, 2**32]))
+
+
+def test_groups_never_share_a_chart_or_a_page(native):
+    positions, triangles, uvs, face_page, sizes = tiny()
+    result = native.defragment(positions, triangles, uvs, face_page, sizes, face_group=np.array([0, 1]))
+    assert result["report"]["charts_before"] == 2
+    assert result["face_page"][0] != result["face_page"][1]
+
+
+def test_bake_refuses_mixed_dtypes(native, scans):
+    positions, triangles, uvs, face_page, sizes = tiny()
+    images = [np.zeros((64, 64, 3), np.float32), np.zeros((64, 64, 3), np.uint8)]
+    with pytest.raises(ValueError, match=r"images\[1\] must be"):
+        native.bake(uvs, np.array([0, 1], np.int32), images, uvs, np.zeros(2, np.int32), sizes)
