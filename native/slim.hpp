@@ -20,7 +20,10 @@ struct ChartProblem {
 
 struct SlimOptions {
   int max_iterations = 60;
-  double relative_tolerance = 1e-3;  // stop when (E_k - E_k+1) / E_k falls below
+  // Stop when (E_k - E_k+1) / E_k falls below. 1e-2 leaves the median chart
+  // within 2% of the isometric energy; tighter only folds more charts over
+  // themselves (more splits) and costs time (measured on the three scans).
+  double relative_tolerance = 1e-2;
   double proximal_weight = 1e-4;     // keeps the proxy system definite (translation)
 };
 
