@@ -1,6 +1,8 @@
 // Chart graph and aggregation on small constructed meshes.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
 #include "aggregate.hpp"
 #include "charts.hpp"
 #include "disk_merge.hpp"
@@ -89,16 +91,35 @@ TEST(Aggregate, AnnulusRefusesToCloseTheRing) {
 }
 
 TEST(Aggregate, ClosedSurfacesEndAsDisks) {
-  const ChartRun sphere = aggregate(atlas::testing::uv_sphere(12, 16, 2));
+  AggregateOptions topology_only;
+  topology_only.min_normal_coherence = 0;
+  const ChartRun sphere = aggregate(atlas::testing::uv_sphere(12, 16, 2), topology_only);
   EXPECT_GE(sphere.aggregation.chart_count(), 2);
   EXPECT_LT(sphere.aggregation.chart_count(), sphere.graph.chart_count());
   expect_all_disks(sphere);
   // A torus has genus one: a single disk cannot cover it, but few charts can.
-  const ChartRun torus = aggregate(atlas::testing::torus(24, 12, 4));
+  const ChartRun torus = aggregate(atlas::testing::torus(24, 12, 4), topology_only);
   EXPECT_EQ(torus.graph.chart_count(), 24);
   EXPECT_GE(torus.aggregation.chart_count(), 2);
   EXPECT_LE(torus.aggregation.chart_count(), 4);
   expect_all_disks(torus);
+}
+
+TEST(Aggregate, NoChartWiderThanAHemisphere) {
+  const ChartRun sphere = aggregate(atlas::testing::uv_sphere(24, 32, 1));
+  std::vector<Eigen::Vector3d> normal(sphere.aggregation.chart_count(), Eigen::Vector3d::Zero());
+  std::vector<double> area(sphere.aggregation.chart_count(), 0);
+  for (int f = 0; f < sphere.mesh.face_count(); ++f) {
+    const Eigen::Vector3d a = sphere.mesh.positions.row(sphere.mesh.triangles(f, 0));
+    const Eigen::Vector3d b = sphere.mesh.positions.row(sphere.mesh.triangles(f, 1));
+    const Eigen::Vector3d c = sphere.mesh.positions.row(sphere.mesh.triangles(f, 2));
+    const Eigen::Vector3d n = 0.5 * (b - a).cross(c - a);
+    normal[sphere.aggregation.face_chart[f]] += n;
+    area[sphere.aggregation.face_chart[f]] += n.norm();
+  }
+  EXPECT_GE(sphere.aggregation.chart_count(), 3);  // two hemispheres at the very least, and then some
+  for (int c = 0; c < sphere.aggregation.chart_count(); ++c) EXPECT_GE(normal[c].norm(), 0.5 * area[c]) << c;
+  expect_all_disks(sphere);
 }
 
 TEST(Aggregate, NeverMergesAcrossNonManifoldEdge) {

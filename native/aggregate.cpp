@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <Eigen/Geometry>
 #include <queue>
 #include <unordered_map>
 
@@ -20,6 +21,7 @@ struct Link {
 
 struct Cluster {
   double area_3d = 0, area_uv = 0, perimeter_3d = 0, perimeter_uv = 0;
+  Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();  // sum over faces of A_f n_f
   unsigned version = 0;
   std::unordered_map<int, Link> links;
 };
@@ -63,6 +65,12 @@ class Aggregator {
         graph_(graph),
         disks_(mesh, topology, graph.face_chart, graph.chart_count(), std::move(corner_angle)),
         clusters_(graph.chart_count()) {
+    for (int f = 0; f < mesh.face_count(); ++f) {
+      if (graph.face_chart[f] < 0) continue;
+      const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1)),
+                            c = mesh.positions.row(mesh.triangles(f, 2));
+      clusters_[graph.face_chart[f]].normal_sum += 0.5 * (b - a).cross(c - a);
+    }
     for (int c = 0; c < graph.chart_count(); ++c) {
       const ChartStats& s = graph.charts[c];
       clusters_[c].area_3d = s.area_3d;
@@ -131,6 +139,8 @@ class Aggregator {
     const Link& link = small.links.at(l);
     const double fraction = uv ? small.area_uv / total_area_uv_ : small.area_3d / total_area_3d_;
     if (fraction >= options_.min_chart_fraction) return;
+    const double area = ca.area_3d + cb.area_3d;
+    if (area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area) return;
     const bool island = link.length_3d >= small.perimeter_3d * (1 - 1e-6);
     const double w = uv ? weight_uv(small, link) : weight_surface(small, link);
     queue_.push({island, w, uv ? small.area_uv : small.area_3d, a, b, ca.version, cb.version});
@@ -143,6 +153,7 @@ class Aggregator {
     const Link shared = k.links.at(gone);
     k.area_3d += g.area_3d;
     k.area_uv += g.area_uv;
+    k.normal_sum += g.normal_sum;
     k.perimeter_3d += g.perimeter_3d - 2 * shared.length_3d;
     k.perimeter_uv += g.perimeter_uv - shared.uv_self - shared.uv_other;
     k.links.erase(gone);

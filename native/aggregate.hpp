@@ -18,6 +18,12 @@ struct AggregateOptions {
   // A collapse is made only while the smaller chart covers less than this
   // fraction of the total area; 1 lets charts grow as far as topology allows.
   double min_chart_fraction = 1.0;
+  // A merged chart's area-weighted mean normal, |sum_f A_f n_f| / sum_f A_f,
+  // may not fall below this. A spherical cap of half-angle t has (1 + cos t)/2,
+  // so 0.5 stops at a hemisphere: beyond it no flattening keeps the original
+  // texel density, and solving such a chart only to split it is what makes
+  // large closed scans slow. 0 disables.
+  double min_normal_coherence = 0.5;
 };
 
 struct Aggregation {
