@@ -139,6 +139,9 @@ class Aggregator {
     const Link& link = small.links.at(l);
     const double fraction = uv ? small.area_uv / total_area_uv_ : small.area_3d / total_area_3d_;
     if (fraction >= options_.min_chart_fraction) return;
+    if (options_.max_chart_faces > 0 &&
+        disks_.faces(a).size() + disks_.faces(b).size() > static_cast<size_t>(options_.max_chart_faces))
+      return;
     const double area = ca.area_3d + cb.area_3d;
     if (area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area) return;
     const bool island = link.length_3d >= small.perimeter_3d * (1 - 1e-6);

@@ -24,6 +24,10 @@ struct AggregateOptions {
   // texel density, and solving such a chart only to split it is what makes
   // large closed scans slow. 0 disables.
   double min_normal_coherence = 0.5;
+  // No merged chart grows beyond this many faces: the cost of flattening a
+  // chart grows faster than its size (sparse Cholesky fill), and many
+  // mid-sized charts keep both cores busy. 0 disables.
+  int max_chart_faces = 20000;
 };
 
 struct Aggregation {
