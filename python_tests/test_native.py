@@ -156,3 +156,12 @@ def test_bake_refuses_mixed_dtypes(native, scans):
     images = [np.zeros((64, 64, 3), np.float32), np.zeros((64, 64, 3), np.uint8)]
     with pytest.raises(ValueError, match=r"images\[1\] must be"):
         native.bake(uvs, np.array([0, 1], np.int32), images, uvs, np.zeros(2, np.int32), sizes)
+
+
+def test_two_input_pages_end_on_one_page_when_they_fit(native):
+    positions, triangles, uvs, _, _ = tiny()
+    result = native.defragment(positions, triangles, uvs, np.array([0, 1], np.int32),
+                               np.array([[64, 64], [64, 64]], np.int32))
+    assert len(result["page_sizes"]) == 1
+    assert (result["face_page"] == 0).all()
+    assert result["report"]["texels_after"] <= result["report"]["texels_before"]
