@@ -241,14 +241,20 @@ def cancel_leaves_nothing(pkg):
     assert H.object_state(name) == before
 
 
-def worker_thread_run(pkg):
-    """The modal operator's worker: computes off the main thread, then writes."""
+def prepared(pkg, model):
+    """A fresh scene with one model, read for a default run: (obj, name,
+    state before, settings, what api.prepare read)."""
     H.reset()
-    obj = H.import_model(H.model_path("tetra"))
+    obj = H.import_model(H.model_path(model))
     name = obj.name
     before = H.object_state(name)
     settings = pkg.api.Settings.from_kwargs()
-    read = pkg.api.prepare(obj, settings)
+    return obj, name, before, settings, pkg.api.prepare(obj, settings)
+
+
+def worker_thread_run(pkg):
+    """The modal operator's worker: computes off the main thread, then writes."""
+    obj, name, before, settings, read = prepared(pkg, "tetra")
     run = pkg.operators._Run(read, settings, pkg.operators._native_token())
     t = threading.Thread(target=run.work)
     t.start()
@@ -278,12 +284,7 @@ def identity_result(pkg, read):
 def write_identity_layout(pkg):
     """Writing a result: new map, images, materials; nothing old modified;
     removing the additions restores the original."""
-    H.reset()
-    obj = H.import_model(H.model_path("tetra"))
-    name = obj.name
-    before = H.object_state(name)
-    settings = pkg.api.Settings.from_kwargs()
-    read = pkg.api.prepare(obj, settings)
+    obj, name, before, settings, read = prepared(pkg, "tetra")
     result = identity_result(pkg, read)
     report = pkg.api.finish(obj, read, result, settings)
     assert report["uv_map"] == "UVMap_defrag"

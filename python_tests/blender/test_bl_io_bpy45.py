@@ -78,12 +78,7 @@ def test_write_identity_layout(pkg):
 
 
 def test_write_rolls_back_on_failure(pkg, monkeypatch):
-    H.reset()
-    obj = H.import_model(H.model_path("smithsonian"))
-    name = obj.name
-    before = H.object_state(name)
-    settings = pkg.api.Settings.from_kwargs()
-    read = pkg.api.prepare(obj, settings)
+    obj, name, before, settings, read = S.prepared(pkg, "smithsonian")
     result = identity_result(pkg, read)
     calls = []
     real = pkg.write_bpy._rewire_material
