@@ -369,7 +369,9 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
       } else if (const auto crossing = boundary_crossing(local.triangles, solution.uv)) {
         ++why.overlapped;
         culprit = smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second]);
-      } else if ((culprit = density_culprit(mesh, graph, local, solution.uv)) >= 0) {
+      } else if (!single && (culprit = density_culprit(mesh, graph, local, solution.uv)) >= 0) {
+        // (A lone chart that folds over has no better fallback than its
+        // fold-over itself, so only merged charts are held to the density bound.)
         ++why.density_lost;
       } else {
         done.push_back(from_solution(local, solution));
