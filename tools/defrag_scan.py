@@ -16,11 +16,12 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO / "build" / "addon"))
+# The module alone, not the add-on package: its __init__ would import bpy.
+sys.path.insert(0, str(REPO / "build" / "addon" / "atlas_defrag"))
 sys.path.insert(0, str(REPO / "tools"))
 
+import _native  # noqa: E402
 import scan_io  # noqa: E402
-from atlas_defrag import _native  # noqa: E402
 
 
 def progress_line(stage: str, fraction: float) -> None:
