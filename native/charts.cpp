@@ -48,8 +48,7 @@ void accumulate_face_stats(const Mesh& mesh, ChartGraph& g) {
     ChartStats& s = g.charts[chart];
     s.page = mesh.face_page[f];
     ++s.faces;
-    s.area_3d += triangle_area(mesh.positions.row(mesh.triangles(f, 0)), mesh.positions.row(mesh.triangles(f, 1)),
-                               mesh.positions.row(mesh.triangles(f, 2)));
+    s.area_3d += mesh.area_3d(f);
     const double a = signed_area(mesh.uv_texels(f, 0), mesh.uv_texels(f, 1), mesh.uv_texels(f, 2));
     s.area_uv += std::abs(a);
     s.signed_area_uv += a;
@@ -121,8 +120,7 @@ double seam_length_ratio(const Mesh& mesh, const MeshTopology& topology, const R
       seam += edge_length_3d(mesh, c0);
   }
   for (int f = 0; f < mesh.face_count(); ++f)
-    area += triangle_area(mesh.positions.row(mesh.triangles(f, 0)), mesh.positions.row(mesh.triangles(f, 1)),
-                          mesh.positions.row(mesh.triangles(f, 2)));
+    area += mesh.area_3d(f);
   return area > 0 ? seam / std::sqrt(area) : 0.0;
 }
 

@@ -5,11 +5,17 @@
 #include <numeric>
 #include <sstream>
 
+#include "geometry.hpp"
+
 namespace atlas {
 
 Eigen::Vector2d Mesh::uv_texels(int f, int k) const {
   const PageSize& page = pages[face_page[f]];
   return {corner_uv(3 * f + k, 0) * page.width, corner_uv(3 * f + k, 1) * page.height};
+}
+
+double Mesh::area_3d(int f) const {
+  return triangle_area(positions.row(triangles(f, 0)), positions.row(triangles(f, 1)), positions.row(triangles(f, 2)));
 }
 
 namespace {

@@ -35,6 +35,8 @@ struct Mesh {
   int vertex_count() const { return static_cast<int>(positions.rows()); }
   // UV of corner k of face f in texels of that face's page.
   Eigen::Vector2d uv_texels(int f, int k) const;
+  // Surface area of face f.
+  double area_3d(int f) const;
 };
 
 // Checks every array and builds a Mesh, welding positions that are exactly

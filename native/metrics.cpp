@@ -89,11 +89,6 @@ Eigen::Vector2d texel_uv(const UvAtlas& atlas, int f, int k) {
   return {(*atlas.corner_uv)(3 * f + k, 0) * page.width, (*atlas.corner_uv)(3 * f + k, 1) * page.height};
 }
 
-double face_area_3d(const Mesh& mesh, int f) {
-  return triangle_area(mesh.positions.row(mesh.triangles(f, 0)), mesh.positions.row(mesh.triangles(f, 1)),
-                       mesh.positions.row(mesh.triangles(f, 2)));
-}
-
 double face_signed_area_uv(const UvAtlas& atlas, int f) {
   return signed_area(texel_uv(atlas, f, 0), texel_uv(atlas, f, 1), texel_uv(atlas, f, 2));
 }
@@ -292,7 +287,7 @@ MapMeasures measure_map(const Mesh& mesh, const UvAtlas& old_atlas, const UvAtla
 #pragma omp parallel for schedule(static)
   for (int f = 0; f < faces; ++f) {
     if ((*old_atlas.face_page)[f] < 0 || (*new_atlas.face_page)[f] < 0) continue;
-    const double area = face_area_3d(mesh, f);
+    const double area = mesh.area_3d(f);
     const double old_uv = std::abs(face_signed_area_uv(old_atlas, f));
     if (!(area > 0) || !(old_uv > 0)) continue;
     const double new_uv = std::abs(face_signed_area_uv(new_atlas, f));
@@ -347,7 +342,7 @@ ColorFidelity compare_colors(const Mesh& mesh, const UvAtlas& old_atlas, const s
   double total = 0;
   for (int f = 0; f < faces; ++f) {
     if ((*old_atlas.face_page)[f] < 0 || (*new_atlas.face_page)[f] < 0) continue;
-    const double a = face_area_3d(mesh, f);
+    const double a = mesh.area_3d(f);
     if (!(a > 0)) continue;
     total += a;
     face.push_back(f);

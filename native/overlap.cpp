@@ -309,8 +309,7 @@ int density_culprit(const Mesh& mesh, const ChartGraph& graph, const LocalChart&
   double lost_total = 0, area_total = 0;
   for (size_t i = 0; i < local.faces.size(); ++i) {
     const int f = local.faces[i];
-    const double area_3d = triangle_area(mesh.positions.row(mesh.triangles(f, 0)), mesh.positions.row(mesh.triangles(f, 1)),
-                                         mesh.positions.row(mesh.triangles(f, 2)));
+    const double area_3d = mesh.area_3d(f);
     area_total += area_3d;
     const double before = std::abs(signed_area(mesh.uv_texels(f, 0), mesh.uv_texels(f, 1), mesh.uv_texels(f, 2)));
     const double after = std::abs(signed_area(uv.row(local.triangles(i, 0)), uv.row(local.triangles(i, 1)),
