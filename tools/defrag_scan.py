@@ -25,7 +25,9 @@ import scan_io  # noqa: E402
 
 
 def progress_line(stage: str, fraction: float) -> None:
-    print(f"\r  {stage:<10} {fraction:6.1%}", end="", file=sys.stderr, flush=True)
+    """One self-overwriting status line, on terminals only (logs stay clean)."""
+    if sys.stderr.isatty():
+        print(f"\r  {stage:<10} {fraction:6.1%}", end="", file=sys.stderr, flush=True)
 
 
 def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: list[dict]) -> None:
@@ -89,7 +91,8 @@ def main(argv=None) -> int:
     t1 = time.perf_counter()
     new_maps = bake_maps(scan, result)
     t_bake = time.perf_counter() - t1
-    print(file=sys.stderr)
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
 
     m = _native.measure(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
                         result["uvs"], result["face_page"], result["page_sizes"])
