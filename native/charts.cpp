@@ -19,6 +19,7 @@ std::vector<int> label_charts(const Mesh& mesh, const MeshTopology& topology, co
     const int f0 = topology.edge_corners[topology.edge_offsets[e]] / 3;
     const int f1 = topology.edge_corners[topology.edge_offsets[e] + 1] / 3;
     if (!face_group.empty() && face_group[f0] != face_group[f1]) continue;
+    if (mesh.repeats_vertex(f0) || mesh.repeats_vertex(f1)) continue;
     if (mesh.face_page[f0] >= 0) uf.unite(f0, f1);
   }
   std::vector<int> label(mesh.face_count(), -1), root_label(mesh.face_count(), -1);
@@ -87,7 +88,8 @@ void accumulate_boundaries(const Mesh& mesh, const MeshTopology& topology, const
         ++adj.shared_edges;
         // Same-direction traversal means the two faces disagree on orientation.
         const bool flipped = mesh.triangles(ci / 3, ci % 3) == mesh.triangles(cj / 3, cj % 3);
-        if (end - begin != 2 || flipped) adj.mergeable = false;
+        if (end - begin != 2 || flipped || mesh.repeats_vertex(ci / 3) || mesh.repeats_vertex(cj / 3))
+          adj.mergeable = false;
       }
     }
   }

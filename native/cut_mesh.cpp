@@ -17,6 +17,7 @@ bool keeps_edge(const Mesh& mesh, const MeshTopology& topology, const ChartGraph
   const int c0 = topology.edge_corners[topology.edge_offsets[e]];
   const int c1 = topology.edge_corners[topology.edge_offsets[e] + 1];
   if (mesh.triangles(c0 / 3, c0 % 3) == mesh.triangles(c1 / 3, c1 % 3)) return false;  // winding flip
+  if (mesh.repeats_vertex(c0 / 3) || mesh.repeats_vertex(c1 / 3)) return false;
   const int chart = graph.face_chart[c0 / 3];
   const bool same_chart = chart >= 0 && chart == graph.face_chart[c1 / 3];
   return !same_chart || uv_continuous_across(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, e);

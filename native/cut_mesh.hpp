@@ -1,6 +1,7 @@
 // The surface the later stages work on: the welded mesh cut open along the
-// seams that lie inside an original chart, along non-manifold edges and along
-// edges whose two faces disagree on orientation. Cutting duplicates vertices,
+// seams that lie inside an original chart, along non-manifold edges, along
+// edges whose two faces disagree on orientation and around faces that name a
+// vertex twice. Cutting duplicates vertices,
 // one copy per fan of faces still joined through uncut edges.
 //
 // Why: scanners' charts often carry internal cuts (slits in UV that close in

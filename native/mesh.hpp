@@ -37,6 +37,12 @@ struct Mesh {
   Eigen::Vector2d uv_texels(int f, int k) const;
   // Surface area of face f.
   double area_3d(int f) const;
+  // A face naming one vertex twice has no edges of its own to share: it joins
+  // no other face's chart and never merges (later stages rely on three
+  // distinct corners per face).
+  bool repeats_vertex(int f) const {
+    return triangles(f, 0) == triangles(f, 1) || triangles(f, 1) == triangles(f, 2) || triangles(f, 0) == triangles(f, 2);
+  }
 };
 
 // Checks every array and builds a Mesh, welding positions that are exactly

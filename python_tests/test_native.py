@@ -165,3 +165,19 @@ def test_two_input_pages_end_on_one_page_when_they_fit(native):
     assert len(result["page_sizes"]) == 1
     assert (result["face_page"] == 0).all()
     assert result["report"]["texels_after"] <= result["report"]["texels_before"]
+
+
+def test_faces_naming_a_vertex_twice_stay_apart(native):
+    # A 3x3 grid of quads in one chart, plus two faces (a, a, b) on its vertices.
+    n = 4
+    xs, ys = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    positions = np.stack([xs.ravel(), ys.ravel(), np.zeros(n * n)], 1).astype(float)
+    quads = [(i * n + j, (i + 1) * n + j, (i + 1) * n + j + 1, i * n + j + 1) for i in range(n - 1) for j in range(n - 1)]
+    triangles = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))] + [(0, 0, 5), (6, 6, 10)], np.int32)
+    uvs = positions[triangles][:, :, :2] / (n - 1)
+    face_page = np.zeros(len(triangles), np.int32)
+    graph = native.chart_graph(positions, triangles, uvs, face_page, np.array([[64, 64]], np.int32))
+    assert graph["chart_count"] == 3  # the grid, and each degenerate face on its own
+    result = native.defragment(positions, triangles, uvs, face_page, np.array([[64, 64]], np.int32))
+    assert result["report"]["charts_after"] == 3
+    assert np.isfinite(result["uvs"]).all()
