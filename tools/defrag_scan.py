@@ -79,7 +79,7 @@ def main(argv=None) -> int:
     parser.add_argument("output", type=Path)
     parser.add_argument("--padding", type=int, default=4)
     parser.add_argument("--target-charts", type=int, default=0)
-    parser.add_argument("--weighting", choices=["uv", "3d"], default="uv")
+    parser.add_argument("--weighting", choices=["uv", "3d"], default="3d")
     args = parser.parse_args(argv)
 
     t0 = time.perf_counter()

@@ -4,7 +4,7 @@
 Python entry for scripts::
 
     import atlas_defrag            # or the add-on's package name
-    report = atlas_defrag.defragment(obj, target_charts=0, weighting="uv")
+    report = atlas_defrag.defragment(obj, target_charts=0, weighting="3d")
 
 One code base for Blender 3.x (legacy add-on, ``bl_info``) and 4.2+ (extension,
 ``blender_manifest.toml``). Relative imports only: as an extension the package

@@ -43,7 +43,7 @@ class BatchError(Exception):
 def _add_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("defragmentation options")
     g.add_argument("--target-charts", type=int, default=0, help="charts to aim for (0 = automatic)")
-    g.add_argument("--weighting", choices=("uv", "3d"), default="uv")
+    g.add_argument("--weighting", choices=("uv", "3d"), default="3d")
     g.add_argument("--padding", type=int, default=4, help="texels around charts")
     g.add_argument("--output-size", type=int, default=0,
                    help="square output page side (0 = automatic: keeps the texel budget)")

@@ -102,7 +102,7 @@ class JobInput:
 @dataclass
 class Options:
     target_charts: int = 0  # 0 = automatic
-    weighting: str = "uv"  # 'uv' or '3d'
+    weighting: str = "3d"  # 'uv' or '3d'
     padding: int = 4
     output_size: int = 0  # 0 = automatic (keeps the texel budget)
     max_page_size: int = 8192

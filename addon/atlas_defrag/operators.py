@@ -74,7 +74,7 @@ class UV_OT_defragment_atlas(bpy.types.Operator):
     target_charts: IntProperty(name="Target Charts", default=50, min=1, soft_max=10000,
                                description="Number of charts to aim for")
     weighting: EnumProperty(
-        name="Weighting", default="UV",
+        name="Weighting", default="3D",
         items=(("UV", "UV", "Merge by seam length measured in the texture"),
                ("3D", "3D", "Merge by seam length measured on the surface")))
     padding: IntProperty(name="Padding", default=4, min=0, max=64, subtype="PIXEL",
