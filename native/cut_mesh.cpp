@@ -5,13 +5,6 @@
 namespace atlas {
 namespace {
 
-// Corner of face f sitting at vertex v.
-int corner_at(const Mesh& mesh, int f, int v) {
-  for (int k = 0; k < 3; ++k)
-    if (mesh.triangles(f, k) == v) return 3 * f + k;
-  return -1;
-}
-
 bool keeps_edge(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph, int e) {
   if (topology.edge_valence(e) != 2) return false;
   const int c0 = topology.edge_corners[topology.edge_offsets[e]];
@@ -35,7 +28,7 @@ Mesh cut_internal_seams(const Mesh& mesh, const MeshTopology& topology, const Ch
     const int f1 = topology.edge_corners[topology.edge_offsets[e] + 1] / 3;
     for (int j = 0; j < 2; ++j) {
       const int v = topology.edge_vertices(e, j);
-      corners.unite(corner_at(mesh, f0, v), corner_at(mesh, f1, v));
+      corners.unite(3 * f0 + mesh.corner_of(f0, v), 3 * f1 + mesh.corner_of(f1, v));
     }
   }
   Mesh cut;

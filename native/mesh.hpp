@@ -37,6 +37,12 @@ struct Mesh {
   Eigen::Vector2d uv_texels(int f, int k) const;
   // Surface area of face f.
   double area_3d(int f) const;
+  // Which corner (0, 1 or 2) of face f sits at vertex v; -1 if none.
+  int corner_of(int f, int v) const {
+    for (int k = 0; k < 3; ++k)
+      if (triangles(f, k) == v) return k;
+    return -1;
+  }
   // A face naming one vertex twice has no edges of its own to share: it joins
   // no other face's chart and never merges (later stages rely on three
   // distinct corners per face).

@@ -108,11 +108,7 @@ LocalChart localize(const Mesh& mesh, const MeshTopology& topology, std::vector<
   std::unordered_map<int, int> local_face;
   for (int i = 0; i < n; ++i) local_face[c.faces[i]] = i;
   UnionFind corners(3 * n);
-  auto local_corner_at = [&](int i, int v) {
-    for (int k = 0; k < 3; ++k)
-      if (mesh.triangles(c.faces[i], k) == v) return 3 * i + k;
-    return -1;
-  };
+  auto local_corner_at = [&](int i, int v) { return 3 * i + mesh.corner_of(c.faces[i], v); };
   for (int i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) {
       const int e = topology.corner_edge[3 * c.faces[i] + k];
