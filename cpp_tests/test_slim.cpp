@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "overlap.hpp"
 #include "slim.hpp"
 #include "test_meshes.hpp"
 
@@ -142,6 +143,36 @@ TEST(Slim, SmoothDeformationConverges) {
   expect_valid(solution, problem);
   // The reference is itself a flip-free planar map of the grid, so the optimum is exact.
   EXPECT_NEAR(solution.energy_final, 4.0, 1e-2);
+}
+
+// A strip whose reference is 1.2 turns of a wide annulus (radii 5 to 10):
+// laid out without distortion it covers part of itself twice, and unrolling
+// it would cost more than curling it up.
+ChartProblem overwound_strip() {
+  return grid_problem(24, [](const Eigen::Vector2d& xy, int) {
+    const double angle = 2.4 * 3.14159265358979 * xy.x(), radius = 10 - 5 * xy.y();
+    return Eigen::Vector2d(radius * std::cos(angle), radius * std::sin(angle));
+  });
+}
+
+TEST(Slim, PlainSlimLetsAnOverwoundStripCrossItself) {
+  SlimOptions options = tight_options();
+  options.scaffold_on_crossing = false;
+  const ChartProblem problem = overwound_strip();
+  const ChartSolution solution = parameterize_chart(problem, options, RunControl());
+  expect_valid(solution, problem);
+  EXPECT_FALSE(solution.scaffolded);
+  EXPECT_TRUE(boundary_self_intersects(problem.triangles, solution.uv));
+}
+
+TEST(Slim, ScaffoldKeepsAnOverwoundStripFromCrossingItself) {
+  const ChartProblem problem = overwound_strip();
+  const ChartSolution solution = parameterize_chart(problem, tight_options(), RunControl());
+  expect_valid(solution, problem);
+  EXPECT_TRUE(solution.scaffolded);
+  EXPECT_FALSE(boundary_self_intersects(problem.triangles, solution.uv));
+  // Bent to about one turn instead of 1.2: distorted, but not far off.
+  EXPECT_LT(solution.energy_final, 4.5);
 }
 
 TEST(Slim, DegenerateReferencesAreRepaired) {

@@ -149,6 +149,8 @@ PipelineOptions pipeline_options(const py::object& obj) {
       if (w != "uv" && w != "3d") throw py::value_error("weighting must be 'uv' or '3d', got '" + w + "'");
       o.aggregate.weighting = w == "uv" ? Weighting::UV : Weighting::Surface;
     } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = value.cast<double>();
+    else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = value.cast<double>();
+    else if (key == "max_chart_faces") o.aggregate.max_chart_faces = value.cast<int>();
     else if (key == "padding") o.pack.padding = value.cast<int>();
     else if (key == "output_size") o.pack.fixed_page_size = value.cast<int>();
     else if (key == "max_page_size") o.pack.max_page_size = value.cast<int>();
@@ -164,6 +166,9 @@ PipelineOptions pipeline_options(const py::object& obj) {
     throw py::value_error("output_size must be 0 (automatic) or at most max_page_size");
   if (!(o.pack.density_scale > 0 && o.pack.density_scale <= 16)) throw py::value_error("density_scale must be in (0, 16]");
   if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be >= 0");
+  if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
+    throw py::value_error("min_normal_coherence must be in [0, 1]");
+  if (o.aggregate.max_chart_faces < 0) throw py::value_error("max_chart_faces must be >= 0 (0: no cap)");
   return o;
 }
 
@@ -197,6 +202,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["splits_solver"] = r.splits_solver;
   d["splits_overlap"] = r.splits_overlap;
   d["splits_density"] = r.splits_density;
+  d["charts_scaffolded"] = r.charts_scaffolded;
   d["seam_before"] = r.seam_before;
   d["seam_after"] = r.seam_after;
   d["texels_before"] = r.texels_before;

@@ -10,24 +10,11 @@
 #include "cut_to_disk.hpp"
 #include "disk_merge.hpp"
 #include "geometry.hpp"
+#include "segment_crossing.hpp"
 #include "union_find.hpp"
 
 namespace atlas {
 namespace {
-
-// Segments (p,q) and (r,s) intersect or touch: orientation tests with the
-// collinear cases included, so touching boundaries count as overlap.
-bool segments_meet(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const Eigen::Vector2d& r,
-                   const Eigen::Vector2d& s) {
-  const double d1 = signed_area(p, q, r), d2 = signed_area(p, q, s);
-  const double d3 = signed_area(r, s, p), d4 = signed_area(r, s, q);
-  if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) return true;
-  auto on = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c, double d) {
-    return d == 0 && c.x() >= std::min(a.x(), b.x()) && c.x() <= std::max(a.x(), b.x()) &&
-           c.y() >= std::min(a.y(), b.y()) && c.y() <= std::max(a.y(), b.y());
-  };
-  return on(p, q, r, d1) || on(p, q, s, d2) || on(r, s, p, d3) || on(r, s, q, d4);
-}
 
 struct BoundaryEdge {
   int from, to, face;
@@ -57,33 +44,13 @@ std::vector<BoundaryEdge> boundary_edges(const RowMatrixX3i& triangles) {
 
 std::optional<std::pair<int, int>> boundary_crossing(const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
   const auto edges = boundary_edges(triangles);
-  if (edges.size() < 3) return std::nullopt;
-  Eigen::Vector2d lo(uv.col(0).minCoeff(), uv.col(1).minCoeff());
-  Eigen::Vector2d hi(uv.col(0).maxCoeff(), uv.col(1).maxCoeff());
-  // About one segment per cell on average keeps the pair tests near linear.
-  const int n = std::max(1, static_cast<int>(std::sqrt(double(edges.size()))));
-  const Eigen::Vector2d cell = ((hi - lo) / n).cwiseMax(1e-12);
-  std::vector<std::vector<int>> grid(static_cast<size_t>(n) * n);
-  auto cell_of = [&](double v, double origin, double size) {
-    return std::clamp(static_cast<int>((v - origin) / size), 0, n - 1);
-  };
-  for (size_t i = 0; i < edges.size(); ++i) {
-    const Eigen::Vector2d a = uv.row(edges[i].from), b = uv.row(edges[i].to);
-    const int x0 = cell_of(std::min(a.x(), b.x()), lo.x(), cell.x()), x1 = cell_of(std::max(a.x(), b.x()), lo.x(), cell.x());
-    const int y0 = cell_of(std::min(a.y(), b.y()), lo.y(), cell.y()), y1 = cell_of(std::max(a.y(), b.y()), lo.y(), cell.y());
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) grid[static_cast<size_t>(y) * n + x].push_back(static_cast<int>(i));
-  }
-  for (const auto& bucket : grid)
-    for (size_t i = 0; i < bucket.size(); ++i)
-      for (size_t j = i + 1; j < bucket.size(); ++j) {
-        const BoundaryEdge& e = edges[bucket[i]];
-        const BoundaryEdge& g = edges[bucket[j]];
-        if (e.from == g.from || e.from == g.to || e.to == g.from || e.to == g.to) continue;
-        if (segments_meet(uv.row(e.from), uv.row(e.to), uv.row(g.from), uv.row(g.to)))
-          return std::make_pair(e.face, g.face);
-      }
-  return std::nullopt;
+  std::vector<Eigen::Vector2d> points(uv.rows());
+  for (Eigen::Index v = 0; v < uv.rows(); ++v) points[v] = uv.row(v).transpose();
+  std::vector<Segment> segments;
+  for (const BoundaryEdge& e : edges) segments.push_back({e.from, e.to});
+  const auto crossing = first_crossing(points, segments);
+  if (!crossing) return std::nullopt;
+  return std::make_pair(edges[crossing->first].face, edges[crossing->second].face);
 }
 
 bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
@@ -359,6 +326,7 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
       ++why.not_disk;
     } else {
       const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
+      stats.scaffolded += solution.scaffolded;
       if (!solution.failure.empty() || solution.flipped > 0) {
         ++why.solver_failed;
       } else if (const auto crossing = boundary_crossing(local.triangles, solution.uv)) {

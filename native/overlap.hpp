@@ -37,6 +37,7 @@ struct FlattenStats {
   int solver_failed = 0;       // SLIM reported a failure or left flipped faces
   int overlapped = 0;          // the new boundary crossed itself
   int density_lost = 0;        // over 1% of the surface kept less than half its texels
+  int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
   int splits() const { return not_disk + solver_failed + overlapped + density_lost; }
 };
 

@@ -84,6 +84,7 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
     report.splits_solver += stats[i].solver_failed;
     report.splits_overlap += stats[i].overlapped;
     report.splits_density += stats[i].density_lost;
+    report.charts_scaffolded += stats[i].scaffolded;
     for (auto& c : pieces[i]) out.push_back(std::move(c));
   }
   return out;

@@ -12,11 +12,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <vector>
 
 #include "disk_boundary.hpp"
 #include "reference_triangles.hpp"
+#include "scaffold_triangulation.hpp"
+#include "segment_crossing.hpp"
 #include "symmetric_dirichlet.hpp"
 #include "tutte_embedding.hpp"
 
@@ -272,34 +275,156 @@ double backtracking_line_search(const std::vector<ProxyFace>& faces, const Eigen
   return kInfinity;
 }
 
+// One SLIM iteration from x: proxy solve, then the flip-free Armijo line
+// search. Returns "" or why the system broke down; moved is false when no step
+// was taken (no descent direction or no acceptable step: converged at double
+// precision), else x and energy hold the new iterate and decrease its relative gain.
+struct SlimStep {
+  std::string failure;
+  bool moved = false;
+  double decrease = 0;
+};
+
+SlimStep slim_step(const std::vector<ProxyFace>& faces, const SlimOptions& options, ProxySystem& system,
+                   Eigen::VectorXd& x, double& energy) {
+  if (!factorize_proxy(faces, x, options.proximal_weight, system))
+    return {"SLIM: proxy system is not positive definite"};
+  system.solution = system.solver.solve(system.rhs);
+  const Eigen::VectorXd direction = system.solution - x;
+  if (!direction.allFinite()) return {"SLIM: proxy solve produced non-finite values"};
+  const SearchLine line = search_line(faces, x, direction);
+  if (!(line.slope < 0)) return {};
+  Eigen::VectorXd trial(x.size());
+  const double trial_energy = backtracking_line_search(faces, x, direction, energy, line, trial);
+  if (!(trial_energy < kInfinity)) return {};
+  x.swap(trial);
+  SlimStep step{"", true, (energy - trial_energy) / energy};
+  energy = trial_energy;
+  return step;
+}
+
+// Whether the boundary loop (the dof of each loop vertex, in order) crosses itself at x.
+bool loop_crosses(const std::vector<int>& loop_dofs, const Eigen::VectorXd& x) {
+  const int n = static_cast<int>(loop_dofs.size());
+  std::vector<Eigen::Vector2d> points(n);
+  std::vector<Segment> segments(n);
+  for (int i = 0; i < n; ++i) points[i] = x.segment<2>(loop_dofs[i]), segments[i] = {i, (i + 1) % n};
+  return first_crossing(points, segments).has_value();
+}
+
 // Minimizes E from x (flip-free, in solver numbering), keeping x flip-free.
-// Returns "" or why it stopped early; x is the last accepted iterate either way.
-std::string minimize_energy(std::vector<ProxyFace>& faces, const SlimOptions& options, const RunControl& control,
-                            Eigen::VectorXd& x, ChartSolution& solution) {
+// With a loop given, a step after which the boundary crosses itself is undone
+// and crossed is set: the caller goes on with a scaffold. Returns "" or why it
+// stopped early; x is the last accepted iterate either way.
+std::string minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int>& loop_dofs,
+                            const SlimOptions& options, const RunControl& control, Eigen::VectorXd& x,
+                            ChartSolution& solution, bool& crossed) {
   ProxySystem system;
   prepare_proxy_system(faces, static_cast<int>(x.size()), system);
-  Eigen::VectorXd direction(x.size()), trial(x.size());
   double energy = total_energy(faces, x);
-  solution.iterations = 0;
-  while (solution.iterations < options.max_iterations) {
+  Eigen::VectorXd previous;
+  for (solution.iterations = 0; solution.iterations < options.max_iterations;) {
     control.throw_if_cancelled();
-    if (!factorize_proxy(faces, x, options.proximal_weight, system))
-      return "SLIM: proxy system is not positive definite";
-    system.solution = system.solver.solve(system.rhs);
-    direction = system.solution - x;
-    if (!direction.allFinite()) return "SLIM: proxy solve produced non-finite values";
-
-    // No descent direction or no acceptable step: converged at double precision.
-    const SearchLine line = search_line(faces, x, direction);
-    if (!(line.slope < 0)) return "";
-    const double trial_energy = backtracking_line_search(faces, x, direction, energy, line, trial);
-    if (!(trial_energy < kInfinity)) return "";
-
-    x.swap(trial);
+    if (!loop_dofs.empty()) previous = x;
+    const SlimStep step = slim_step(faces, options, system, x, energy);
+    if (!step.failure.empty() || !step.moved) return step.failure;
+    if (!loop_dofs.empty() && loop_crosses(loop_dofs, x)) {
+      x.swap(previous);
+      crossed = true;
+      return "";
+    }
     ++solution.iterations;
-    const double decrease = (energy - trial_energy) / energy;
-    energy = trial_energy;
-    if (decrease < options.relative_tolerance) return "";
+    if (step.decrease < options.relative_tolerance) return "";
+  }
+  return "";
+}
+
+// The chart and its scaffold as one problem. Scaffold triangles take their
+// current shape as reference, so they pull nowhere but resist being squashed,
+// without bound as they degenerate. As in SCAF each weighs the same, a share
+// of the chart's energy, so thin ones near the boundary stiffen first; an area
+// weight would make exactly those the weakest.
+constexpr double kScaffoldWeight = 1e-2;
+constexpr double kScaffoldMargin = 1.0;
+// The free space is triangulated again every few iterations, not every one:
+// in between the old scaffold stays valid (the line search keeps it
+// flip-free), and the ordering and symbolic analysis are reused.
+constexpr int kRemeshEvery = 4;
+// SCAF's steps are short, so it stops at a tenth of SLIM's relative tolerance.
+constexpr double kScaffoldToleranceFactor = 0.1;
+
+RowMatrixX3i with_scaffold(const RowMatrixX3i& triangles, const Scaffold& scaffold) {
+  RowMatrixX3i all(triangles.rows() + scaffold.triangles.rows(), 3);
+  all << triangles, scaffold.triangles;
+  return all;
+}
+
+std::vector<ProxyFace> scaffolded_faces(const RowMatrixX3i& all, const RowMatrixX2d& reference,
+                                        const RowMatrixX2d& points, double scaffold_weight,
+                                        const std::vector<int>& order) {
+  const Eigen::Index f = reference.rows() / 3;
+  RowMatrixX2d all_reference(3 * all.rows(), 2);
+  all_reference.topRows(3 * f) = reference;
+  for (Eigen::Index t = f; t < all.rows(); ++t)
+    for (int k = 0; k < 3; ++k) all_reference.row(3 * t + k) = points.row(all(t, k));
+  std::vector<ProxyFace> faces = proxy_faces(all, all_reference, order);
+  for (Eigen::Index t = f; t < all.rows(); ++t) {
+    for (double& k : faces[t].stiffness) k *= scaffold_weight / faces[t].area;
+    faces[t].area = scaffold_weight;
+  }
+  return faces;
+}
+
+// SCAF (Jiang et al. 2017): SLIM iterations on the chart plus a scaffold of
+// the free space around it, so the boundary never crosses itself. uv (chart
+// vertices, flip-free, boundary not crossing) is updated in place.
+std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
+                                   const std::vector<ProxyFace>& chart_faces, const std::vector<int>& chart_order,
+                                   const std::vector<int>& loop, const SlimOptions& options,
+                                   const RunControl& control, RowMatrixX2d& uv, ChartSolution& solution) {
+  const int n = static_cast<int>(uv.rows());
+  Eigen::VectorXd chart_x(2 * n);
+  auto chart_energy = [&] {
+    for (int v = 0; v < n; ++v) chart_x.segment<2>(2 * chart_order[v]) = uv.row(v).transpose();
+    return total_energy(chart_faces, chart_x);
+  };
+  double energy_before = chart_energy();
+  RowMatrixX2d points(n + 4, 2);
+  RowMatrixX3i all;
+  std::vector<int> order;
+  std::vector<ProxyFace> faces;
+  std::optional<ProxySystem> system;
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    control.throw_if_cancelled();
+    const bool remesh = iteration % kRemeshEvery == 0;
+    if (remesh) {
+      Scaffold scaffold;
+      if (!triangulate_scaffold(uv, loop, kScaffoldMargin, scaffold)) return "SCAF: the boundary crosses itself";
+      points << uv, scaffold.box_corners;
+      all = with_scaffold(triangles, scaffold);
+      order = fill_reducing_order(all, n + 4);
+    }
+    const double weight = kScaffoldWeight * energy_before / static_cast<double>(all.rows() - triangles.rows());
+    std::vector<ProxyFace> current = scaffolded_faces(all, reference, points, weight, order);
+    if (remesh) {
+      system.emplace();
+      prepare_proxy_system(current, 2 * (n + 4), *system);
+    } else {
+      for (size_t f = 0; f < faces.size(); ++f) std::copy(faces[f].slot, faces[f].slot + 21, current[f].slot);
+    }
+    faces.swap(current);
+    Eigen::VectorXd x(2 * (n + 4));
+    for (int v = 0; v < n + 4; ++v) x.segment<2>(2 * order[v]) = points.row(v).transpose();
+    double energy = total_energy(faces, x);
+    const SlimStep step = slim_step(faces, options, *system, x, energy);
+    if (!step.failure.empty() || !step.moved) return step.failure;
+    for (int v = 0; v < n + 4; ++v) points.row(v) = x.segment<2>(2 * order[v]).transpose();
+    uv = points.topRows(n);
+    ++solution.iterations;
+    const double energy_after = chart_energy();
+    const double decrease = (energy_before - energy_after) / energy_before;
+    energy_before = energy_after;
+    if (decrease >= 0 && decrease < kScaffoldToleranceFactor * options.relative_tolerance) return "";
   }
   return "";
 }
@@ -337,7 +462,19 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
   const double initial_energy = total_energy(faces, x);
   if (initial_energy < kInfinity) {
     solution.energy_initial = initial_energy / reference_area;
-    solution.failure = minimize_energy(faces, options, control, x, solution);
+    std::vector<int> loop, loop_dofs;
+    for (int c : boundary_corners) loop.push_back(problem.triangles(c / 3, c % 3));
+    if (options.scaffold_on_crossing)
+      for (int v : loop) loop_dofs.push_back(2 * order[v]);
+    bool crossed = false;
+    solution.failure = minimize_energy(faces, loop_dofs, options, control, x, solution, crossed);
+    if (crossed) {
+      solution.scaffolded = true;
+      for (int v = 0; v < vertex_count; ++v) initial.row(v) = x.segment<2>(2 * order[v]).transpose();
+      solution.failure = minimize_with_scaffold(problem.triangles, reference.corners, faces, order, loop, options,
+                                                control, initial, solution);
+      for (int v = 0; v < vertex_count; ++v) x.segment<2>(2 * order[v]) = initial.row(v).transpose();
+    }
     solution.energy_final = total_energy(faces, x) / reference_area;
   } else {
     std::ostringstream msg;

@@ -25,6 +25,11 @@ struct SlimOptions {
   // themselves (more splits) and costs time (measured on the three scans).
   double relative_tolerance = 1e-2;
   double proximal_weight = 1e-4;     // keeps the proxy system definite (translation)
+  // A step after which the boundary crosses itself is undone, and the solve
+  // goes on inside a scaffold (SCAF, Jiang et al. 2017) that cannot cross.
+  // Slower per iteration (the scaffold, so the pattern, changes every step),
+  // but it spares splitting the chart. false: stop at a crossing like plain SLIM.
+  bool scaffold_on_crossing = true;
 };
 
 struct ChartSolution {
@@ -32,6 +37,7 @@ struct ChartSolution {
   double energy_initial = 0;   // per unit reference area, at the initial embedding
   double energy_final = 0;     // per unit reference area; 4 is the isometric minimum
   int iterations = 0;
+  bool scaffolded = false;     // the boundary crossed itself once and SCAF took over
   int flipped = 0;             // faces with non-positive signed area in uv
   int folded_references = 0;   // references folded over inside their original chart (mirror image used)
   int repaired_references = 0; // degenerate references replaced by a well-shaped triangle
