@@ -203,6 +203,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["splits_overlap"] = r.splits_overlap;
   d["splits_density"] = r.splits_density;
   d["charts_scaffolded"] = r.charts_scaffolded;
+  d["fold_over_halved"] = r.fold_over_halved;
   d["seam_before"] = r.seam_before;
   d["seam_after"] = r.seam_after;
   d["texels_before"] = r.texels_before;

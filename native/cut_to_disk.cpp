@@ -95,7 +95,14 @@ bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source) {
   std::vector<int> loop_of;
   for (;;) {
     const int loops = label_boundary_loops(triangles, static_cast<int>(vertex_source.size()), loop_of);
-    if (loops == 0) return false;
+    if (loops == 0) {
+      // Closed: slit open along two edges of one face, which makes a loop of
+      // four edges (two would put the whole boundary on one segment).
+      if (triangles.rows() == 0) return false;
+      split_along(triangles, vertex_source,
+                  {undirected(triangles(0, 0), triangles(0, 1)), undirected(triangles(0, 0), triangles(0, 2))});
+      continue;
+    }
     if (loops == 1) break;
     const std::vector<int> path = path_between_loops(triangles, loop_of);
     if (path.empty()) return false;

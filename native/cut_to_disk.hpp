@@ -11,9 +11,11 @@
 namespace atlas {
 
 // triangles: local vertex indices of a chart in which every vertex has a single
-// fan. vertex_source[v] is carried over to the copies a cut makes. Returns true
-// when the result is a disk (one boundary loop, chi == 1); false leaves a chart
-// with handles or without boundary, which the caller must split instead.
+// fan. vertex_source[v] is carried over to the copies a cut makes. A closed
+// chart (an original chart covering a whole closed component) is first slit
+// open along two edges. Returns true when the result is a disk (one boundary
+// loop, chi == 1); false leaves a chart with handles, which the caller must
+// split instead.
 bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source);
 
 }  // namespace atlas

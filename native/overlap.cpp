@@ -284,18 +284,99 @@ int density_culprit(const Mesh& mesh, const ChartGraph& graph, const LocalChart&
       ->first;
 }
 
-// True when some face of the chart winds against the chart's orientation in UV.
-bool folds_over(const Mesh& mesh, const ChartGraph& graph, const std::vector<int>& faces) {
-  const double orientation = graph.charts[graph.face_chart[faces.front()]].signed_area_uv;
-  for (int f : faces)
-    if (signed_area(mesh.uv_texels(f, 0), mesh.uv_texels(f, 1), mesh.uv_texels(f, 2)) * orientation < 0) return true;
-  return false;
+// True when some faces wind one way in UV and some the other (faces of zero
+// UV area count for neither). A closed piece always does: its signed areas sum to zero.
+bool folds_over(const Mesh& mesh, const std::vector<int>& faces) {
+  bool positive = false, negative = false;
+  for (int f : faces) {
+    const double a = signed_area(mesh.uv_texels(f, 0), mesh.uv_texels(f, 1), mesh.uv_texels(f, 2));
+    positive = positive || a > 0;
+    negative = negative || a < 0;
+  }
+  return positive && negative;
+}
+
+// Faces as two edge-connected halves, each face going to the nearer of two
+// far-apart seeds (breadth first, over manifold edges inside the set). Faces
+// not connected to the first are returned as the second part instead.
+std::vector<std::vector<int>> halves(const MeshTopology& topology, const std::vector<int>& faces) {
+  const int n = static_cast<int>(faces.size());
+  std::unordered_map<int, int> local;
+  for (int i = 0; i < n; ++i) local[faces[i]] = i;
+  std::vector<std::vector<int>> neighbours(n);
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const int e = topology.corner_edge[3 * faces[i] + k];
+      if (topology.edge_valence(e) != 2) continue;
+      for (int j = topology.edge_offsets[e]; j < topology.edge_offsets[e + 1]; ++j) {
+        const auto other = local.find(topology.edge_corners[j] / 3);
+        if (other != local.end() && other->second != i) neighbours[i].push_back(other->second);
+      }
+    }
+  // Multi-source breadth-first search: label[i] is the seed that reached i first.
+  auto grow = [&](const std::vector<int>& seeds, std::vector<int>& label) {
+    label.assign(n, -1);
+    std::queue<int> queue;
+    for (size_t s = 0; s < seeds.size(); ++s) label[seeds[s]] = static_cast<int>(s), queue.push(seeds[s]);
+    int last = seeds.front();
+    for (; !queue.empty(); queue.pop()) {
+      last = queue.front();
+      for (int m : neighbours[last])
+        if (label[m] < 0) label[m] = label[last], queue.push(m);
+    }
+    return last;
+  };
+  std::vector<int> label;
+  const int far = grow({0}, label);
+  std::vector<std::vector<int>> out(2);
+  if (std::count(label.begin(), label.end(), -1) == 0) grow({far, grow({far}, label)}, label);
+  for (int i = 0; i < n; ++i) out[label[i] == 0 ? 0 : 1].push_back(faces[i]);
+  return out;
 }
 
 // Of the two faces at a boundary crossing, the original chart with less area.
 int smaller_chart(const ChartGraph& graph, int face_a, int face_b) {
   const int a = graph.face_chart[face_a], b = graph.face_chart[face_b];
   return graph.charts[a].area_uv <= graph.charts[b].area_uv ? a : b;
+}
+
+// One flattening attempt of the given faces as a chart of their own: nothing
+// unless they make a disk and solve flip-free, without crossing themselves
+// and without losing texel density (see density_culprit).
+std::optional<FlatChart> try_flatten(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                                     std::vector<int> faces, const SlimOptions& options, const RunControl& control,
+                                     FlattenStats& stats) {
+  LocalChart local = localize(mesh, topology, std::move(faces));
+  if (!cut_to_disk(local.triangles, local.vertices)) return std::nullopt;
+  const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
+  stats.scaffolded += solution.scaffolded;
+  if (!solution.failure.empty() || solution.flipped > 0 || boundary_self_intersects(local.triangles, solution.uv) ||
+      density_culprit(mesh, graph, local, solution.uv) >= 0)
+    return std::nullopt;
+  return from_solution(local, solution);
+}
+
+// A lone original chart that folds over (its UVs cover part of it twice, or
+// it closes up into a sphere or a handle): it is flattened whole if it can
+// be, else its faces are halved, each half kept as it was if it no longer
+// folds over, else flattened or halved again. A single face cannot fold over
+// by itself, so this ends, and no face is left flipped.
+void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                        const std::vector<int>& chart, const SlimOptions& options, const RunControl& control,
+                        std::vector<FlatChart>& done, FlattenStats& stats) {
+  std::vector<std::vector<int>> pending = {chart};
+  while (!pending.empty()) {
+    std::vector<int> faces = std::move(pending.back());
+    pending.pop_back();
+    if (!folds_over(mesh, faces)) {
+      done.push_back(keep_original(mesh, faces));
+    } else if (auto flat = try_flatten(mesh, topology, graph, faces, options, control, stats)) {
+      done.push_back(std::move(*flat));
+    } else {
+      ++stats.fold_over_halved;
+      for (auto& half : halves(topology, faces)) pending.push_back(std::move(half));
+    }
+  }
 }
 
 }  // namespace
@@ -310,11 +391,8 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
   while (!pending.empty()) {
     const std::vector<int> group = std::move(pending.back());
     pending.pop_back();
-    // A lone original chart is copied, unless it folds over itself: then it is
-    // flattened like a merged one, and copied only if that fails.
-    const bool single = group.size() == 1;
-    if (single && !folds_over(mesh, graph, chart_faces[group[0]])) {
-      done.push_back(keep_original(mesh, chart_faces[group[0]]));
+    if (group.size() == 1) {
+      flatten_lone_chart(mesh, topology, graph, chart_faces[group[0]], options, control, done, stats);
       continue;
     }
     std::vector<int> faces;
@@ -332,18 +410,12 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
       } else if (const auto crossing = boundary_crossing(local.triangles, solution.uv)) {
         ++why.overlapped;
         culprit = smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second]);
-      } else if (!single && (culprit = density_culprit(mesh, graph, local, solution.uv)) >= 0) {
-        // (A lone chart that folds over has no better fallback than its
-        // fold-over itself, so only merged charts are held to the density bound.)
+      } else if ((culprit = density_culprit(mesh, graph, local, solution.uv)) >= 0) {
         ++why.density_lost;
       } else {
         done.push_back(from_solution(local, solution));
         continue;
       }
-    }
-    if (single) {
-      done.push_back(keep_original(mesh, chart_faces[group[0]]));
-      continue;
     }
     stats.not_disk += why.not_disk;
     stats.solver_failed += why.solver_failed;
