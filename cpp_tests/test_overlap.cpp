@@ -6,6 +6,7 @@
 #include "aggregate.hpp"
 #include "charts.hpp"
 #include "cut_to_disk.hpp"
+#include "geometry.hpp"
 #include "overlap.hpp"
 #include "test_meshes.hpp"
 
@@ -117,4 +118,69 @@ TEST(CutToDisk, TorusIsNotADisk) {
   RowMatrixX3i t = torus.triangles;
   std::vector<int> source = identity(torus.vertex_count());
   EXPECT_FALSE(cut_to_disk(t, source));
+}
+
+TEST(CutToDisk, ClosedSurfaceIsSlitOpen) {
+  const Mesh sphere = atlas::testing::uv_sphere(8, 12, 8);
+  RowMatrixX3i t = sphere.triangles;
+  std::vector<int> source = identity(sphere.vertex_count());
+  EXPECT_TRUE(cut_to_disk(t, source));
+  EXPECT_EQ(static_cast<int>(source.size()), sphere.vertex_count() + 1);  // one vertex split by the slit
+}
+
+namespace {
+
+// Every piece must wind one way only: no face flipped against the others.
+void expect_no_flips(const std::vector<FlatChart>& pieces) {
+  for (const FlatChart& piece : pieces) {
+    int positive = 0, negative = 0;
+    for (size_t i = 0; i < piece.faces.size(); ++i) {
+      const double a = signed_area(piece.corner_uv.row(3 * i), piece.corner_uv.row(3 * i + 1),
+                                   piece.corner_uv.row(3 * i + 2));
+      positive += a > 0, negative += a < 0;
+    }
+    EXPECT_TRUE(positive == 0 || negative == 0) << positive << " faces one way, " << negative << " the other";
+  }
+}
+
+std::vector<FlatChart> flatten_single_chart(const Mesh& mesh, FlattenStats& stats) {
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const ChartGraph graph = build_chart_graph(mesh, topology, {});
+  EXPECT_EQ(graph.chart_count(), 1);
+  std::vector<std::vector<int>> chart_faces(1, identity(mesh.face_count()));
+  auto pieces = flatten_without_overlap(mesh, topology, graph, chart_faces, {}, {0}, {}, RunControl(), stats);
+  size_t faces = 0;
+  for (const FlatChart& piece : pieces) {
+    faces += piece.faces.size();
+    EXPECT_TRUE(piece.corner_uv.allFinite());
+  }
+  EXPECT_EQ(faces, static_cast<size_t>(mesh.face_count()));
+  return pieces;
+}
+
+}  // namespace
+
+TEST(Overlap, LoneChartFoldedInUvIsUnfolded) {
+  // One chart whose right half is mirrored over onto its left half in UV.
+  Mesh mesh = atlas::testing::grid_disk(8, 100.0 / 256);
+  for (Eigen::Index c = 0; c < mesh.corner_uv.rows(); ++c)
+    mesh.corner_uv(c, 0) = 50.0 / 256 - std::abs(mesh.corner_uv(c, 0) - 50.0 / 256);
+  FlattenStats stats;
+  const auto pieces = flatten_single_chart(mesh, stats);
+  expect_no_flips(pieces);
+  EXPECT_EQ(pieces.size(), 1u);  // a flat disk: flattened whole
+}
+
+TEST(Overlap, LoneClosedChartIsUnfolded) {
+  // A closed surface under one continuous UV map always covers part of its
+  // image twice, with opposite windings.
+  Mesh sphere = atlas::testing::uv_sphere(6, 8, 6);
+  for (Eigen::Index f = 0; f < sphere.face_count(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = sphere.positions.row(sphere.triangles(f, k));
+      sphere.corner_uv.row(3 * f + k) << 0.5 + 0.2 * p.x(), 0.5 + 0.2 * p.y();
+    }
+  FlattenStats stats;
+  const auto pieces = flatten_single_chart(sphere, stats);
+  expect_no_flips(pieces);
 }
