@@ -133,6 +133,8 @@ FlatChart from_solution(const LocalChart& c, const ChartSolution& s) {
   out.energy_initial = s.energy_initial;
   out.energy_final = s.energy_final;
   out.iterations = s.iterations;
+  out.iteration_seconds = s.iteration_seconds;
+  out.factorize_seconds = s.factorize_seconds;
   return out;
 }
 

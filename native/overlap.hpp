@@ -30,6 +30,7 @@ struct FlatChart {
   bool kept_original = false;  // single original chart, UVs copied from the input
   double energy_initial = 0, energy_final = 0;  // per unit reference area (0 when kept)
   int iterations = 0;
+  double iteration_seconds = 0, factorize_seconds = 0;  // see ChartSolution
 };
 
 // Why charts were split back (each split counts once, under its first reason).

@@ -152,6 +152,13 @@ void summarize_energy(const std::vector<FlatChart>& charts, PipelineReport& repo
   report.energy_initial_median = median(before);
   report.energy_median = median(after);
   report.energy_max = *std::max_element(after.begin(), after.end());
+  const auto largest = std::max_element(charts.begin(), charts.end(), [](const FlatChart& a, const FlatChart& b) {
+    return (a.factorize_seconds > 0 ? a.faces.size() : 0) < (b.factorize_seconds > 0 ? b.faces.size() : 0);
+  });
+  if (largest->factorize_seconds > 0) {
+    report.largest_chart_faces = static_cast<int>(largest->faces.size());
+    report.iteration_over_factorization = largest->iteration_seconds / largest->factorize_seconds;
+  }
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <Eigen/OrderingMethods>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -70,7 +71,12 @@ struct ProxySystem {
   std::vector<int> diagonal_slots;
   Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::NaturalOrdering<int>> solver;
   Eigen::VectorXd rhs, solution;
+  double factorize_seconds = 0;  // in numeric factorizations, summed
 };
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 
 // Fill-reducing (AMD) order of the vertex graph: x and y of a vertex always
 // couple, so ordering vertices and interleaving costs 4x less than ordering
@@ -190,7 +196,9 @@ bool factorize_proxy(const std::vector<ProxyFace>& faces, const Eigen::VectorXd&
                      ProxySystem& system) {
   for (int attempt = 0; attempt < 4; ++attempt) {
     assemble_proxy(faces, x, proximal_weight, system);
+    const auto start = std::chrono::steady_clock::now();
     system.solver.factorize(system.matrix);
+    system.factorize_seconds += seconds_since(start);
     if (system.solver.info() == Eigen::Success) return true;
     double diagonal = 0;
     for (int slot : system.diagonal_slots) diagonal += system.matrix.valuePtr()[slot];
@@ -326,7 +334,11 @@ std::string minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int
   for (solution.iterations = 0; solution.iterations < options.max_iterations;) {
     control.throw_if_cancelled();
     if (!loop_dofs.empty()) previous = x;
+    const auto start = std::chrono::steady_clock::now();
+    const double factorized_before = system.factorize_seconds;
     const SlimStep step = slim_step(faces, options, system, x, energy);
+    solution.iteration_seconds += seconds_since(start);
+    solution.factorize_seconds += system.factorize_seconds - factorized_before;
     if (!step.failure.empty() || !step.moved) return step.failure;
     if (!loop_dofs.empty() && loop_crosses(loop_dofs, x)) {
       x.swap(previous);

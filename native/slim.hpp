@@ -38,6 +38,9 @@ struct ChartSolution {
   double energy_final = 0;     // per unit reference area; 4 is the isometric minimum
   int iterations = 0;
   bool scaffolded = false;     // the boundary crossed itself once and SCAF took over
+  // Wall time of the plain SLIM iterations, and of the numeric Cholesky
+  // factorizations within them: the benchmark reports their ratio.
+  double iteration_seconds = 0, factorize_seconds = 0;
   int flipped = 0;             // faces with non-positive signed area in uv
   int folded_references = 0;   // references folded over inside their original chart (mirror image used)
   int repaired_references = 0; // degenerate references replaced by a well-shaped triangle
