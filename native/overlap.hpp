@@ -1,6 +1,7 @@
-// Overlaps (thesis 5.1): a merged chart whose new boundary crosses itself is
-// split back into two groups of its original charts, each solved again. So is
-// one whose flattening failed or lost too much texel density. A group holding a
+// Overlaps (thesis 5.1). SLIM hands a chart whose boundary starts crossing
+// itself to SCAF (see slim.hpp), so overlaps are rare; a merged chart that
+// still overlaps is split back into two groups of its original charts, each
+// solved again. So is one whose flattening failed or lost too much texel density. A group holding a
 // single original chart keeps its original UVs, unless they fold over: then it
 // is flattened, or cut into halves that are kept or flattened (down to single
 // faces if need be), so this always ends and leaves no face flipped.
