@@ -263,8 +263,8 @@ AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, cons
   for (int f = 0; f < faces; ++f) {
     const int chart = graph.face_chart[f];
     if (chart < 0) continue;
-    const double a = face_signed_area_uv(atlas, f);
-    if (a != 0 && (a < 0) != graph.charts[chart].mirrored()) ++flipped;
+    const int winding = uv_winding(texel_uv(atlas, f, 0), texel_uv(atlas, f, 1), texel_uv(atlas, f, 2));
+    if (winding != 0 && (winding < 0) != graph.charts[chart].mirrored()) ++flipped;
   }
   m.flipped_faces = flipped;
 

@@ -91,6 +91,18 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
   return out;
 }
 
+// A chart less than a texel across is scaled up to one texel. Such charts are
+// scan debris (closed blobs of a few faces), and their faces would be slivers
+// the size of float32 or 6-decimal UV storage noise, whose winding does not
+// survive being written out. A texel more per blob costs nothing.
+void enlarge_tiny_charts(std::vector<FlatChart>& charts) {
+  for (FlatChart& chart : charts) {
+    const Eigen::Vector2d extent = chart.corner_uv.colwise().maxCoeff() - chart.corner_uv.colwise().minCoeff();
+    const double across = extent.maxCoeff();
+    if (across > 0 && across < 1) chart.corner_uv /= across;
+  }
+}
+
 long long page_texels(const std::vector<PageSize>& pages, const std::vector<char>& used) {
   long long total = 0;
   for (size_t p = 0; p < pages.size(); ++p)
@@ -190,7 +202,8 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   report.charts_aggregated = aggregation.chart_count();
   clock.lap("aggregate");
 
-  const std::vector<FlatChart> charts = flatten_all(mesh, topology, graph, corner_angle, aggregation, options.slim, control, report);
+  std::vector<FlatChart> charts = flatten_all(mesh, topology, graph, corner_angle, aggregation, options.slim, control, report);
+  enlarge_tiny_charts(charts);
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
   clock.lap("flatten");

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "disk_boundary.hpp"
+#include "geometry.hpp"
 #include "reference_triangles.hpp"
 #include "scaffold_triangulation.hpp"
 #include "segment_crossing.hpp"
@@ -40,7 +41,7 @@ constexpr int kMaxHalvings = 30;
 // side by side at dof and dof + 1, so each vertex is a 2x2 block.
 struct ProxyFace {
   int dof[3];
-  double area;                    // reference area
+  double area;                    // weight: the reference area (a scaffold face: its share, see SCAF)
   Eigen::Matrix2d inverse_edges;  // [r1 - r0, r2 - r0]^-1, so J = [u1 - u0, u2 - u0] inverse_edges
   double stiffness[6];            // area g_k.g_l for (k,l) = (0,1), (1,2), (2,0), (0,0), (1,1), (2,2)
   int slot[21];                   // where those 6 blocks go in the matrix values, see assemble_proxy
@@ -96,22 +97,29 @@ std::vector<int> fill_reducing_order(const RowMatrixX3i& triangles, int vertex_c
   return std::vector<int>(order.indices().data(), order.indices().data() + vertex_count);
 }
 
+// One face of the proxy, weight |W (J - R)|^2 with J measured against the
+// reference triangle (a, b, c); its matrix slots are left as they were.
+void set_proxy_face(const Eigen::Vector3i& corners, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                    const Eigen::Vector2d& c, double weight, const std::vector<int>& order, ProxyFace& face) {
+  for (int k = 0; k < 3; ++k) face.dof[k] = 2 * order[corners[k]];
+  Eigen::Matrix2d edges;
+  edges << b - a, c - a;
+  face.area = weight;
+  face.inverse_edges = edges.inverse();
+  const Eigen::Vector2d g[3] = {corner_gradient(face, 0), corner_gradient(face, 1), corner_gradient(face, 2)};
+  for (int e = 0; e < 3; ++e) {
+    face.stiffness[e] = weight * g[e].dot(g[(e + 1) % 3]);
+    face.stiffness[3 + e] = weight * g[e].squaredNorm();
+  }
+}
+
+// The chart's faces, each weighted by its reference area.
 std::vector<ProxyFace> proxy_faces(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
                                    const std::vector<int>& order) {
   std::vector<ProxyFace> faces(triangles.rows());
   for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
-    ProxyFace& face = faces[f];
-    for (int k = 0; k < 3; ++k) face.dof[k] = 2 * order[triangles(f, k)];
-    Eigen::Matrix2d edges;
-    edges.col(0) = (reference.row(3 * f + 1) - reference.row(3 * f)).transpose();
-    edges.col(1) = (reference.row(3 * f + 2) - reference.row(3 * f)).transpose();
-    face.area = edges.determinant() / 2;
-    face.inverse_edges = edges.inverse();
-    const Eigen::Vector2d g[3] = {corner_gradient(face, 0), corner_gradient(face, 1), corner_gradient(face, 2)};
-    for (int e = 0; e < 3; ++e) {
-      face.stiffness[e] = face.area * g[e].dot(g[(e + 1) % 3]);
-      face.stiffness[3 + e] = face.area * g[e].squaredNorm();
-    }
+    const Eigen::Vector2d a = reference.row(3 * f), b = reference.row(3 * f + 1), c = reference.row(3 * f + 2);
+    set_proxy_face(triangles.row(f), a, b, c, signed_area(a, b, c), order, faces[f]);
   }
   return faces;
 }
@@ -286,11 +294,10 @@ double backtracking_line_search(const std::vector<ProxyFace>& faces, const Eigen
 // One SLIM iteration from x: proxy solve, then the flip-free Armijo line
 // search. Returns "" or why the system broke down; moved is false when no step
 // was taken (no descent direction or no acceptable step: converged at double
-// precision), else x and energy hold the new iterate and decrease its relative gain.
+// precision), else x and energy hold the new iterate.
 struct SlimStep {
   std::string failure;
   bool moved = false;
-  double decrease = 0;
 };
 
 SlimStep slim_step(const std::vector<ProxyFace>& faces, const SlimOptions& options, ProxySystem& system,
@@ -306,9 +313,8 @@ SlimStep slim_step(const std::vector<ProxyFace>& faces, const SlimOptions& optio
   const double trial_energy = backtracking_line_search(faces, x, direction, energy, line, trial);
   if (!(trial_energy < kInfinity)) return {};
   x.swap(trial);
-  SlimStep step{"", true, (energy - trial_energy) / energy};
   energy = trial_energy;
-  return step;
+  return {"", true};
 }
 
 // Whether the boundary loop (the dof of each loop vertex, in order) crosses itself at x.
@@ -334,6 +340,7 @@ std::string minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int
   for (solution.iterations = 0; solution.iterations < options.max_iterations;) {
     control.throw_if_cancelled();
     if (!loop_dofs.empty()) previous = x;
+    const double energy_before = energy;
     const auto start = std::chrono::steady_clock::now();
     const double factorized_before = system.factorize_seconds;
     const SlimStep step = slim_step(faces, options, system, x, energy);
@@ -346,7 +353,7 @@ std::string minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int
       return "";
     }
     ++solution.iterations;
-    if (step.decrease < options.relative_tolerance) return "";
+    if ((energy_before - energy) / energy_before < options.relative_tolerance) return "";
   }
   return "";
 }
@@ -361,30 +368,17 @@ constexpr double kScaffoldMargin = 1.0;
 // The free space is triangulated again every few iterations, not every one:
 // in between the old scaffold stays valid (the line search keeps it
 // flip-free), and the ordering and symbolic analysis are reused.
-constexpr int kRemeshEvery = 4;
+constexpr int kRemeshEvery = 8;
 // SCAF's steps are short, so it stops at a tenth of SLIM's relative tolerance.
 constexpr double kScaffoldToleranceFactor = 0.1;
 
-RowMatrixX3i with_scaffold(const RowMatrixX3i& triangles, const Scaffold& scaffold) {
-  RowMatrixX3i all(triangles.rows() + scaffold.triangles.rows(), 3);
-  all << triangles, scaffold.triangles;
-  return all;
-}
-
-std::vector<ProxyFace> scaffolded_faces(const RowMatrixX3i& all, const RowMatrixX2d& reference,
-                                        const RowMatrixX2d& points, double scaffold_weight,
-                                        const std::vector<int>& order) {
-  const Eigen::Index f = reference.rows() / 3;
-  RowMatrixX2d all_reference(3 * all.rows(), 2);
-  all_reference.topRows(3 * f) = reference;
-  for (Eigen::Index t = f; t < all.rows(); ++t)
-    for (int k = 0; k < 3; ++k) all_reference.row(3 * t + k) = points.row(all(t, k));
-  std::vector<ProxyFace> faces = proxy_faces(all, all_reference, order);
-  for (Eigen::Index t = f; t < all.rows(); ++t) {
-    for (double& k : faces[t].stiffness) k *= scaffold_weight / faces[t].area;
-    faces[t].area = scaffold_weight;
-  }
-  return faces;
+// Rewrites the scaffold faces (those after the chart's, in `faces`) with their
+// current shape as reference and the given weight each; slots stay.
+void reset_scaffold_faces(const RowMatrixX3i& all, const RowMatrixX2d& points, double weight,
+                          const std::vector<int>& order, Eigen::Index chart_faces, std::vector<ProxyFace>& faces) {
+  for (Eigen::Index t = chart_faces; t < all.rows(); ++t)
+    set_proxy_face(all.row(t), points.row(all(t, 0)), points.row(all(t, 1)), points.row(all(t, 2)), weight, order,
+                   faces[t]);
 }
 
 // SCAF (Jiang et al. 2017): SLIM iterations on the chart plus a scaffold of
@@ -395,10 +389,10 @@ std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
                                    const std::vector<int>& loop, const SlimOptions& options,
                                    const RunControl& control, RowMatrixX2d& uv, ChartSolution& solution) {
   const int n = static_cast<int>(uv.rows());
-  Eigen::VectorXd chart_x(2 * n);
   auto chart_energy = [&] {
-    for (int v = 0; v < n; ++v) chart_x.segment<2>(2 * chart_order[v]) = uv.row(v).transpose();
-    return total_energy(chart_faces, chart_x);
+    Eigen::VectorXd x(2 * n);
+    for (int v = 0; v < n; ++v) x.segment<2>(2 * chart_order[v]) = uv.row(v).transpose();
+    return total_energy(chart_faces, x);
   };
   double energy_before = chart_energy();
   RowMatrixX2d points(n + 4, 2);
@@ -413,18 +407,18 @@ std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
       Scaffold scaffold;
       if (!triangulate_scaffold(uv, loop, kScaffoldMargin, scaffold)) return "SCAF: the boundary crosses itself";
       points << uv, scaffold.box_corners;
-      all = with_scaffold(triangles, scaffold);
+      all.resize(triangles.rows() + scaffold.triangles.rows(), 3);
+      all << triangles, scaffold.triangles;
       order = fill_reducing_order(all, n + 4);
+      faces = proxy_faces(triangles, reference, order);
+      faces.resize(all.rows());
     }
     const double weight = kScaffoldWeight * energy_before / static_cast<double>(all.rows() - triangles.rows());
-    std::vector<ProxyFace> current = scaffolded_faces(all, reference, points, weight, order);
+    reset_scaffold_faces(all, points, weight, order, triangles.rows(), faces);
     if (remesh) {
       system.emplace();
-      prepare_proxy_system(current, 2 * (n + 4), *system);
-    } else {
-      for (size_t f = 0; f < faces.size(); ++f) std::copy(faces[f].slot, faces[f].slot + 21, current[f].slot);
+      prepare_proxy_system(faces, 2 * (n + 4), *system);  // the pattern needs every face's corners
     }
-    faces.swap(current);
     Eigen::VectorXd x(2 * (n + 4));
     for (int v = 0; v < n + 4; ++v) x.segment<2>(2 * order[v]) = points.row(v).transpose();
     double energy = total_energy(faces, x);
