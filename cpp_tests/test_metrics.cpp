@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <random>
 
+#include "geometry.hpp"
 #include "metrics.hpp"
 #include "rasterize_triangle.hpp"
 #include "test_meshes.hpp"
@@ -146,6 +147,24 @@ TEST(MeasureAtlas, OneFoldedTriangleIsFlipped) {
   EXPECT_EQ(m.charts, 1);
   EXPECT_EQ(m.flipped_faces, 1);
   EXPECT_GT(m.overlap_texels, 0);  // the fold lies over its neighbours
+}
+
+TEST(MeasureAtlas, SliverFoldedByRoundOffIsNotFlipped) {
+  // The same fold, moved to within a thousandth of a texel of the ring edge:
+  // float32 storage alone can do that to a sliver, and it covers no texel.
+  const int n = 4;
+  Mesh mesh = atlas::testing::grid_disk(n, 1.0, 256);
+  RowMatrixX2d vertex_uv = mesh.positions.leftCols<2>();
+  int v = -1;
+  for (int i = 0; i < mesh.vertex_count(); ++i)
+    if ((mesh.positions.row(i).head<2>() - Eigen::RowVector2d(0.25, 0.25)).norm() < 1e-12) v = i;
+  ASSERT_GE(v, 0);
+  vertex_uv.row(v) << 2.0 / n + 1e-3 / 256, 1.5 / n;
+  mesh.corner_uv = corner_uv_from_vertices(mesh, vertex_uv);
+  EXPECT_EQ(measure(mesh).flipped_faces, 0);
+  EXPECT_EQ(uv_winding({0, 0}, {1, 0}, {0.5, -1e-3}), 0);
+  EXPECT_EQ(uv_winding({0, 0}, {1, 0}, {0.5, -0.1}), -1);
+  EXPECT_EQ(uv_winding({0, 0}, {1, 0}, {0.5, 0.1}), 1);
 }
 
 TEST(MeasureAtlas, OverlappingChartsCountTheOverlapArea) {

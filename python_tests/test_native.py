@@ -50,13 +50,13 @@ def test_new_atlas_has_no_flips_and_no_shared_texels(native, tetra_result):
     assert m["new"]["flipped_faces"] == 0
 
 
-# The Meshroom scan's input has 577 flipped faces: charts whose UVs fold over,
+# The Meshroom scan's input has 507 flipped faces: charts whose UVs fold over,
 # and 48 small closed components each mapped as one chart. None may stay flipped.
 def test_fold_overs_in_the_input_end_unfolded(native, scans):
     scan = scans("meshroom")
     result = native.defragment(*args(scan))
     m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
-    assert m["old"]["flipped_faces"] > 500
+    assert m["old"]["flipped_faces"] > 400
     assert m["new"]["flipped_faces"] == 0
     assert m["new"]["overlap_texels"] == 0
     assert result["report"]["fold_over_halved"] > 0
