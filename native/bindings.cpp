@@ -203,7 +203,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["splits_overlap"] = r.splits_overlap;
   d["splits_density"] = r.splits_density;
   d["charts_scaffolded"] = r.charts_scaffolded;
-  d["fold_over_halved"] = r.fold_over_halved;
+  d["overlap_halved"] = r.overlap_halved;
   d["largest_chart_faces"] = r.largest_chart_faces;
   d["iteration_over_factorization"] = r.iteration_over_factorization;
   d["seam_before"] = r.seam_before;

@@ -360,11 +360,22 @@ std::optional<FlatChart> try_flatten(const Mesh& mesh, const MeshTopology& topol
   return from_solution(local, solution);
 }
 
-// A lone original chart that folds over (its UVs cover part of it twice, or
-// it closes up into a sphere or a handle): it is flattened whole if it can
-// be, else its faces are halved, each half kept as it was if it no longer
-// folds over, else flattened or halved again. A single face cannot fold over
-// by itself, so this ends, and no face is left flipped.
+// True when the faces' original UVs cover some part of them twice without a
+// fold: their boundary crosses itself.
+bool original_boundary_crosses(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& faces) {
+  const LocalChart local = localize(mesh, topology, faces);
+  RowMatrixX2d uv(static_cast<Eigen::Index>(local.vertices.size()), 2);
+  for (size_t i = 0; i < faces.size(); ++i)
+    for (int k = 0; k < 3; ++k) uv.row(local.triangles(i, k)) = mesh.uv_texels(faces[i], k).transpose();
+  return boundary_self_intersects(local.triangles, uv);
+}
+
+// A lone original chart whose UVs overlap themselves (folding over, as every
+// closed component mapped as one chart does, or with a boundary that crosses
+// itself): it is flattened whole if it can be, else its faces are halved, each
+// half kept as it was if its UVs no longer overlap, else flattened or halved
+// again. A single face cannot overlap itself, so this ends, and no face is
+// left flipped and no boundary crossing.
 void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                         const std::vector<int>& chart, const SlimOptions& options, const RunControl& control,
                         std::vector<FlatChart>& done, FlattenStats& stats) {
@@ -372,12 +383,12 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
   while (!pending.empty()) {
     std::vector<int> faces = std::move(pending.back());
     pending.pop_back();
-    if (!folds_over(mesh, faces)) {
+    if (!folds_over(mesh, faces) && !original_boundary_crosses(mesh, topology, faces)) {
       done.push_back(keep_original(mesh, faces));
     } else if (auto flat = try_flatten(mesh, topology, graph, faces, options, control, stats)) {
       done.push_back(std::move(*flat));
     } else {
-      ++stats.fold_over_halved;
+      ++stats.overlap_halved;
       for (auto& half : halves(topology, faces)) pending.push_back(std::move(half));
     }
   }

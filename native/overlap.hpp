@@ -2,9 +2,10 @@
 // itself to SCAF (see slim.hpp), so overlaps are rare; a merged chart that
 // still overlaps is split back into two groups of its original charts, each
 // solved again. So is one whose flattening failed or lost too much texel density. A group holding a
-// single original chart keeps its original UVs, unless they fold over: then it
-// is flattened, or cut into halves that are kept or flattened (down to single
-// faces if need be), so this always ends and leaves no face flipped.
+// single original chart keeps its original UVs, unless they overlap (fold over
+// or cross): then it is flattened, or cut into halves that are kept or
+// flattened (down to single faces if need be), so this always ends and leaves
+// no face flipped and no boundary crossing.
 #pragma once
 #include <optional>
 #include <utility>
@@ -40,7 +41,7 @@ struct FlattenStats {
   int solver_failed = 0;       // SLIM reported a failure or left flipped faces
   int overlapped = 0;          // the new boundary crossed itself
   int density_lost = 0;        // over 1% of the surface kept less than half its texels
-  int fold_over_halved = 0;    // not a split of merged charts: lone fold-over charts cut in two
+  int overlap_halved = 0;      // not a split of merged charts: lone charts whose own UVs overlap, cut in two
   int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
   int splits() const { return not_disk + solver_failed + overlapped + density_lost; }
 };

@@ -85,7 +85,7 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
     report.splits_overlap += stats[i].overlapped;
     report.splits_density += stats[i].density_lost;
     report.charts_scaffolded += stats[i].scaffolded;
-    report.fold_over_halved += stats[i].fold_over_halved;
+    report.overlap_halved += stats[i].overlap_halved;
     for (auto& c : pieces[i]) out.push_back(std::move(c));
   }
   return out;

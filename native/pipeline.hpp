@@ -34,7 +34,7 @@ struct PipelineReport {
   int splits_overlap = 0;
   int splits_density = 0;
   int charts_scaffolded = 0;   // solved again inside a scaffold after their boundary crossed (not splits)
-  int fold_over_halved = 0;    // lone charts whose UVs fold over, cut in two to unfold (see overlap.hpp)
+  int overlap_halved = 0;      // lone charts whose own UVs overlap (fold or cross), cut in two (see overlap.hpp)
   double seam_before = 0, seam_after = 0;  // seam length / sqrt(area)
   long long texels_before = 0, texels_after = 0;
   double packing_efficiency = 0;

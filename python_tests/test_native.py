@@ -59,7 +59,7 @@ def test_fold_overs_in_the_input_end_unfolded(native, scans):
     assert m["old"]["flipped_faces"] > 400
     assert m["new"]["flipped_faces"] == 0
     assert m["new"]["overlap_texels"] == 0
-    assert result["report"]["fold_over_halved"] > 0
+    assert result["report"]["overlap_halved"] > 0
     assert m["map"]["density_loss_area_share"] < 0.01
 
 
