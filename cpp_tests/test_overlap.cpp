@@ -184,3 +184,28 @@ TEST(Overlap, LoneClosedChartIsUnfolded) {
   const auto pieces = flatten_single_chart(sphere, stats);
   expect_no_flips(pieces);
 }
+
+TEST(Overlap, LoneChartCrossingItselfInUvIsUncrossed) {
+  // One chart whose UVs wind 1.2 turns round an annulus: no face flipped, but
+  // the end of the strip lies over its start.
+  Mesh mesh = atlas::testing::grid_disk(12, 1.0, 1024);
+  for (Eigen::Index f = 0; f < mesh.face_count(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = mesh.positions.row(mesh.triangles(f, k));
+      const double angle = 2.4 * 3.14159265358979 * p.x(), radius = 0.4 - 0.2 * p.y();
+      mesh.corner_uv.row(3 * f + k) << 0.5 + radius * std::cos(angle), 0.5 + radius * std::sin(angle);
+    }
+  FlattenStats stats;
+  const auto pieces = flatten_single_chart(mesh, stats);
+  expect_no_flips(pieces);
+  for (const FlatChart& piece : pieces) {
+    RowMatrixX3i t(static_cast<Eigen::Index>(piece.faces.size()), 3);
+    for (size_t i = 0; i < piece.faces.size(); ++i)
+      for (int k = 0; k < 3; ++k) t(i, k) = mesh.triangles(piece.faces[i], k);
+    RowMatrixX2d uv = RowMatrixX2d::Zero(mesh.vertex_count(), 2);
+    for (size_t i = 0; i < piece.faces.size(); ++i)
+      for (int k = 0; k < 3; ++k) uv.row(t(i, k)) = piece.corner_uv.row(3 * i + k);
+    EXPECT_FALSE(boundary_self_intersects(t, uv));
+    EXPECT_FALSE(piece.kept_original);
+  }
+}
