@@ -172,6 +172,26 @@ PipelineOptions pipeline_options(const py::object& obj) {
   return o;
 }
 
+// Per output chart: faces, flattened (else kept), energy before and after SLIM.
+py::dict chart_arrays(const std::vector<ChartSummary>& charts) {
+  const py::ssize_t n = static_cast<py::ssize_t>(charts.size());
+  py::array_t<int> faces(n);
+  py::array_t<bool> flattened(n);
+  py::array_t<double> before(n), after(n);
+  for (py::ssize_t i = 0; i < n; ++i) {
+    faces.mutable_at(i) = charts[i].faces;
+    flattened.mutable_at(i) = charts[i].flattened;
+    before.mutable_at(i) = charts[i].energy_initial;
+    after.mutable_at(i) = charts[i].energy_final;
+  }
+  py::dict d;
+  d["faces"] = faces;
+  d["flattened"] = flattened;
+  d["energy_initial"] = before;
+  d["energy_final"] = after;
+  return d;
+}
+
 py::array_t<double> uv_array(const RowMatrixX2d& uv) {
   py::array_t<double> out({uv.rows() / 3, py::ssize_t(3), py::ssize_t(2)});
   std::copy(uv.data(), uv.data() + uv.size(), out.mutable_data());
@@ -242,6 +262,7 @@ py::dict defragment_py(const py::object& positions, const py::object& triangles,
   out["face_page"] = int_array(r.face_page);
   out["page_sizes"] = sizes_array(r.pages);
   out["report"] = report_dict(r.report);
+  out["charts"] = chart_arrays(r.charts);
   return out;
 }
 
@@ -436,7 +457,9 @@ PYBIND11_MODULE(_native, m) {
 positions (V,3) float, triangles (F,3) int (triangulate quads and n-gons first),
 uvs (F,3,2) per-corner UVs in page units, face_page (F,) int (-1: untextured,
 UVs pass through), page_sizes (P,2) (width, height) in texels. face_group (F,)
-keeps groups apart. Returns dict(uvs, face_page, page_sizes, report).)");
+keeps groups apart. Returns dict(uvs, face_page, page_sizes, report, charts); charts
+holds per output chart: faces, flattened (else original UVs kept), energy_initial
+and energy_final (symmetric Dirichlet per unit reference area, 4 = isometric).)");
 
   m.def("chart_graph", &chart_graph_py, py::arg("positions"), py::arg("triangles"), py::arg("uvs"),
         py::arg("face_page"), py::arg("page_sizes"), "The input's UV charts: counts and the chart of each face.");

@@ -206,6 +206,8 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   enlarge_tiny_charts(charts);
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
+  for (const FlatChart& c : charts)
+    result.charts.push_back({static_cast<int>(c.faces.size()), !c.kept_original, c.energy_initial, c.energy_final});
   clock.lap("flatten");
 
   // Untextured faces keep their input UVs and page -1.

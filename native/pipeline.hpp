@@ -49,10 +49,18 @@ struct PipelineReport {
   std::vector<StageTime> seconds;
 };
 
+// One chart of the output, as the flattening left it.
+struct ChartSummary {
+  int faces = 0;
+  bool flattened = false;             // solved by SLIM (false: original UVs kept)
+  double energy_initial = 0, energy_final = 0;  // per unit reference area; 0 when kept
+};
+
 struct PipelineResult {
   RowMatrixX2d corner_uv;       // 3F x 2, page units of the new pages
   Eigen::VectorXi face_page;    // new page per face, -1 kept for untextured faces
   std::vector<PageSize> pages;
+  std::vector<ChartSummary> charts;
   PipelineReport report;
 };
 

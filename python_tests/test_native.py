@@ -63,6 +63,20 @@ def test_fold_overs_in_the_input_end_unfolded(native, scans):
     assert m["map"]["density_loss_area_share"] < 0.01
 
 
+# Issue 3: energy per chart, before and after; the median close to the isometric 4.
+def test_energy_is_reported_per_chart(tetra_result):
+    scan, result = tetra_result
+    charts = result["charts"]
+    assert len(charts["faces"]) == result["report"]["charts_after"]
+    assert charts["faces"].sum() == len(scan.triangles)
+    solved = charts["flattened"]
+    assert solved.sum() == result["report"]["charts_solved"] > 0
+    assert (charts["energy_final"][solved] >= 4 - 1e-9).all()
+    assert (charts["energy_final"][solved] <= charts["energy_initial"][solved]).all()
+    assert np.median(charts["energy_final"][solved]) < 4.4
+    assert (charts["energy_final"][~solved] == 0).all()
+
+
 # Issue 3's target: under 1% of the surface keeps less than half its texel density.
 def test_density_loss_target(native, tetra_result):
     scan, result = tetra_result
