@@ -131,37 +131,31 @@ TEST(MeasureAtlas, JitteredMeshCoversEveryTexelExactlyOnce) {
   EXPECT_EQ(m.overlap_texels, 0);
 }
 
-TEST(MeasureAtlas, OneFoldedTriangleIsFlipped) {
+// A 4 x 4 grid on a 256-texel page with its interior vertex (1,1) moved to
+// (x, y) in grid units. Its one-ring is the hexagon (+-1,0), (0,+-1), (1,1),
+// (-1,-1) around it: past the ring edge x = 2, exactly one triangle folds.
+Mesh grid_with_vertex_moved(double x, double y) {
   const int n = 4;
   Mesh mesh = atlas::testing::grid_disk(n, 1.0, 256);
   RowMatrixX2d vertex_uv = mesh.positions.leftCols<2>();
-  // Interior vertex (1,1): its one-ring is the hexagon (+-1,0), (0,+-1), (1,1), (-1,-1).
-  // Pushing it just past the middle of the ring edge (1,0)-(1,1) folds exactly one triangle.
-  int v = -1;
   for (int i = 0; i < mesh.vertex_count(); ++i)
-    if ((mesh.positions.row(i).head<2>() - Eigen::RowVector2d(0.25, 0.25)).norm() < 1e-12) v = i;
-  ASSERT_GE(v, 0);
-  vertex_uv.row(v) << (1 + 1.1) / n, (1 + 0.5) / n;
+    if ((mesh.positions.row(i).head<2>() - Eigen::RowVector2d(0.25, 0.25)).norm() < 1e-12)
+      vertex_uv.row(i) << x / n, y / n;
   mesh.corner_uv = corner_uv_from_vertices(mesh, vertex_uv);
-  const AtlasMeasures m = measure(mesh);
+  return mesh;
+}
+
+TEST(MeasureAtlas, OneFoldedTriangleIsFlipped) {
+  const AtlasMeasures m = measure(grid_with_vertex_moved(2.1, 1.5));
   EXPECT_EQ(m.charts, 1);
   EXPECT_EQ(m.flipped_faces, 1);
   EXPECT_GT(m.overlap_texels, 0);  // the fold lies over its neighbours
 }
 
 TEST(MeasureAtlas, SliverFoldedByRoundOffIsNotFlipped) {
-  // The same fold, moved to within a thousandth of a texel of the ring edge:
-  // float32 storage alone can do that to a sliver, and it covers no texel.
-  const int n = 4;
-  Mesh mesh = atlas::testing::grid_disk(n, 1.0, 256);
-  RowMatrixX2d vertex_uv = mesh.positions.leftCols<2>();
-  int v = -1;
-  for (int i = 0; i < mesh.vertex_count(); ++i)
-    if ((mesh.positions.row(i).head<2>() - Eigen::RowVector2d(0.25, 0.25)).norm() < 1e-12) v = i;
-  ASSERT_GE(v, 0);
-  vertex_uv.row(v) << 2.0 / n + 1e-3 / 256, 1.5 / n;
-  mesh.corner_uv = corner_uv_from_vertices(mesh, vertex_uv);
-  EXPECT_EQ(measure(mesh).flipped_faces, 0);
+  // The same fold, a thousandth of a texel past the ring edge (a grid unit is
+  // 64 texels): float32 storage alone can do that to a sliver, which covers no texel.
+  EXPECT_EQ(measure(grid_with_vertex_moved(2 + 1e-3 / 64, 1.5)).flipped_faces, 0);
   EXPECT_EQ(uv_winding({0, 0}, {1, 0}, {0.5, -1e-3}), 0);
   EXPECT_EQ(uv_winding({0, 0}, {1, 0}, {0.5, -0.1}), -1);
   EXPECT_EQ(uv_winding({0, 0}, {1, 0}, {0.5, 0.1}), 1);

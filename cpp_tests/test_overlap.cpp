@@ -37,6 +37,19 @@ Mesh helical_strip(int segments, int segments_per_chart) {
   return atlas::testing::with_chart_uvs(positions, triangles, chart);
 }
 
+// Whether a flattened piece's boundary crosses itself. Its corner UVs come per
+// face; the mesh's vertex indices give them back their sharing.
+bool piece_crosses_itself(const Mesh& mesh, const FlatChart& piece) {
+  RowMatrixX3i t(static_cast<Eigen::Index>(piece.faces.size()), 3);
+  RowMatrixX2d uv = RowMatrixX2d::Zero(mesh.vertex_count(), 2);
+  for (size_t i = 0; i < piece.faces.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      t(i, k) = mesh.triangles(piece.faces[i], k);
+      uv.row(t(i, k)) = piece.corner_uv.row(3 * i + k);
+    }
+  return boundary_self_intersects(t, uv);
+}
+
 std::vector<int> identity(int n) {
   std::vector<int> v(n);
   for (int i = 0; i < n; ++i) v[i] = i;
@@ -75,14 +88,7 @@ TEST(Overlap, HelicalStripEndsWithoutOverlap) {
   size_t faces = 0;
   for (const FlatChart& piece : pieces) {
     faces += piece.faces.size();
-    // Corner-indexed triangles have no shared vertices, so rebuild sharing by position.
-    RowMatrixX3i t(static_cast<Eigen::Index>(piece.faces.size()), 3);
-    for (size_t i = 0; i < piece.faces.size(); ++i)
-      for (int k = 0; k < 3; ++k) t(i, k) = mesh.triangles(piece.faces[i], k);
-    RowMatrixX2d uv = RowMatrixX2d::Zero(mesh.vertex_count(), 2);
-    for (size_t i = 0; i < piece.faces.size(); ++i)
-      for (int k = 0; k < 3; ++k) uv.row(t(i, k)) = piece.corner_uv.row(3 * i + k);
-    EXPECT_FALSE(boundary_self_intersects(t, uv));
+    EXPECT_FALSE(piece_crosses_itself(mesh, piece));
     EXPECT_TRUE(piece.corner_uv.allFinite());
   }
   EXPECT_EQ(faces, static_cast<size_t>(mesh.face_count()));
@@ -199,13 +205,7 @@ TEST(Overlap, LoneChartCrossingItselfInUvIsUncrossed) {
   const auto pieces = flatten_single_chart(mesh, stats);
   expect_no_flips(pieces);
   for (const FlatChart& piece : pieces) {
-    RowMatrixX3i t(static_cast<Eigen::Index>(piece.faces.size()), 3);
-    for (size_t i = 0; i < piece.faces.size(); ++i)
-      for (int k = 0; k < 3; ++k) t(i, k) = mesh.triangles(piece.faces[i], k);
-    RowMatrixX2d uv = RowMatrixX2d::Zero(mesh.vertex_count(), 2);
-    for (size_t i = 0; i < piece.faces.size(); ++i)
-      for (int k = 0; k < 3; ++k) uv.row(t(i, k)) = piece.corner_uv.row(3 * i + k);
-    EXPECT_FALSE(boundary_self_intersects(t, uv));
+    EXPECT_FALSE(piece_crosses_itself(mesh, piece));
     EXPECT_FALSE(piece.kept_original);
   }
 }
