@@ -38,7 +38,8 @@ Mesh helical_strip(int segments, int segments_per_chart) {
 }
 
 // Whether a flattened piece's boundary crosses itself. Its corner UVs come per
-// face; the mesh's vertex indices give them back their sharing.
+// face; the mesh's vertex indices give them back their sharing, which holds
+// for the pieces here (disks with no vertex split by a cut or a pinch).
 bool piece_crosses_itself(const Mesh& mesh, const FlatChart& piece) {
   RowMatrixX3i t(static_cast<Eigen::Index>(piece.faces.size()), 3);
   RowMatrixX2d uv = RowMatrixX2d::Zero(mesh.vertex_count(), 2);

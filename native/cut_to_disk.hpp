@@ -14,8 +14,8 @@ namespace atlas {
 // fan. vertex_source[v] is carried over to the copies a cut makes. A closed
 // chart (an original chart covering a whole closed component) is first slit
 // open along two edges. Returns true when the result is a disk (one boundary
-// loop, chi == 1); false leaves a chart with handles, which the caller must
-// split instead.
+// loop, chi == 1); false leaves a chart with handles or in several pieces,
+// which the caller must split instead.
 bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source);
 
 }  // namespace atlas

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <optional>
 #include <queue>
 #include <unordered_map>
@@ -132,7 +131,6 @@ FlatChart from_solution(const LocalChart& c, const ChartSolution& s) {
     for (int k = 0; k < 3; ++k) out.corner_uv.row(3 * i + k) = s.uv.row(c.triangles(i, k));
   out.energy_initial = s.energy_initial;
   out.energy_final = s.energy_final;
-  out.iterations = s.iterations;
   out.iteration_seconds = s.iteration_seconds;
   out.factorize_seconds = s.factorize_seconds;
   return out;

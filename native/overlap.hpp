@@ -31,7 +31,6 @@ struct FlatChart {
   RowMatrixX2d corner_uv;      // 3 rows per face, texels, arbitrary placement
   bool kept_original = false;  // single original chart, UVs copied from the input
   double energy_initial = 0, energy_final = 0;  // per unit reference area (0 when kept)
-  int iterations = 0;
   double iteration_seconds = 0, factorize_seconds = 0;  // see ChartSolution
 };
 
@@ -43,7 +42,6 @@ struct FlattenStats {
   int density_lost = 0;        // over 1% of the surface kept less than half its texels
   int overlap_halved = 0;      // not a split of merged charts: lone charts whose own UVs overlap, cut in two
   int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
-  int splits() const { return not_disk + solver_failed + overlapped + density_lost; }
 };
 
 // Flattens one aggregated chart (its original charts `members`), splitting on

@@ -97,6 +97,7 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
 // survive being written out. A texel more per blob costs nothing.
 void enlarge_tiny_charts(std::vector<FlatChart>& charts) {
   for (FlatChart& chart : charts) {
+    if (chart.corner_uv.rows() == 0) continue;
     const Eigen::Vector2d extent = chart.corner_uv.colwise().maxCoeff() - chart.corner_uv.colwise().minCoeff();
     const double across = extent.maxCoeff();
     if (across > 0 && across < 1) chart.corner_uv /= across;

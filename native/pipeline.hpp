@@ -43,7 +43,8 @@ struct PipelineReport {
   // (4 is isometric): median at the initial embedding, then median and max after SLIM.
   double energy_initial_median = 0, energy_median = 0, energy_max = 0;
   // The chart with the most faces that plain SLIM solved: its faces, and the
-  // mean wall time of one SLIM iteration over that of one numeric factorization.
+  // wall time of its SLIM iterations over that of the numeric factorizations
+  // in them (both summed; a retried factorization counts twice).
   int largest_chart_faces = 0;
   double iteration_over_factorization = 0;
   std::vector<StageTime> seconds;
@@ -53,7 +54,9 @@ struct PipelineReport {
 struct ChartSummary {
   int faces = 0;
   bool flattened = false;             // solved by SLIM (false: original UVs kept)
-  double energy_initial = 0, energy_final = 0;  // per unit reference area; 0 when kept
+  // Per unit reference area, of the flattening (before a chart under a texel
+  // across is enlarged, see pipeline.cpp); 0 when kept.
+  double energy_initial = 0, energy_final = 0;
 };
 
 struct PipelineResult {

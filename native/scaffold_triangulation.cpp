@@ -37,10 +37,10 @@ bool in_triangle(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen
 class ReflexGrid {
  public:
   ReflexGrid(const Points& points, const std::vector<int>& polygon, const std::vector<int>& reflex) {
-    lo_ = hi_ = points[polygon[0]];
-    for (int p : polygon) lo_ = lo_.cwiseMin(points[p]), hi_ = hi_.cwiseMax(points[p]);
+    Eigen::Vector2d hi = lo_ = points[polygon[0]];
+    for (int p : polygon) lo_ = lo_.cwiseMin(points[p]), hi = hi.cwiseMax(points[p]);
     n_ = std::max(1, static_cast<int>(std::sqrt(double(reflex.size()))));
-    cell_ = ((hi_ - lo_) / n_).cwiseMax(1e-12);
+    cell_ = ((hi - lo_) / n_).cwiseMax(1e-12);
     cells_.resize(static_cast<size_t>(n_) * n_);
     for (int i : reflex) cells_[cell(points[polygon[i]])].push_back(i);
   }
@@ -58,7 +58,7 @@ class ReflexGrid {
  private:
   int axis(double v, int d) const { return std::clamp(static_cast<int>((v - lo_[d]) / cell_[d]), 0, n_ - 1); }
   size_t cell(const Eigen::Vector2d& p) const { return static_cast<size_t>(axis(p.y(), 1)) * n_ + axis(p.x(), 0); }
-  Eigen::Vector2d lo_, hi_, cell_;
+  Eigen::Vector2d lo_, cell_;
   int n_;
   std::vector<std::vector<int>> cells_;
 };
@@ -128,8 +128,14 @@ std::vector<int> twin_half_edges(const std::vector<Eigen::Vector3i>& triangles) 
   }
   std::sort(keyed.begin(), keyed.end());
   std::vector<int> twin(keyed.size(), -1);
-  for (size_t i = 0; i + 1 < keyed.size(); ++i)
-    if (keyed[i].first == keyed[i + 1].first) twin[keyed[i].second] = keyed[i + 1].second, twin[keyed[i + 1].second] = keyed[i].second;
+  // Only an edge of exactly two triangles has a twin; a repeated point could
+  // make more share a key, and those edges are left alone.
+  for (size_t i = 0; i < keyed.size();) {
+    size_t j = i + 1;
+    while (j < keyed.size() && keyed[j].first == keyed[i].first) ++j;
+    if (j - i == 2) twin[keyed[i].second] = keyed[i + 1].second, twin[keyed[i + 1].second] = keyed[i].second;
+    i = j;
+  }
   return twin;
 }
 

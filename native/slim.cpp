@@ -3,7 +3,8 @@
 //   E(u) = sum_f A_ref(f) psi(J_f(u)),  psi(J) = s1^2 + s2^2 + s1^-2 + s2^-2.
 // Each iteration solves one sparse SPD system whose pattern never changes, so
 // the symbolic Cholesky analysis is done once per chart and every iteration
-// costs little more than one numeric factorization.
+// costs little more than one numeric factorization. (SCAF, the fallback for
+// charts whose boundary crosses itself, changes the pattern with its scaffold.)
 #include "slim.hpp"
 
 #include <Eigen/LU>
@@ -403,10 +404,12 @@ std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
   std::optional<ProxySystem> system;
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     control.throw_if_cancelled();
-    const bool remesh = iteration % kRemeshEvery == 0;
+    Scaffold scaffold;
+    // A rebuild that finds no ear (round-off, where the boundary nearly
+    // touches itself) keeps the old scaffold: the line search kept it valid.
+    const bool remesh = iteration % kRemeshEvery == 0 && triangulate_scaffold(uv, loop, kScaffoldMargin, scaffold);
+    if (iteration == 0 && !remesh) return "SCAF: no scaffold around the starting boundary";
     if (remesh) {
-      Scaffold scaffold;
-      if (!triangulate_scaffold(uv, loop, kScaffoldMargin, scaffold)) return "SCAF: the boundary crosses itself";
       points << uv, scaffold.box_corners;
       all.resize(triangles.rows() + scaffold.triangles.rows(), 3);
       all << triangles, scaffold.triangles;
@@ -423,8 +426,9 @@ std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
     Eigen::VectorXd x(2 * (n + 4));
     for (int v = 0; v < n + 4; ++v) x.segment<2>(2 * order[v]) = points.row(v).transpose();
     double energy = total_energy(faces, x);
-    const SlimStep step = slim_step(faces, options, *system, x, energy);
-    if (!step.failure.empty() || !step.moved) return step.failure;
+    // A system that breaks down (scaffold slivers) ends the solve; uv, the
+    // last accepted iterate, is valid all the same.
+    if (!slim_step(faces, options, *system, x, energy).moved) return "";
     for (int v = 0; v < n + 4; ++v) points.row(v) = x.segment<2>(2 * order[v]).transpose();
     uv = points.topRows(n);
     ++solution.iterations;

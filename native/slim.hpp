@@ -10,7 +10,7 @@
 namespace atlas {
 
 // One chart, in local vertex numbering. The faces form a consistently
-// oriented topological disk (the aggregation guarantees it).
+// oriented topological disk (cut_to_disk makes sure of it).
 struct ChartProblem {
   RowMatrixX3i triangles;        // F x 3, local vertex indices 0..n-1
   RowMatrixX3d positions;        // n x 3, 3D positions (used to repair references)
@@ -21,14 +21,16 @@ struct ChartProblem {
 struct SlimOptions {
   int max_iterations = 60;
   // Stop when (E_k - E_k+1) / E_k falls below. 1e-2 leaves the median chart
-  // within 2% of the isometric energy; tighter only folds more charts over
-  // themselves (more splits) and costs time (measured on the three scans).
+  // within 2-8% of the isometric energy; tighter costs time and, before SCAF
+  // existed, folded more charts over themselves (measured on the three scans).
+  // SLIM and SCAF (see below) each get max_iterations.
   double relative_tolerance = 1e-2;
   double proximal_weight = 1e-4;     // keeps the proxy system definite (translation)
   // A step after which the boundary crosses itself is undone, and the solve
   // goes on inside a scaffold (SCAF, Jiang et al. 2017) that cannot cross.
-  // Slower per iteration (the scaffold, so the pattern, changes every step),
-  // but it spares splitting the chart. false: stop at a crossing like plain SLIM.
+  // Slower per iteration (the scaffold, so the pattern, is rebuilt every 8
+  // steps), but it spares splitting the chart. false: plain SLIM, which never
+  // looks at the boundary and may leave it crossing itself.
   bool scaffold_on_crossing = true;
 };
 
