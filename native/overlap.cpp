@@ -342,20 +342,29 @@ int smaller_chart(const ChartGraph& graph, int face_a, int face_b) {
   return graph.charts[a].area_uv <= graph.charts[b].area_uv ? a : b;
 }
 
-// One flattening attempt of the given faces as a chart of their own: nothing
-// unless they make a disk and solve flip-free, without crossing themselves
-// and without losing texel density (see density_culprit).
-std::optional<FlatChart> try_flatten(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                                     std::vector<int> faces, const SlimOptions& options, const RunControl& control,
-                                     FlattenStats& stats) {
+// One flattening attempt of the faces as a chart of their own: cut open to a
+// disk, solved, and refused if the solve failed, the boundary crosses itself
+// or texel density is lost (see density_culprit).
+struct Attempt {
+  std::optional<FlatChart> chart;             // set unless refused
+  int FlattenStats::*refusal = nullptr;       // the counter of the reason, when refused
+  int culprit = -1;                           // the original chart to seed a split at, or -1
+};
+
+Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                      std::vector<int> faces, const SlimOptions& options, const RunControl& control,
+                      FlattenStats& stats) {
   LocalChart local = localize(mesh, topology, std::move(faces));
-  if (!cut_to_disk(local.triangles, local.vertices)) return std::nullopt;
+  if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
   const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
   stats.scaffolded += solution.scaffolded;
-  if (!solution.failure.empty() || solution.flipped > 0 || boundary_self_intersects(local.triangles, solution.uv) ||
-      density_culprit(mesh, graph, local, solution.uv) >= 0)
-    return std::nullopt;
-  return from_solution(local, solution);
+  if (!solution.failure.empty() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
+  if (const auto crossing = boundary_crossing(local.triangles, solution.uv))
+    return {std::nullopt, &FlattenStats::overlapped,
+            smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second])};
+  if (const int culprit = density_culprit(mesh, graph, local, solution.uv); culprit >= 0)
+    return {std::nullopt, &FlattenStats::density_lost, culprit};
+  return {from_solution(local, solution)};
 }
 
 // True when the faces' original UVs cover some part of them twice without a
@@ -383,8 +392,8 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
     pending.pop_back();
     if (!folds_over(mesh, faces) && !original_boundary_crosses(mesh, topology, faces)) {
       done.push_back(keep_original(mesh, faces));
-    } else if (auto flat = try_flatten(mesh, topology, graph, faces, options, control, stats)) {
-      done.push_back(std::move(*flat));
+    } else if (Attempt attempt = flatten_faces(mesh, topology, graph, faces, options, control, stats); attempt.chart) {
+      done.push_back(std::move(*attempt.chart));
     } else {
       ++stats.overlap_halved;
       for (auto& half : halves(topology, faces)) pending.push_back(std::move(half));
@@ -410,31 +419,13 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
     }
     std::vector<int> faces;
     for (int c : group) faces.insert(faces.end(), chart_faces[c].begin(), chart_faces[c].end());
-    LocalChart local = localize(mesh, topology, std::move(faces));
-    FlattenStats why;
-    int culprit = -1;
-    if (!cut_to_disk(local.triangles, local.vertices)) {
-      ++why.not_disk;
-    } else {
-      const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
-      stats.scaffolded += solution.scaffolded;
-      if (!solution.failure.empty() || solution.flipped > 0) {
-        ++why.solver_failed;
-      } else if (const auto crossing = boundary_crossing(local.triangles, solution.uv)) {
-        ++why.overlapped;
-        culprit = smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second]);
-      } else if ((culprit = density_culprit(mesh, graph, local, solution.uv)) >= 0) {
-        ++why.density_lost;
-      } else {
-        done.push_back(from_solution(local, solution));
-        continue;
-      }
+    Attempt attempt = flatten_faces(mesh, topology, graph, std::move(faces), options, control, stats);
+    if (attempt.chart) {
+      done.push_back(std::move(*attempt.chart));
+      continue;
     }
-    stats.not_disk += why.not_disk;
-    stats.solver_failed += why.solver_failed;
-    stats.overlapped += why.overlapped;
-    stats.density_lost += why.density_lost;
-    for (auto& piece : split_members(mesh, graph, chart_faces, corner_angle, group, culprit))
+    ++(stats.*attempt.refusal);
+    for (auto& piece : split_members(mesh, graph, chart_faces, corner_angle, group, attempt.culprit))
       pending.push_back(std::move(piece));
   }
   return done;

@@ -98,6 +98,19 @@ std::vector<int> fill_reducing_order(const RowMatrixX3i& triangles, int vertex_c
   return std::vector<int>(order.indices().data(), order.indices().data() + vertex_count);
 }
 
+// Positions in solver numbering, (x, y) of vertex v at 2 order[v], and back.
+Eigen::VectorXd to_solver(const RowMatrixX2d& points, const std::vector<int>& order) {
+  Eigen::VectorXd x(2 * points.rows());
+  for (Eigen::Index v = 0; v < points.rows(); ++v) x.segment<2>(2 * order[v]) = points.row(v).transpose();
+  return x;
+}
+
+RowMatrixX2d from_solver(const Eigen::VectorXd& x, const std::vector<int>& order) {
+  RowMatrixX2d points(x.size() / 2, 2);
+  for (Eigen::Index v = 0; v < points.rows(); ++v) points.row(v) = x.segment<2>(2 * order[v]).transpose();
+  return points;
+}
+
 // One face of the proxy, weight |W (J - R)|^2 with J measured against the
 // reference triangle (a, b, c); its matrix slots are left as they were.
 void set_proxy_face(const Eigen::Vector3i& corners, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
@@ -391,11 +404,7 @@ std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
                                    const std::vector<int>& loop, const SlimOptions& options,
                                    const RunControl& control, RowMatrixX2d& uv, ChartSolution& solution) {
   const int n = static_cast<int>(uv.rows());
-  auto chart_energy = [&] {
-    Eigen::VectorXd x(2 * n);
-    for (int v = 0; v < n; ++v) x.segment<2>(2 * chart_order[v]) = uv.row(v).transpose();
-    return total_energy(chart_faces, x);
-  };
+  auto chart_energy = [&] { return total_energy(chart_faces, to_solver(uv, chart_order)); };
   double energy_before = chart_energy();
   RowMatrixX2d points(n + 4, 2);
   RowMatrixX3i all;
@@ -423,13 +432,12 @@ std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
       system.emplace();
       prepare_proxy_system(faces, 2 * (n + 4), *system);  // the pattern needs every face's corners
     }
-    Eigen::VectorXd x(2 * (n + 4));
-    for (int v = 0; v < n + 4; ++v) x.segment<2>(2 * order[v]) = points.row(v).transpose();
+    Eigen::VectorXd x = to_solver(points, order);
     double energy = total_energy(faces, x);
     // A system that breaks down (scaffold slivers) ends the solve; uv, the
     // last accepted iterate, is valid all the same.
     if (!slim_step(faces, options, *system, x, energy).moved) return "";
-    for (int v = 0; v < n + 4; ++v) points.row(v) = x.segment<2>(2 * order[v]).transpose();
+    points = from_solver(x, order);
     uv = points.topRows(n);
     ++solution.iterations;
     const double energy_after = chart_energy();
@@ -467,8 +475,7 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
   std::vector<ProxyFace> faces = proxy_faces(problem.triangles, reference.corners, order);
   double reference_area = 0;
   for (const ProxyFace& face : faces) reference_area += face.area;
-  Eigen::VectorXd x(2 * vertex_count);
-  for (int v = 0; v < vertex_count; ++v) x.segment<2>(2 * order[v]) = initial.row(v).transpose();
+  Eigen::VectorXd x = to_solver(initial, order);
 
   const double initial_energy = total_energy(faces, x);
   if (initial_energy < kInfinity) {
@@ -481,10 +488,10 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
     solution.failure = minimize_energy(faces, loop_dofs, options, control, x, solution, crossed);
     if (crossed) {
       solution.scaffolded = true;
-      for (int v = 0; v < vertex_count; ++v) initial.row(v) = x.segment<2>(2 * order[v]).transpose();
+      RowMatrixX2d uv = from_solver(x, order);
       solution.failure = minimize_with_scaffold(problem.triangles, reference.corners, faces, order, loop, options,
-                                                control, initial, solution);
-      for (int v = 0; v < vertex_count; ++v) x.segment<2>(2 * order[v]) = initial.row(v).transpose();
+                                                control, uv, solution);
+      x = to_solver(uv, order);
     }
     solution.energy_final = total_energy(faces, x) / reference_area;
   } else {
@@ -493,7 +500,7 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
     solution.failure = msg.str();
   }
   solution.flipped = flipped_faces(faces, x);
-  for (int v = 0; v < vertex_count; ++v) solution.uv.row(v) = x.segment<2>(2 * order[v]).transpose();
+  solution.uv = from_solver(x, order);
   return solution;
 }
 
