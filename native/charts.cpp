@@ -3,7 +3,6 @@
 #include <cmath>
 #include <unordered_map>
 
-#include "geometry.hpp"
 #include "union_find.hpp"
 
 namespace atlas {
@@ -50,7 +49,7 @@ void accumulate_face_stats(const Mesh& mesh, ChartGraph& g) {
     s.page = mesh.face_page[f];
     ++s.faces;
     s.area_3d += mesh.area_3d(f);
-    const double a = signed_area(mesh.uv_texels(f, 0), mesh.uv_texels(f, 1), mesh.uv_texels(f, 2));
+    const double a = mesh.signed_area_uv(f);
     s.area_uv += std::abs(a);
     s.signed_area_uv += a;
   }

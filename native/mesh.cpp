@@ -14,6 +14,8 @@ Eigen::Vector2d Mesh::uv_texels(int f, int k) const {
   return {corner_uv(3 * f + k, 0) * page.width, corner_uv(3 * f + k, 1) * page.height};
 }
 
+double Mesh::signed_area_uv(int f) const { return signed_area(uv_texels(f, 0), uv_texels(f, 1), uv_texels(f, 2)); }
+
 double Mesh::area_3d(int f) const {
   return triangle_area(positions.row(triangles(f, 0)), positions.row(triangles(f, 1)), positions.row(triangles(f, 2)));
 }

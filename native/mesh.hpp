@@ -37,6 +37,8 @@ struct Mesh {
   Eigen::Vector2d uv_texels(int f, int k) const;
   // Surface area of face f.
   double area_3d(int f) const;
+  // Signed area of face f in texels of its page, positive counter-clockwise.
+  double signed_area_uv(int f) const;
   // Which corner (0, 1 or 2) of face f sits at vertex v; -1 if none.
   int corner_of(int f, int v) const {
     for (int k = 0; k < 3; ++k)

@@ -274,7 +274,7 @@ int density_culprit(const Mesh& mesh, const ChartGraph& graph, const LocalChart&
     const int f = local.faces[i];
     const double area_3d = mesh.area_3d(f);
     area_total += area_3d;
-    const double before = std::abs(signed_area(mesh.uv_texels(f, 0), mesh.uv_texels(f, 1), mesh.uv_texels(f, 2)));
+    const double before = std::abs(mesh.signed_area_uv(f));
     const double after = std::abs(signed_area(uv.row(local.triangles(i, 0)), uv.row(local.triangles(i, 1)),
                                               uv.row(local.triangles(i, 2))));
     if (before > 0 && after < 0.5 * before) lost[graph.face_chart[f]] += area_3d, lost_total += area_3d;
@@ -291,7 +291,7 @@ int density_culprit(const Mesh& mesh, const ChartGraph& graph, const LocalChart&
 bool folds_over(const Mesh& mesh, const std::vector<int>& faces) {
   bool positive = false, negative = false;
   for (int f : faces) {
-    const double a = signed_area(mesh.uv_texels(f, 0), mesh.uv_texels(f, 1), mesh.uv_texels(f, 2));
+    const double a = mesh.signed_area_uv(f);
     positive = positive || a > 0;
     negative = negative || a < 0;
   }
