@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cstdint>
-#include <cmath>
 
+#include "bucket_grid.hpp"
 #include "geometry.hpp"
 
 namespace atlas {
@@ -31,38 +31,6 @@ bool in_triangle(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen
   return signed_area(a, b, p) >= 0 && signed_area(b, c, p) >= 0 && signed_area(c, a, p) >= 0;
 }
 
-// Uniform grid over the polygon's reflex corners, the only ones that can lie
-// inside an ear. Corners never turn reflex while ears are clipped, so the grid
-// is built once and stale entries (clipped or now convex) are skipped.
-class ReflexGrid {
- public:
-  ReflexGrid(const Points& points, const std::vector<int>& polygon, const std::vector<int>& reflex) {
-    Eigen::Vector2d hi = lo_ = points[polygon[0]];
-    for (int p : polygon) lo_ = lo_.cwiseMin(points[p]), hi = hi.cwiseMax(points[p]);
-    n_ = std::max(1, static_cast<int>(std::sqrt(double(reflex.size()))));
-    cell_ = ((hi - lo_) / n_).cwiseMax(1e-12);
-    cells_.resize(static_cast<size_t>(n_) * n_);
-    for (int i : reflex) cells_[cell(points[polygon[i]])].push_back(i);
-  }
-  // Calls visit(i) for the reflex corners in the cells the box [a, b] overlaps.
-  template <class Visit>
-  bool any_in(const Eigen::Vector2d& a, const Eigen::Vector2d& b, Visit visit) const {
-    const int x0 = axis(a.x(), 0), x1 = axis(b.x(), 0), y0 = axis(a.y(), 1), y1 = axis(b.y(), 1);
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x)
-        for (int i : cells_[static_cast<size_t>(y) * n_ + x])
-          if (visit(i)) return true;
-    return false;
-  }
-
- private:
-  int axis(double v, int d) const { return std::clamp(static_cast<int>((v - lo_[d]) / cell_[d]), 0, n_ - 1); }
-  size_t cell(const Eigen::Vector2d& p) const { return static_cast<size_t>(axis(p.y(), 1)) * n_ + axis(p.x(), 0); }
-  Eigen::Vector2d lo_, cell_;
-  int n_;
-  std::vector<std::vector<int>> cells_;
-};
-
 // Ear clipping of a counter-clockwise polygon that may visit a point twice
 // (the bridge). An ear is a strictly convex corner whose triangle holds no
 // other remaining reflex corner.
@@ -73,16 +41,22 @@ bool clip_ears(const Points& points, const std::vector<int>& polygon, std::vecto
   for (int i = 0; i < m; ++i) prev[i] = (i + m - 1) % m, next[i] = (i + 1) % m;
   auto at = [&](int i) -> const Eigen::Vector2d& { return points[polygon[i]]; };
   auto convex = [&](int i) { return signed_area(at(prev[i]), at(i), at(next[i])) > 0; };
+  // Only reflex corners can lie inside an ear, and corners never turn reflex
+  // while ears are clipped: the grid holds the first ones, and entries that
+  // were clipped or turned convex are skipped.
+  Eigen::Vector2d bottom_left = at(0), top_right = at(0);
+  for (int i = 0; i < m; ++i) bottom_left = bottom_left.cwiseMin(at(i)), top_right = top_right.cwiseMax(at(i));
   std::vector<int> reflex;
   for (int i = 0; i < m; ++i)
     if (!convex(i)) reflex.push_back(i);
-  const ReflexGrid grid(points, polygon, reflex);
+  BucketGrid grid(bottom_left, top_right, reflex.size());
+  for (int i : reflex) grid.insert(i, at(i), at(i));
   auto is_ear = [&](int i) {
     if (!convex(i)) return false;
     const int a = polygon[prev[i]], b = polygon[i], c = polygon[next[i]];
     const Eigen::Vector2d lo = points[a].cwiseMin(points[b]).cwiseMin(points[c]);
     const Eigen::Vector2d hi = points[a].cwiseMax(points[b]).cwiseMax(points[c]);
-    return !grid.any_in(lo, hi, [&](int j) {
+    return !grid.any_near(lo, hi, [&](int j) {
       const int p = polygon[j];
       if (clipped[j] || p == a || p == b || p == c || convex(j)) return false;
       return in_triangle(points[p], points[a], points[b], points[c]);

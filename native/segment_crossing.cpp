@@ -1,8 +1,8 @@
 #include "segment_crossing.hpp"
 
 #include <algorithm>
-#include <cmath>
 
+#include "bucket_grid.hpp"
 #include "geometry.hpp"
 
 namespace atlas {
@@ -30,21 +30,13 @@ std::optional<std::pair<int, int>> first_crossing(const std::vector<Eigen::Vecto
   Eigen::Vector2d lo = points[segments[0].from], hi = lo;
   for (const Segment& s : segments)
     for (int p : {s.from, s.to}) lo = lo.cwiseMin(points[p]), hi = hi.cwiseMax(points[p]);
-  const int n = std::max(1, static_cast<int>(std::sqrt(double(segments.size()))));
-  const Eigen::Vector2d cell = ((hi - lo) / n).cwiseMax(1e-12);
-  std::vector<std::vector<int>> grid(static_cast<size_t>(n) * n);
-  auto cell_of = [&](double v, double origin, double size) {
-    return std::clamp(static_cast<int>((v - origin) / size), 0, n - 1);
-  };
+  BucketGrid grid(lo, hi, segments.size());
   for (size_t i = 0; i < segments.size(); ++i) {
     const Eigen::Vector2d& a = points[segments[i].from];
     const Eigen::Vector2d& b = points[segments[i].to];
-    const int x0 = cell_of(std::min(a.x(), b.x()), lo.x(), cell.x()), x1 = cell_of(std::max(a.x(), b.x()), lo.x(), cell.x());
-    const int y0 = cell_of(std::min(a.y(), b.y()), lo.y(), cell.y()), y1 = cell_of(std::max(a.y(), b.y()), lo.y(), cell.y());
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) grid[static_cast<size_t>(y) * n + x].push_back(static_cast<int>(i));
+    grid.insert(static_cast<int>(i), a.cwiseMin(b), a.cwiseMax(b));
   }
-  for (const auto& bucket : grid)
+  for (const auto& bucket : grid.buckets())
     for (size_t i = 0; i < bucket.size(); ++i)
       for (size_t j = i + 1; j < bucket.size(); ++j) {
         const Segment& e = segments[bucket[i]];
