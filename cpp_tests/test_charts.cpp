@@ -28,7 +28,8 @@ ChartRun aggregate(Mesh mesh, AggregateOptions options = {}) {
 }
 
 void expect_all_disks(const ChartRun& r) {
-  DiskClusters check(r.mesh, r.topology, r.aggregation.face_chart, r.aggregation.chart_count());
+  DiskClusters check(r.mesh, r.topology, r.aggregation.face_chart, r.aggregation.chart_count(),
+                     self_seams(r.topology, r.mesh.triangles, r.mesh.corner_uv, r.mesh.face_page, r.graph.face_chart));
   for (int c = 0; c < r.aggregation.chart_count(); ++c) EXPECT_TRUE(check.is_disk(c)) << "chart " << c;
 }
 
@@ -136,4 +137,36 @@ TEST(Aggregate, CancelStopsTheRun) {
   RunControl control;
   control.cancel();
   EXPECT_THROW(aggregate_charts(mesh, topology, graph, {}, control), Cancelled);
+}
+
+TEST(Aggregate, ChartsUnrolledFromATubeAreDisksAndMerge) {
+  // Two strips, each closing round the tube in 3D but cut at its own UV seam.
+  AggregateOptions topology_only;
+  topology_only.min_normal_coherence = 0;  // a whole tube has no mean normal
+  const ChartRun tube = aggregate(atlas::testing::unrolled_tube(6, 12, 3), topology_only);
+  ASSERT_EQ(tube.graph.chart_count(), 2);
+  EXPECT_EQ(tube.aggregation.chart_count(), 1);
+  EXPECT_EQ(tube.aggregation.stops.not_disk, 0);
+  expect_all_disks(tube);
+  // Glued at its seam, each strip would be an annulus that could never merge.
+  DiskClusters glued(tube.mesh, tube.topology, tube.graph.face_chart, 2,
+                     std::vector<char>(tube.topology.edge_count(), 0));
+  EXPECT_FALSE(glued.is_disk(0));
+  EXPECT_FALSE(glued.check_merge(0, 1));
+}
+
+TEST(Aggregate, StopsNameWhatRefusedTheLastMerges) {
+  // An annulus of 8 charts ends as at least two: the last merge would close
+  // the ring, and nothing but topology refuses it.
+  AggregateOptions topology_only;
+  topology_only.min_normal_coherence = 0;
+  const ChartRun ring = aggregate(atlas::testing::annulus(2, 16, 2), topology_only);
+  EXPECT_GE(ring.aggregation.chart_count(), 2);
+  const AggregationStops& s = ring.aggregation.stops;
+  EXPECT_GT(s.not_disk, 0);
+  EXPECT_EQ(s.non_manifold + s.normal_coherence + s.max_chart_faces + s.min_chart_fraction + s.feasible, 0);
+  // A target stops it early, with feasible merges left.
+  AggregateOptions target = topology_only;
+  target.target_charts = 6;
+  EXPECT_GT(aggregate(atlas::testing::annulus(2, 16, 2), target).aggregation.stops.feasible, 0);
 }

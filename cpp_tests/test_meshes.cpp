@@ -55,6 +55,30 @@ Mesh grid_disk(int n, double uv_scale, int page_size) {
                    {PageSize{page_size, page_size}});
 }
 
+Mesh unrolled_tube(int rings, int segments, int rings_per_chart) {
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = 0; i <= rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const double t = 2 * kPi * j / segments;
+      pts.emplace_back(std::cos(t), std::sin(t), double(i) / segments * 2 * kPi);
+    }
+  const RowMatrixX3i tris = periodic_grid(rings, segments, false, true, segments);
+  RowMatrixX2d uv(3 * tris.rows(), 2);
+  Eigen::VectorXi page = Eigen::VectorXi::Zero(tris.rows());
+  for (Eigen::Index f = 0; f < tris.rows(); ++f) {
+    const int ring = static_cast<int>(f / 2 / segments), column = static_cast<int>(f / 2 % segments);
+    const int chart = ring / rings_per_chart;
+    for (int k = 0; k < 3; ++k) {
+      const int v = tris(f, k), i = v / segments, j = v % segments;
+      // The last column's far side sits at u = 1, not back at 0: the seam.
+      const double u = (j == 0 && column == segments - 1 ? segments : j) / double(segments + 1);
+      // Charts stacked apart in v, so that they never touch in UV.
+      uv.row(3 * f + k) << 0.05 + 0.9 * u, 0.05 + 0.9 * (i + chart) / double(rings + rings / rings_per_chart);
+    }
+  }
+  return make_mesh(to_matrix(pts), tris, uv, page, {PageSize{1024, 1024}});
+}
+
 Mesh with_chart_uvs(const RowMatrixX3d& positions, const RowMatrixX3i& triangles,
                     const std::vector<int>& face_chart, int page_size) {
   std::map<int, Eigen::Vector3d> normal;

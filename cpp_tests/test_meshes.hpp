@@ -22,6 +22,10 @@ Mesh annulus(int rings, int segments, int segments_per_chart);
 Mesh uv_sphere(int rings, int segments, int rings_per_chart);
 // Closed torus; charts are patches: major_per_chart segments by a quarter of the tube.
 Mesh torus(int major, int minor, int major_per_chart);
+// An open tube of rings x segments quads, unrolled as strips: ring i goes to
+// chart i / rings_per_chart, and each chart's UVs are (angle, height), so every
+// chart meets itself at the seam where the angle wraps.
+Mesh unrolled_tube(int rings, int segments, int rings_per_chart);
 // Three quads sharing one edge (a non-manifold fin), each its own chart.
 Mesh nonmanifold_fin();
 

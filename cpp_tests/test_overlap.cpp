@@ -85,7 +85,7 @@ TEST(Overlap, HelicalStripEndsWithoutOverlap) {
   for (int f = 0; f < mesh.face_count(); ++f) chart_faces[graph.face_chart[f]].push_back(f);
   FlattenStats stats;
   const auto pieces =
-      flatten_without_overlap(mesh, topology, graph, chart_faces, {}, merged.members[0], {}, RunControl(), stats);
+      flatten_without_overlap(mesh, topology, graph, chart_faces, merged.members[0], {}, RunControl(), stats);
   size_t faces = 0;
   for (const FlatChart& piece : pieces) {
     faces += piece.faces.size();
@@ -104,7 +104,7 @@ TEST(Overlap, ClosedSurfaceIsSplitIntoDisks) {
   std::vector<int> all(graph.chart_count());
   for (int c = 0; c < graph.chart_count(); ++c) all[c] = c;
   FlattenStats stats;
-  const auto pieces = flatten_without_overlap(torus, topology, graph, chart_faces, {}, all, {}, RunControl(), stats);
+  const auto pieces = flatten_without_overlap(torus, topology, graph, chart_faces, all, {}, RunControl(), stats);
   EXPECT_GE(stats.not_disk, 1);
   EXPECT_GE(pieces.size(), 2u);
   size_t faces = 0;
@@ -155,7 +155,7 @@ std::vector<FlatChart> flatten_single_chart(const Mesh& mesh, FlattenStats& stat
   const ChartGraph graph = build_chart_graph(mesh, topology, {});
   EXPECT_EQ(graph.chart_count(), 1);
   std::vector<std::vector<int>> chart_faces(1, identity(mesh.face_count()));
-  auto pieces = flatten_without_overlap(mesh, topology, graph, chart_faces, {}, {0}, {}, RunControl(), stats);
+  auto pieces = flatten_without_overlap(mesh, topology, graph, chart_faces, {0}, {}, RunControl(), stats);
   size_t faces = 0;
   for (const FlatChart& piece : pieces) {
     faces += piece.faces.size();

@@ -60,10 +60,11 @@ double weight_surface(const Cluster& c1, const Link& l) {
 class Aggregator {
  public:
   Aggregator(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-             const AggregateOptions& options, std::vector<double> corner_angle)
+             const AggregateOptions& options)
       : options_(options),
         graph_(graph),
-        disks_(mesh, topology, graph.face_chart, graph.chart_count(), std::move(corner_angle)),
+        disks_(mesh, topology, graph.face_chart, graph.chart_count(),
+               self_seams(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, graph.face_chart)),
         clusters_(graph.chart_count()) {
     for (int f = 0; f < mesh.face_count(); ++f) {
       if (graph.face_chart[f] < 0) continue;
@@ -95,15 +96,16 @@ class Aggregator {
       queue_.pop();
       if (clusters_[top.a].version != top.version_a || clusters_[top.b].version != top.version_b) continue;
       // Infeasible: dropped until one side changes, which pushes it again.
-      if (const auto euler = disks_.merged_euler(top.a, top.b)) {
-        collapse(top.a, top.b, *euler);
+      if (const MergeCheck check = disks_.check_merge(top.a, top.b)) {
+        collapse(top.a, top.b, check.euler);
         if ((start - alive_) % 256 == 0) control.progress("aggregate", double(start - alive_) / start);
       }
     }
   }
 
-  Aggregation result() const {
+  Aggregation result() {
     Aggregation out;
+    out.stops = stops();
     std::vector<int> renumber(clusters_.size(), -1);
     out.face_chart.assign(graph_.face_chart.size(), -1);
     for (size_t f = 0; f < graph_.face_chart.size(); ++f) {
@@ -123,27 +125,61 @@ class Aggregator {
   }
 
  private:
+  // The options' limits on merging a and b, first one that refuses it.
+  enum class Gate { Open, MinChartFraction, MaxChartFaces, NormalCoherence };
+  Gate gate(int a, int b) const {
+    const Cluster& ca = clusters_[a];
+    const Cluster& cb = clusters_[b];
+    const bool uv = options_.weighting == Weighting::UV;
+    const double smaller = uv ? std::min(ca.area_uv, cb.area_uv) : std::min(ca.area_3d, cb.area_3d);
+    if (smaller / (uv ? total_area_uv_ : total_area_3d_) >= options_.min_chart_fraction) return Gate::MinChartFraction;
+    if (options_.max_chart_faces > 0 &&
+        disks_.faces(a).size() + disks_.faces(b).size() > static_cast<size_t>(options_.max_chart_faces))
+      return Gate::MaxChartFaces;
+    const double area = ca.area_3d + cb.area_3d;
+    if (area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area)
+      return Gate::NormalCoherence;
+    return Gate::Open;
+  }
+
+  AggregationStops stops() {
+    AggregationStops s;
+    for (int a = 0; a < static_cast<int>(clusters_.size()); ++a)
+      for (const auto& [b, link] : clusters_[a].links) {
+        if (b < a) continue;
+        if (!link.mergeable) {
+          ++s.non_manifold;
+          continue;
+        }
+        switch (gate(a, b)) {
+          case Gate::MinChartFraction: ++s.min_chart_fraction; continue;
+          case Gate::MaxChartFaces: ++s.max_chart_faces; continue;
+          case Gate::NormalCoherence: ++s.normal_coherence; continue;
+          case Gate::Open: break;
+        }
+        switch (disks_.check_merge(a, b).refusal) {
+          case MergeRefusal::None: ++s.feasible; break;
+          case MergeRefusal::NonManifold: ++s.non_manifold; break;
+          case MergeRefusal::NotDisk: ++s.not_disk; break;
+        }
+      }
+    return s;
+  }
+
   void push_links(int c) {
     for (const auto& [n, link] : clusters_[c].links)
       if (c < n && link.mergeable) push(c, n);
   }
 
   void push(int a, int b) {
+    if (gate(a, b) != Gate::Open) return;
     const Cluster& ca = clusters_[a];
     const Cluster& cb = clusters_[b];
     const bool uv = options_.weighting == Weighting::UV;
     // C1 is the smaller chart in the measure the weighting uses.
     const bool a_small = uv ? ca.area_uv <= cb.area_uv : ca.area_3d <= cb.area_3d;
-    const int s = a_small ? a : b, l = a_small ? b : a;
-    const Cluster& small = clusters_[s];
-    const Link& link = small.links.at(l);
-    const double fraction = uv ? small.area_uv / total_area_uv_ : small.area_3d / total_area_3d_;
-    if (fraction >= options_.min_chart_fraction) return;
-    if (options_.max_chart_faces > 0 &&
-        disks_.faces(a).size() + disks_.faces(b).size() > static_cast<size_t>(options_.max_chart_faces))
-      return;
-    const double area = ca.area_3d + cb.area_3d;
-    if (area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area) return;
+    const Cluster& small = a_small ? ca : cb;
+    const Link& link = small.links.at(a_small ? b : a);
     const bool island = link.length_3d >= small.perimeter_3d * (1 - 1e-6);
     const double w = uv ? weight_uv(small, link) : weight_surface(small, link);
     queue_.push({island, w, uv ? small.area_uv : small.area_3d, a, b, ca.version, cb.version});
@@ -191,9 +227,8 @@ class Aggregator {
 }  // namespace
 
 Aggregation aggregate_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                             const AggregateOptions& options, const RunControl& control,
-                             std::vector<double> corner_angle) {
-  Aggregator aggregator(mesh, topology, graph, options, std::move(corner_angle));
+                             const AggregateOptions& options, const RunControl& control) {
+  Aggregator aggregator(mesh, topology, graph, options);
   aggregator.run(control);
   return aggregator.result();
 }

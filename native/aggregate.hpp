@@ -32,15 +32,26 @@ struct AggregateOptions {
   int max_chart_faces = 20000;
 };
 
+// Why the adjacent charts left at the end were not merged: one count per pair,
+// by the first rule that refuses it. It tells a chart count that topology
+// forces (not_disk, non_manifold) from one that the options chose.
+struct AggregationStops {
+  int non_manifold = 0;        // a non-manifold or flipped shared edge, or a chart that started non-manifold
+  int not_disk = 0;            // the union would have a hole or a handle
+  int normal_coherence = 0;    // see AggregateOptions
+  int max_chart_faces = 0;
+  int min_chart_fraction = 0;
+  int feasible = 0;            // nothing refuses it: the target count was reached first
+};
+
 struct Aggregation {
   std::vector<int> face_chart;                 // F, new chart per face, -1 untextured
   std::vector<std::vector<int>> members;       // new chart -> original charts in it
+  AggregationStops stops;
   int chart_count() const { return static_cast<int>(members.size()); }
 };
 
-// corner_angle: see DiskClusters; empty skips the fold-over check.
 Aggregation aggregate_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                             const AggregateOptions& options, const RunControl& control,
-                             std::vector<double> corner_angle = {});
+                             const AggregateOptions& options, const RunControl& control);
 
 }  // namespace atlas

@@ -210,12 +210,24 @@ py::array_t<int> sizes_array(const std::vector<PageSize>& pages) {
   return out;
 }
 
+py::dict stops_dict(const AggregationStops& s) {
+  py::dict d;
+  d["non_manifold"] = s.non_manifold;
+  d["not_disk"] = s.not_disk;
+  d["normal_coherence"] = s.normal_coherence;
+  d["max_chart_faces"] = s.max_chart_faces;
+  d["min_chart_fraction"] = s.min_chart_fraction;
+  d["feasible"] = s.feasible;
+  return d;
+}
+
 py::dict report_dict(const PipelineReport& r) {
   py::dict seconds;
   for (const StageTime& t : r.seconds) seconds[py::str(t.stage)] = t.seconds;
   py::dict d;
   d["charts_before"] = r.charts_before;
   d["charts_aggregated"] = r.charts_aggregated;
+  d["aggregate_stops"] = stops_dict(r.aggregate_stops);
   d["charts_after"] = r.charts_after;
   d["charts_solved"] = r.charts_solved;
   d["splits_not_disk"] = r.splits_not_disk;

@@ -65,7 +65,8 @@ void accumulate_boundaries(const Mesh& mesh, const MeshTopology& topology, const
     for (int i = begin; i < end; ++i) {
       const int ci = topology.edge_corners[i], chart_i = g.face_chart[ci / 3];
       if (chart_i < 0) continue;
-      bool outside = (end - begin) != 2;
+      bool outside = (end - begin) != 2 ||
+                     chart_meets_itself_across(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, g.face_chart, e);
       for (int j = begin; j < end; ++j)
         if (j != i && g.face_chart[topology.edge_corners[j] / 3] != chart_i) outside = true;
       if (outside) {

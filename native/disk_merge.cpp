@@ -11,14 +11,14 @@ int prev_corner(int c) { return 3 * (c / 3) + (c % 3 + 2) % 3; }
 }  // namespace
 
 DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-                           int cluster_count, std::vector<double> corner_angle)
+                           int cluster_count, std::vector<char> kept_seams)
     : mesh_(mesh),
       topology_(topology),
       face_cluster_(std::move(face_cluster)),
       faces_(cluster_count),
       euler_(cluster_count, 0),
       manifold_(cluster_count, 0),
-      corner_angle_(std::move(corner_angle)),
+      seam_(std::move(kept_seams)),
       edge_stamp_(topology.edge_count(), 0),
       vertex_stamp_(mesh.vertex_count(), 0) {
   for (int f = 0; f < mesh.face_count(); ++f)
@@ -32,13 +32,15 @@ DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::
 // chi = V - E + F over the faces of cluster c, where a vertex whose faces in
 // c form k separate fans counts k times: touching at a single vertex costs no
 // seam, so such pinches are split rather than refused (see localize in overlap).
+// A seam the cluster keeps counts as two edges, one per side.
 int DiskClusters::euler_of(int c) {
   ++stamp_;
   int vertices = 0, edges = 0;
   for (int f : faces_[c])
     for (int k = 0; k < 3; ++k) {
       const int e = topology_.corner_edge[3 * f + k], v = mesh_.triangles(f, k);
-      if (edge_stamp_[e] != stamp_) edge_stamp_[e] = stamp_, ++edges;
+      if (seam_[e]) ++edges;
+      else if (edge_stamp_[e] != stamp_) edge_stamp_[e] = stamp_, ++edges;
       if (vertex_stamp_[v] != stamp_) vertex_stamp_[v] = stamp_, vertices += fan_count(v, c, c);
     }
   return vertices - edges + static_cast<int>(faces_[c].size());
@@ -51,6 +53,7 @@ bool DiskClusters::manifold_inside(int c) {
   for (int f : faces_[c])
     for (int k = 0; k < 3; ++k) {
       const int c0 = 3 * f + k, e = topology_.corner_edge[c0];
+      if (seam_[e]) continue;
       int inside = 0;
       for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
         const int ci = topology_.edge_corners[i];
@@ -84,7 +87,7 @@ int DiskClusters::fan_count(int v, int a, int b) const {
     const int c = topology_.vertex_corners[i];
     if (!in(c / 3, a, b)) continue;
     for (int e : {topology_.corner_edge[c], topology_.corner_edge[prev_corner(c)]}) {
-      if (topology_.edge_valence(e) != 2) continue;
+      if (!joins(e)) continue;
       for (int j = topology_.edge_offsets[e]; j < topology_.edge_offsets[e + 1]; ++j) {
         const int g = topology_.edge_corners[j] / 3;
         if (g == c / 3 || !in(g, a, b)) continue;
@@ -96,31 +99,8 @@ int DiskClusters::fan_count(int v, int a, int b) const {
   return fans;
 }
 
-// True when v stays on the boundary of a u b (some edge at v is not shared by
-// two faces of the union) while the union's reference angles around v add up
-// to nearly a full turn or more. A slack of 2% keeps the two boundary edges at
-// v from touching after flattening.
-bool DiskClusters::wraps_too_far(int v, int a, int b) const {
-  if (corner_angle_.empty()) return false;
-  constexpr double kFullTurn = 2 * 3.14159265358979323846;
-  double angle = 0;
-  bool open = false;
-  for (int i = topology_.vertex_offsets[v]; i < topology_.vertex_offsets[v + 1]; ++i) {
-    const int c = topology_.vertex_corners[i];
-    if (!in(c / 3, a, b)) continue;
-    angle += corner_angle_[c];
-    for (int e : {topology_.corner_edge[c], topology_.corner_edge[prev_corner(c)]}) {
-      int inside = 0;
-      for (int j = topology_.edge_offsets[e]; j < topology_.edge_offsets[e + 1]; ++j)
-        inside += in(topology_.edge_corners[j] / 3, a, b);
-      open = open || inside < 2;
-    }
-  }
-  return open && angle > 0.98 * kFullTurn;
-}
-
-std::optional<int> DiskClusters::merged_euler(int a, int b) {
-  if (a == b || !manifold_[a] || !manifold_[b]) return std::nullopt;
+MergeCheck DiskClusters::check_merge(int a, int b) {
+  if (a == b || !manifold_[a] || !manifold_[b]) return {MergeRefusal::NonManifold};
   if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
   ++stamp_;
   int shared_edges = 0, fans_joined = 0;
@@ -133,7 +113,9 @@ std::optional<int> DiskClusters::merged_euler(int a, int b) {
           const int ci = topology_.edge_corners[i];
           if (face_cluster_[ci / 3] != b) continue;
           // Never merge across a non-manifold edge or a winding flip.
-          if (topology_.edge_valence(e) != 2 || mesh_.triangles(ci / 3, ci % 3) == v) return std::nullopt;
+          if (topology_.edge_valence(e) != 2 || mesh_.triangles(ci / 3, ci % 3) == v)
+            return {MergeRefusal::NonManifold};
+          if (seam_[e]) continue;
           ++shared_edges;
         }
       }
@@ -142,19 +124,18 @@ std::optional<int> DiskClusters::merged_euler(int a, int b) {
         bool touches_b = false;
         for (int i = topology_.vertex_offsets[v]; i < topology_.vertex_offsets[v + 1]; ++i)
           touches_b = touches_b || face_cluster_[topology_.vertex_corners[i] / 3] == b;
-        if (touches_b && wraps_too_far(v, a, b)) return std::nullopt;
         if (touches_b) fans_joined += fan_count(v, a, a) + fan_count(v, b, b) - fan_count(v, a, b);
       }
     }
-  if (shared_edges == 0) return std::nullopt;
+  if (shared_edges == 0) return {MergeRefusal::NotDisk};
   // Inclusion-exclusion with pinches split: every shared edge joins two faces'
   // sides into one, every fan that merges with another removes a vertex.
   const int euler = euler_[a] + euler_[b] - fans_joined + shared_edges;
   // A disk, or a step towards one: a chart with holes (chi < 1) absorbing an
   // island fills a hole and raises chi. Anything else adds a hole or a handle.
   // chi == 2 would close a sphere: no boundary left to flatten.
-  if (euler == 1 || (euler < 1 && euler > std::min(euler_[a], euler_[b]))) return euler;
-  return std::nullopt;
+  if (euler == 1 || (euler < 1 && euler > std::min(euler_[a], euler_[b]))) return {MergeRefusal::None, euler};
+  return {MergeRefusal::NotDisk};
 }
 
 int DiskClusters::merge(int a, int b, int merged_euler) {

@@ -67,7 +67,10 @@ struct LocalChart {
 // Local vertex numbering of a chart. Corners at one mesh vertex share a local
 // vertex only when their faces connect through edges inside the chart, so a
 // vertex where the chart merely touches itself (a pinch) is split in two.
-LocalChart localize(const Mesh& mesh, const MeshTopology& topology, std::vector<int> faces) {
+// An original chart that meets itself at a UV seam keeps it open (see
+// chart_meets_itself_across), as DiskClusters does.
+LocalChart localize(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                    std::vector<int> faces) {
   LocalChart c;
   c.faces = std::move(faces);
   const int n = static_cast<int>(c.faces.size());
@@ -79,6 +82,8 @@ LocalChart localize(const Mesh& mesh, const MeshTopology& topology, std::vector<
     for (int k = 0; k < 3; ++k) {
       const int e = topology.corner_edge[3 * c.faces[i] + k];
       if (topology.edge_valence(e) != 2) continue;
+      if (chart_meets_itself_across(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, graph.face_chart, e))
+        continue;
       for (int j = topology.edge_offsets[e]; j < topology.edge_offsets[e + 1]; ++j) {
         const auto other = local_face.find(topology.edge_corners[j] / 3);
         if (other == local_face.end() || other->second == i) continue;
@@ -139,11 +144,10 @@ FlatChart from_solution(const LocalChart& c, const ChartSolution& s) {
 struct SubMesh {
   Mesh mesh;
   MeshTopology topology;
-  std::vector<double> corner_angle;  // empty when the whole mesh had none
 };
 
 // The given faces as a mesh of their own, in the given order.
-SubMesh sub_mesh(const Mesh& mesh, const std::vector<int>& faces, const std::vector<double>& corner_angle) {
+SubMesh sub_mesh(const Mesh& mesh, const std::vector<int>& faces) {
   SubMesh sub;
   const int n = static_cast<int>(faces.size());
   std::unordered_map<int, int> vertex;
@@ -157,7 +161,6 @@ SubMesh sub_mesh(const Mesh& mesh, const std::vector<int>& faces, const std::vec
       if (fresh) source.push_back(it->first);
       sub.mesh.triangles(i, k) = it->second;
       sub.mesh.corner_uv.row(3 * i + k) = mesh.corner_uv.row(3 * faces[i] + k);
-      if (!corner_angle.empty()) sub.corner_angle.push_back(corner_angle[3 * faces[i] + k]);
     }
     sub.mesh.face_page[i] = mesh.face_page[faces[i]];
   }
@@ -175,7 +178,6 @@ SubMesh sub_mesh(const Mesh& mesh, const std::vector<int>& faces, const std::vec
 // the input, so the recursion ends.
 std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& graph,
                                             const std::vector<std::vector<int>>& chart_faces,
-                                            const std::vector<double>& corner_angle,
                                             const std::vector<int>& members, int culprit) {
   const int m = static_cast<int>(members.size());
   std::unordered_map<int, int> local;
@@ -192,8 +194,9 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& 
   std::vector<int> faces, label;
   for (int i = 0; i < m; ++i)
     for (int f : chart_faces[members[i]]) faces.push_back(f), label.push_back(i);
-  const SubMesh sub = sub_mesh(mesh, faces, corner_angle);
-  DiskClusters disks(sub.mesh, sub.topology, label, m, sub.corner_angle);
+  const SubMesh sub = sub_mesh(mesh, faces);
+  DiskClusters disks(sub.mesh, sub.topology, label, m,
+                     self_seams(sub.topology, sub.mesh.triangles, sub.mesh.corner_uv, sub.mesh.face_page, label));
 
   auto area = [&](int i) { return graph.charts[members[i]].area_uv; };
   const int culprit_index = culprit < 0 ? -1 : static_cast<int>(std::find(members.begin(), members.end(), culprit) - members.begin());
@@ -233,8 +236,8 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& 
     for (int i : groups[g])
       for (int n : neighbours[i]) {
         if (group_of[n] >= 0) continue;
-        if (const auto euler = disks.merged_euler(cluster[g], n)) {
-          cluster[g] = disks.merge(cluster[g], n, *euler);
+        if (const MergeCheck check = disks.check_merge(cluster[g], n)) {
+          cluster[g] = disks.merge(cluster[g], n, check.euler);
           group_of[n] = g;
           groups[g].push_back(n);
           group_area[g] += area(n);
@@ -354,7 +357,7 @@ struct Attempt {
 Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                       std::vector<int> faces, const SlimOptions& options, const RunControl& control,
                       FlattenStats& stats) {
-  LocalChart local = localize(mesh, topology, std::move(faces));
+  LocalChart local = localize(mesh, topology, graph, std::move(faces));
   if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
   const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
   stats.scaffolded += solution.scaffolded;
@@ -369,8 +372,9 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
 
 // True when the faces' original UVs cover some part of them twice without a
 // fold: their boundary crosses itself.
-bool original_boundary_crosses(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& faces) {
-  const LocalChart local = localize(mesh, topology, faces);
+bool original_boundary_crosses(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                               const std::vector<int>& faces) {
+  const LocalChart local = localize(mesh, topology, graph, faces);
   RowMatrixX2d uv(static_cast<Eigen::Index>(local.vertices.size()), 2);
   for (size_t i = 0; i < faces.size(); ++i)
     for (int k = 0; k < 3; ++k) uv.row(local.triangles(i, k)) = mesh.uv_texels(faces[i], k).transpose();
@@ -390,7 +394,7 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
   while (!pending.empty()) {
     std::vector<int> faces = std::move(pending.back());
     pending.pop_back();
-    if (!folds_over(mesh, faces) && !original_boundary_crosses(mesh, topology, faces)) {
+    if (!folds_over(mesh, faces) && !original_boundary_crosses(mesh, topology, graph, faces)) {
       done.push_back(keep_original(mesh, faces));
     } else if (Attempt attempt = flatten_faces(mesh, topology, graph, faces, options, control, stats); attempt.chart) {
       done.push_back(std::move(*attempt.chart));
@@ -405,7 +409,6 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
 
 std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
-                                               const std::vector<double>& corner_angle,
                                                const std::vector<int>& members, const SlimOptions& options,
                                                const RunControl& control, FlattenStats& stats) {
   std::vector<FlatChart> done;
@@ -425,7 +428,7 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
       continue;
     }
     ++(stats.*attempt.refusal);
-    for (auto& piece : split_members(mesh, graph, chart_faces, corner_angle, group, attempt.culprit))
+    for (auto& piece : split_members(mesh, graph, chart_faces, group, attempt.culprit))
       pending.push_back(std::move(piece));
   }
   return done;

@@ -46,12 +46,10 @@ struct FlattenStats {
 
 // Flattens one aggregated chart (its original charts `members`), splitting on
 // overlap or solver failure until every piece is valid.
-// chart_faces[c] lists the faces of original chart c; corner_angle (may be
-// empty) is passed to the DiskClusters that regrow split charts.
+// chart_faces[c] lists the faces of original chart c.
 std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology,
                                                const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
-                                               const std::vector<double>& corner_angle,
                                                const std::vector<int>& members,
                                                const SlimOptions& options, const RunControl& control,
                                                FlattenStats& stats);

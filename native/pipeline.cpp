@@ -44,7 +44,6 @@ std::vector<std::vector<int>> faces_by_chart(const std::vector<int>& face_chart,
 // Exceptions (Cancelled included) cannot leave an OpenMP region: the first is
 // kept and rethrown after the loop.
 std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                                   const std::vector<double>& corner_angle,
                                    const Aggregation& aggregation, const SlimOptions& options,
                                    const RunControl& control, PipelineReport& report) {
   const auto chart_faces = faces_by_chart(graph.face_chart, graph.chart_count());
@@ -66,7 +65,7 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
   for (int i = 0; i < static_cast<int>(order.size()); ++i) {
     if (failed || control.cancelled()) continue;
     try {
-      pieces[i] = flatten_without_overlap(mesh, topology, graph, chart_faces, corner_angle, aggregation.members[order[i]],
+      pieces[i] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[order[i]],
                                           options, control, stats[i]);
       ++finished;
       if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / order.size());
@@ -198,12 +197,12 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   clock.lap("charts");
   control.progress("charts", 1.0);
 
-  const std::vector<double> corner_angle = reference_corner_angles(mesh);
-  const Aggregation aggregation = aggregate_charts(mesh, topology, graph, options.aggregate, control, corner_angle);
+  const Aggregation aggregation = aggregate_charts(mesh, topology, graph, options.aggregate, control);
   report.charts_aggregated = aggregation.chart_count();
+  report.aggregate_stops = aggregation.stops;
   clock.lap("aggregate");
 
-  std::vector<FlatChart> charts = flatten_all(mesh, topology, graph, corner_angle, aggregation, options.slim, control, report);
+  std::vector<FlatChart> charts = flatten_all(mesh, topology, graph, aggregation, options.slim, control, report);
   enlarge_tiny_charts(charts);
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);

@@ -27,6 +27,7 @@ struct StageTime {
 struct PipelineReport {
   int charts_before = 0;       // UV charts of the input
   int charts_aggregated = 0;   // after aggregation, before overlap splits
+  AggregationStops aggregate_stops;  // why the aggregation merged no further
   int charts_after = 0;        // in the output
   int charts_solved = 0;       // flattened by SLIM (the rest kept their original UVs)
   int splits_not_disk = 0;     // charts split back, by reason (see FlattenStats)

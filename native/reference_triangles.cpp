@@ -110,33 +110,4 @@ ReferenceTriangles repaired_reference_triangles(const RowMatrixX3i& triangles,
   return out;
 }
 
-std::vector<double> reference_corner_angles(const Mesh& mesh) {
-  std::vector<double> angle(3 * mesh.face_count());
-  // Law of cosines: the angle at corner k between the edges leaving it,
-  // cos = (l_k^2 + l_{k+2}^2 - l_{k+1}^2) / (2 l_k l_{k+2}), l_k from corner k to k+1.
-  auto write = [&](int f, double l0, double l1, double l2) {
-    const double l[3] = {l0, l1, l2};
-    for (int k = 0; k < 3; ++k) {
-      const double a = l[k], b = l[(k + 2) % 3], opposite = l[(k + 1) % 3];
-      angle[3 * f + k] = std::acos(std::clamp((a * a + b * b - opposite * opposite) / (2 * a * b), -1.0, 1.0));
-    }
-  };
-  for (int f = 0; f < mesh.face_count(); ++f) {
-    const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1)),
-                          c = mesh.positions.row(mesh.triangles(f, 2));
-    if (mesh.face_page[f] >= 0) {
-      const Eigen::Vector2d u = mesh.uv_texels(f, 0), v = mesh.uv_texels(f, 1), w = mesh.uv_texels(f, 2);
-      if (well_shaped_2d(u, v, w)) {
-        write(f, (v - u).norm(), (w - v).norm(), (u - w).norm());
-        continue;
-      }
-    }
-    if (well_shaped_3d(a, b, c))
-      write(f, (b - a).norm(), (c - b).norm(), (a - c).norm());
-    else
-      write(f, 1, 1, 1);  // equilateral, as the repair uses
-  }
-  return angle;
-}
-
 }  // namespace atlas

@@ -29,10 +29,4 @@ ReferenceTriangles repaired_reference_triangles(const RowMatrixX3i& triangles,
                                                 const RowMatrixX2d& reference_uv,
                                                 const Eigen::VectorXi& mirrored);
 
-// The angle of every face corner (3F, radians) that the flattening will try to
-// keep: the UV triangle's where it is well shaped, else the 3D triangle's (as
-// the repair does), else 60 degrees. Angles do not depend on texel density, so
-// no chart-wide scale is needed here. Untextured faces get their 3D angles.
-std::vector<double> reference_corner_angles(const Mesh& mesh);
-
 }  // namespace atlas

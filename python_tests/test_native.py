@@ -63,6 +63,48 @@ def test_fold_overs_in_the_input_end_unfolded(native, scans):
     assert m["map"]["density_loss_area_share"] < 0.01
 
 
+def crossing_charts(graph, uvs, face_page, page_sizes):
+    """Output charts whose boundary crosses itself, judged apart from the native
+    code: boundary edges are the UV edges used once, keyed by exact position."""
+    texels = uvs * page_sizes[face_page][:, None, :]
+    segments = np.stack([texels, np.roll(texels, -1, axis=1)], axis=2).reshape(-1, 2, 2)
+    a, b = segments[:, 0], segments[:, 1]
+    swap = (a[:, 0] > b[:, 0]) | ((a[:, 0] == b[:, 0]) & (a[:, 1] > b[:, 1]))
+    key = np.where(swap[:, None], np.hstack([b, a]), np.hstack([a, b]))
+    chart = np.repeat(graph["face_chart"], 3)
+
+    def side(o, p, q):
+        return (p[..., 0] - o[..., 0]) * (q[..., 1] - o[..., 1]) - (p[..., 1] - o[..., 1]) * (q[..., 0] - o[..., 0])
+
+    crossing = []
+    for c in range(graph["chart_count"]):
+        rows = np.nonzero(chart == c)[0]
+        _, inverse, count = np.unique(key[rows], axis=0, return_inverse=True, return_counts=True)
+        edges = segments[rows[count[inverse.ravel()] == 1]]
+        p, q = edges[:, 0], edges[:, 1]
+        for i in range(0, len(edges), 256):  # proper crossings only: shared ends give 0
+            p1, q1 = p[i:i + 256, None], q[i:i + 256, None]
+            hit = (side(p1, q1, p[None]) * side(p1, q1, q[None]) < 0) & \
+                  (side(p[None], q[None], p1) * side(p[None], q[None], q1) < 0)
+            if hit.any():
+                crossing.append(c)
+                break
+    return crossing
+
+
+# The Smithsonian scan has an original chart that meets itself at a UV seam and
+# whose own UVs overlap there: it must not be kept as it was.
+def test_no_output_chart_crosses_itself_on_the_smithsonian_scan(native, scans):
+    scan = scans("smithsonian")
+    result = native.defragment(*args(scan))
+    out = (scan.positions, scan.triangles, result["uvs"], result["face_page"], result["page_sizes"])
+    assert crossing_charts(native.chart_graph(*out), *out[2:]) == []
+    stops = result["report"]["aggregate_stops"]
+    assert set(stops) == {"non_manifold", "not_disk", "normal_coherence", "max_chart_faces",
+                          "min_chart_fraction", "feasible"}
+    assert stops["feasible"] == 0 and stops["not_disk"] > 0
+
+
 # Issue 3: energy per chart, before and after; the median close to the isometric 4.
 def test_energy_is_reported_per_chart(tetra_result):
     scan, result = tetra_result

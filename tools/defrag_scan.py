@@ -110,6 +110,8 @@ def main(argv=None) -> int:
     print(f"  charts        {r['charts_before']} -> {r['charts_after']} (aggregated {r['charts_aggregated']}, "
           f"split back: {r['splits_overlap']} overlap, {r['splits_density']} density, {r['splits_solver']} solver, "
           f"{r['splits_not_disk']} topology)")
+    stops = ", ".join(f"{reason} {n}" for reason, n in r["aggregate_stops"].items() if n)
+    print(f"  merges left   {stops or 'none'} (adjacent chart pairs, by what refused them)")
     print(f"  energy        median {r['energy_initial_median']:.2f} -> {r['energy_median']:.3f}, max {r['energy_max']:.2f} "
           f"over {r['charts_solved']} flattened charts (4 = isometric)")
     print(f"  seam length   {r['seam_before']:.1f} -> {r['seam_after']:.1f} (3D length / sqrt(area))")
