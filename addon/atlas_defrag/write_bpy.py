@@ -15,7 +15,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 import bpy
 import numpy as np
 
-from . import compat
+from . import compat, png_files
 from .job import DefragError, JobResult, OutputImage, loop_uvs
 from .read_bpy import ReadResult, mesh_signature
 
@@ -62,26 +62,35 @@ def _unique_path(directory: str, stem: str, ext: str, taken: set) -> str:
     return path
 
 
-def _new_image(out: OutputImage, name: str):
-    h, w = out.pixels.shape[:2]
-    img = bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=bool(out.is_float))
+def _rgba(px: np.ndarray) -> np.ndarray:
+    """(H, W, C) pixels as (H, W, 4): grey fills RGB, a missing B is 0, a missing alpha opaque."""
+    c = px.shape[2]
+    if c == 4:
+        return px
+    full = np.empty(px.shape[:2] + (4,), dtype=px.dtype)
+    if c == 1:
+        full[..., :3] = px[..., :1]
+    else:
+        full[..., :min(c, 3)] = px[..., :min(c, 3)]
+        if c == 2:
+            full[..., 2] = 0
+    full[..., 3] = 255 if px.dtype == np.uint8 else 1.0
+    return full
+
+
+def _set_look(img, out: OutputImage) -> None:
     compat.set_colorspace(img, out.colorspace)
     try:
         img.alpha_mode = out.alpha_mode
     except (TypeError, ValueError):
         pass
-    px = out.pixels
-    if px.shape[2] != 4:
-        full = np.empty((h, w, 4), dtype=px.dtype)
-        c = px.shape[2]
-        if c == 1:
-            full[..., :3] = px[..., :1]
-        else:
-            full[..., :min(c, 3)] = px[..., :min(c, 3)]
-            if c == 2:
-                full[..., 2] = 0
-        full[..., 3] = px[..., 3] if c == 4 else (255 if px.dtype == np.uint8 else 1.0)
-        px = full
+
+
+def _new_image(out: OutputImage, name: str):
+    h, w = out.pixels.shape[:2]
+    img = bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=bool(out.is_float))
+    _set_look(img, out)
+    px = _rgba(out.pixels)
     if px.dtype == np.uint8:
         flat = px.reshape(-1).astype(np.float32)
         flat *= 1.0 / 255.0
@@ -111,6 +120,20 @@ def _store_image(img, is_float: bool, storage: str, directory: Optional[str], ta
     img.filepath_raw = path
     img.save()
     img.source = "FILE"
+    _point_at(img, path)
+
+
+def _load_saved_png(out: OutputImage, name: str, path: str):
+    """The image written by png_files at path, as a FILE image named name."""
+    img = bpy.data.images.load(path, check_existing=False)
+    img.name = name
+    _set_look(img, out)
+    _point_at(img, path)
+    return img
+
+
+def _point_at(img, path: str) -> None:
+    """Relative to a saved .blend where it can be, so the folder can move."""
     if bpy.data.filepath:
         try:
             img.filepath = bpy.path.relpath(path)
@@ -229,17 +252,28 @@ def _write(obj, read, result, storage, image_dir, duplicate_materials, journal) 
     taken: set = set()
     page_role_image: Dict[Tuple[int, str], object] = {}
     created_images = []
+    png_files_due = []  # (out, name, path): 8-bit images saved to files, encoded together
+
+    def created(out, img):
+        img_name = img.name
+        journal.add(lambda n=img_name: bpy.data.images.remove(bpy.data.images[n])
+                    if n in bpy.data.images else None)
+        page_role_image[(out.page, out.role)] = img
+        created_images.append(img_name)
+
     for out in result.images:
         pages = group_pages.get(int(result.page_group[out.page]), [out.page])
         k = pages.index(out.page) if out.page in pages else 0
         name = f"{out.source}{SUFFIX}" if k == 0 else f"{out.source}{SUFFIX}_{k + 1}"
+        if storage == "SAVE" and not out.is_float:
+            png_files_due.append((out, name, _unique_path(image_dir, _safe_file_stem(name), ".png", taken)))
+            continue
         img = _new_image(out, name)
-        img_name = img.name
-        journal.add(lambda n=img_name: bpy.data.images.remove(bpy.data.images[n])
-                    if n in bpy.data.images else None)
+        created(out, img)
         _store_image(img, out.is_float, storage, image_dir, taken)
-        page_role_image[(out.page, out.role)] = img
-        created_images.append(img.name)
+    png_files.write_pngs((path, _rgba(out.pixels)) for out, _, path in png_files_due)
+    for out, name, path in png_files_due:
+        created(out, _load_saved_png(out, name, path))
 
     # 2. The UV map.
     old_uv = me.uv_layers[read.uv_map]
