@@ -28,8 +28,7 @@ ChartRun aggregate(Mesh mesh, AggregateOptions options = {}) {
 }
 
 void expect_all_disks(const ChartRun& r) {
-  DiskClusters check(r.mesh, r.topology, r.aggregation.face_chart, r.aggregation.chart_count(),
-                     self_seams(r.topology, r.mesh.triangles, r.mesh.corner_uv, r.mesh.face_page, r.graph.face_chart));
+  DiskClusters check(r.mesh, r.topology, r.aggregation.face_chart, r.aggregation.chart_count(), r.graph.self_seam);
   for (int c = 0; c < r.aggregation.chart_count(); ++c) EXPECT_TRUE(check.is_disk(c)) << "chart " << c;
 }
 

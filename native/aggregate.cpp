@@ -63,8 +63,7 @@ class Aggregator {
              const AggregateOptions& options)
       : options_(options),
         graph_(graph),
-        disks_(mesh, topology, graph.face_chart, graph.chart_count(),
-               self_seams(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, graph.face_chart)),
+        disks_(mesh, topology, graph.face_chart, graph.chart_count(), graph.self_seam),
         clusters_(graph.chart_count()) {
     for (int f = 0; f < mesh.face_count(); ++f) {
       if (graph.face_chart[f] < 0) continue;

@@ -65,8 +65,7 @@ void accumulate_boundaries(const Mesh& mesh, const MeshTopology& topology, const
     for (int i = begin; i < end; ++i) {
       const int ci = topology.edge_corners[i], chart_i = g.face_chart[ci / 3];
       if (chart_i < 0) continue;
-      bool outside = (end - begin) != 2 ||
-                     chart_meets_itself_across(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, g.face_chart, e);
+      bool outside = (end - begin) != 2 || g.self_seam[e];
       for (int j = begin; j < end; ++j)
         if (j != i && g.face_chart[topology.edge_corners[j] / 3] != chart_i) outside = true;
       if (outside) {
@@ -104,6 +103,7 @@ ChartGraph build_chart_graph(const Mesh& mesh, const MeshTopology& topology, con
   int count = 0;
   g.face_chart = label_charts(mesh, topology, face_group, count);
   g.charts.resize(count);
+  g.self_seam = self_seams(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, g.face_chart);
   accumulate_face_stats(mesh, g);
   accumulate_boundaries(mesh, topology, face_group, g);
   return g;

@@ -31,6 +31,7 @@ struct ChartAdjacency {
 
 struct ChartGraph {
   std::vector<int> face_chart;   // F, -1 for untextured faces (page -1)
+  std::vector<char> self_seam;   // per edge, see self_seams: boundary on both sides
   std::vector<ChartStats> charts;
   std::vector<ChartAdjacency> adjacency;
   int chart_count() const { return static_cast<int>(charts.size()); }

@@ -68,8 +68,8 @@ struct LocalChart {
 // Local vertex numbering of a chart. Corners at one mesh vertex share a local
 // vertex only when their faces connect through edges inside the chart, so a
 // vertex where the chart merely touches itself (a pinch) is split in two.
-// An original chart that meets itself at a UV seam keeps it open (see
-// chart_meets_itself_across), as DiskClusters does.
+// An original chart that meets itself at a UV seam keeps it open
+// (graph.self_seam), as DiskClusters does.
 LocalChart localize(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                     std::vector<int> faces) {
   LocalChart c;
@@ -82,9 +82,7 @@ LocalChart localize(const Mesh& mesh, const MeshTopology& topology, const ChartG
   for (int i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) {
       const int e = topology.corner_edge[3 * c.faces[i] + k];
-      if (topology.edge_valence(e) != 2) continue;
-      if (chart_meets_itself_across(topology, mesh.triangles, mesh.corner_uv, mesh.face_page, graph.face_chart, e))
-        continue;
+      if (topology.edge_valence(e) != 2 || graph.self_seam[e]) continue;
       for (int j = topology.edge_offsets[e]; j < topology.edge_offsets[e + 1]; ++j) {
         const auto other = local_face.find(topology.edge_corners[j] / 3);
         if (other == local_face.end() || other->second == i) continue;
@@ -413,36 +411,39 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
   }
 }
 
+}  // namespace
 
-// The pieces of one group of original charts, in a fixed order. After a split
-// each piece is an OpenMP task, which a thread with no chart left to start
-// takes up: one large chart that splits again and again no longer leaves the
-// other cores idle. An exception (Cancelled included) cannot leave a task: it
-// is caught there and rethrown after the wait.
-std::vector<FlatChart> flatten_group(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                                     const std::vector<std::vector<int>>& chart_faces, const std::vector<int>& group,
-                                     const SlimOptions& options, const RunControl& control, FlattenStats& stats) {
+// After a split each piece is solved by a recursive call in an OpenMP task,
+// which a thread with no chart left to start takes up: one large chart that
+// splits again and again no longer leaves the other cores idle. The pieces
+// come back in a fixed order. An exception (Cancelled included) cannot leave
+// a task: it is caught there and rethrown after the wait.
+std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                                               const std::vector<std::vector<int>>& chart_faces,
+                                               const std::vector<int>& members, const SlimOptions& options,
+                                               const RunControl& control, FlattenStats& stats) {
   std::vector<FlatChart> done;
-  if (group.size() == 1) {
-    flatten_lone_chart(mesh, topology, graph, chart_faces[group[0]], options, control, done, stats);
+  if (members.size() == 1) {
+    flatten_lone_chart(mesh, topology, graph, chart_faces[members[0]], options, control, done, stats);
     return done;
   }
   std::vector<int> faces;
-  for (int c : group) faces.insert(faces.end(), chart_faces[c].begin(), chart_faces[c].end());
+  for (int c : members) faces.insert(faces.end(), chart_faces[c].begin(), chart_faces[c].end());
   Attempt attempt = flatten_faces(mesh, topology, graph, std::move(faces), options, control, stats);
   if (attempt.chart) {
     done.push_back(std::move(*attempt.chart));
     return done;
   }
   ++(stats.*attempt.refusal);
-  const std::vector<std::vector<int>> pieces = split_members(mesh, graph, chart_faces, group, attempt.culprit);
+  const std::vector<std::vector<int>> pieces = split_members(mesh, graph, chart_faces, members, attempt.culprit);
   std::vector<std::vector<FlatChart>> parts(pieces.size());
   std::vector<FlattenStats> part_stats(pieces.size());
   std::vector<std::exception_ptr> errors(pieces.size());
   for (size_t k = 0; k < pieces.size(); ++k) {
 #pragma omp task default(shared) firstprivate(k)
     try {
-      parts[k] = flatten_group(mesh, topology, graph, chart_faces, pieces[k], options, control, part_stats[k]);
+      parts[k] = flatten_without_overlap(mesh, topology, graph, chart_faces, pieces[k], options, control,
+                                         part_stats[k]);
     } catch (...) {
       errors[k] = std::current_exception();
     }
@@ -455,15 +456,6 @@ std::vector<FlatChart> flatten_group(const Mesh& mesh, const MeshTopology& topol
     for (FlatChart& chart : parts[k]) done.push_back(std::move(chart));
   }
   return done;
-}
-
-}  // namespace
-
-std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                                               const std::vector<std::vector<int>>& chart_faces,
-                                               const std::vector<int>& members, const SlimOptions& options,
-                                               const RunControl& control, FlattenStats& stats) {
-  return flatten_group(mesh, topology, graph, chart_faces, members, options, control, stats);
 }
 
 }  // namespace atlas

@@ -67,22 +67,17 @@ bool uv_continuous_across(const MeshTopology& topology, const RowMatrixX3i& tria
          (corner_uv.row(next(c0)) - corner_uv.row(b1)).cwiseAbs().maxCoeff() <= tol;
 }
 
-bool chart_meets_itself_across(const MeshTopology& topology, const RowMatrixX3i& triangles,
-                               const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page,
-                               const std::vector<int>& face_chart, int e) {
-  if (topology.edge_valence(e) != 2) return false;
-  const int f0 = topology.edge_corners[topology.edge_offsets[e]] / 3;
-  const int f1 = topology.edge_corners[topology.edge_offsets[e] + 1] / 3;
-  return f0 != f1 && face_chart[f0] >= 0 && face_chart[f0] == face_chart[f1] &&
-         !uv_continuous_across(topology, triangles, corner_uv, face_page, e);
-}
-
 std::vector<char> self_seams(const MeshTopology& topology, const RowMatrixX3i& triangles,
                              const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page,
                              const std::vector<int>& face_chart) {
-  std::vector<char> seam(topology.edge_count());
-  for (int e = 0; e < topology.edge_count(); ++e)
-    seam[e] = chart_meets_itself_across(topology, triangles, corner_uv, face_page, face_chart, e);
+  std::vector<char> seam(topology.edge_count(), 0);
+  for (int e = 0; e < topology.edge_count(); ++e) {
+    if (topology.edge_valence(e) != 2) continue;
+    const int f0 = topology.edge_corners[topology.edge_offsets[e]] / 3;
+    const int f1 = topology.edge_corners[topology.edge_offsets[e] + 1] / 3;
+    seam[e] = f0 != f1 && face_chart[f0] >= 0 && face_chart[f0] == face_chart[f1] &&
+              !uv_continuous_across(topology, triangles, corner_uv, face_page, e);
+  }
   return seam;
 }
 

@@ -29,15 +29,10 @@ MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count);
 bool uv_continuous_across(const MeshTopology& topology, const RowMatrixX3i& triangles,
                           const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page, int e);
 
-// For a manifold edge e: true when its two faces lie in the same chart
+// Per edge: true for a manifold edge whose two faces lie in the same chart
 // (face_chart) yet disagree in UV along it, so the chart meets itself at a
 // seam, as a cylinder unrolled into one strip does. The chart's own UVs make
 // such an edge boundary on both sides: its topology and its flattening must too.
-bool chart_meets_itself_across(const MeshTopology& topology, const RowMatrixX3i& triangles,
-                               const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page,
-                               const std::vector<int>& face_chart, int e);
-
-// chart_meets_itself_across for every edge.
 std::vector<char> self_seams(const MeshTopology& topology, const RowMatrixX3i& triangles,
                              const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page,
                              const std::vector<int>& face_chart);
