@@ -26,6 +26,12 @@ def native():
 
 
 @pytest.fixture(scope="session")
+def scan_path():
+    """The file of a real scan, by its name in SCANS."""
+    return SCANS.__getitem__
+
+
+@pytest.fixture(scope="session")
 def scans():
     import scan_io
 

@@ -2,17 +2,18 @@
 scan, without Blender, and its output read back from disk."""
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 
-from conftest import REPO, SCANS
+CLI = Path(__file__).resolve().parent.parent / "tools" / "defrag_scan.py"
 
 
-def test_cli_output_loads_back_flip_free_with_the_colours_kept(native, scans, tmp_path):
+def test_cli_output_loads_back_flip_free_with_the_colours_kept(native, scans, scan_path, tmp_path):
     import scan_io
 
-    source = SCANS["tetra"]
-    run = subprocess.run([sys.executable, str(REPO / "tools" / "defrag_scan.py"), str(source), str(tmp_path)],
+    source = scan_path("tetra")
+    run = subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path)],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     assert "159 -> " in run.stdout and "PSNR" in run.stdout
