@@ -9,6 +9,7 @@ same through bpy; this entry exists for machines and pipelines without it.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -16,8 +17,9 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
+BUILD = Path(os.environ.get("ATLAS_BUILD_DIR", REPO / "build"))  # as python_tests/conftest.py
 # The module alone, not the add-on package: its __init__ would import bpy.
-sys.path.insert(0, str(REPO / "build" / "addon" / "atlas_defrag"))
+sys.path.insert(0, str(BUILD / "addon" / "atlas_defrag"))
 sys.path.insert(0, str(REPO / "tools"))
 
 import _native  # noqa: E402
