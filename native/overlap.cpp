@@ -65,6 +65,23 @@ struct LocalChart {
   std::vector<int> vertices;  // local -> mesh vertex
 };
 
+// Calls visit(i, j, e) for every two faces i != j of `faces` (positions in
+// it) that share the manifold edge e, once from each side.
+template <class Visit>
+void for_each_shared_edge(const MeshTopology& topology, const std::vector<int>& faces, Visit visit) {
+  std::unordered_map<int, int> local;
+  for (int i = 0; i < static_cast<int>(faces.size()); ++i) local[faces[i]] = i;
+  for (int i = 0; i < static_cast<int>(faces.size()); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const int e = topology.corner_edge[3 * faces[i] + k];
+      if (topology.edge_valence(e) != 2) continue;
+      for (int j = topology.edge_offsets[e]; j < topology.edge_offsets[e + 1]; ++j) {
+        const auto other = local.find(topology.edge_corners[j] / 3);
+        if (other != local.end() && other->second != i) visit(i, other->second, e);
+      }
+    }
+}
+
 // Local vertex numbering of a chart. Corners at one mesh vertex share a local
 // vertex only when their faces connect through edges inside the chart, so a
 // vertex where the chart merely touches itself (a pinch) is split in two.
@@ -75,23 +92,15 @@ LocalChart localize(const Mesh& mesh, const MeshTopology& topology, const ChartG
   LocalChart c;
   c.faces = std::move(faces);
   const int n = static_cast<int>(c.faces.size());
-  std::unordered_map<int, int> local_face;
-  for (int i = 0; i < n; ++i) local_face[c.faces[i]] = i;
   UnionFind corners(3 * n);
   auto local_corner_at = [&](int i, int v) { return 3 * i + mesh.corner_of(c.faces[i], v); };
-  for (int i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) {
-      const int e = topology.corner_edge[3 * c.faces[i] + k];
-      if (topology.edge_valence(e) != 2 || graph.self_seam[e]) continue;
-      for (int j = topology.edge_offsets[e]; j < topology.edge_offsets[e + 1]; ++j) {
-        const auto other = local_face.find(topology.edge_corners[j] / 3);
-        if (other == local_face.end() || other->second == i) continue;
-        for (int end = 0; end < 2; ++end) {
-          const int v = topology.edge_vertices(e, end);
-          corners.unite(local_corner_at(i, v), local_corner_at(other->second, v));
-        }
-      }
+  for_each_shared_edge(topology, c.faces, [&](int i, int j, int e) {
+    if (graph.self_seam[e]) return;
+    for (int end = 0; end < 2; ++end) {
+      const int v = topology.edge_vertices(e, end);
+      corners.unite(local_corner_at(i, v), local_corner_at(j, v));
     }
+  });
   c.triangles.resize(n, 3);
   const std::vector<int> vertex_of_corner = corners.dense_labels();
   for (int corner = 0; corner < 3 * n; ++corner) {
@@ -312,18 +321,8 @@ bool folds_over(const Mesh& mesh, const std::vector<int>& faces) {
 // not connected to the first are returned as the second part instead.
 std::vector<std::vector<int>> halves(const MeshTopology& topology, const std::vector<int>& faces) {
   const int n = static_cast<int>(faces.size());
-  std::unordered_map<int, int> local;
-  for (int i = 0; i < n; ++i) local[faces[i]] = i;
   std::vector<std::vector<int>> neighbours(n);
-  for (int i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) {
-      const int e = topology.corner_edge[3 * faces[i] + k];
-      if (topology.edge_valence(e) != 2) continue;
-      for (int j = topology.edge_offsets[e]; j < topology.edge_offsets[e + 1]; ++j) {
-        const auto other = local.find(topology.edge_corners[j] / 3);
-        if (other != local.end() && other->second != i) neighbours[i].push_back(other->second);
-      }
-    }
+  for_each_shared_edge(topology, faces, [&](int i, int j, int) { neighbours[i].push_back(j); });
   // Multi-source breadth-first search: label[i] is the seed that reached i first.
   auto grow = [&](const std::vector<int>& seeds, std::vector<int>& label) {
     label.assign(n, -1);
