@@ -371,16 +371,16 @@ bool loop_crosses(const std::vector<int>& loop_dofs, const Eigen::VectorXd& x) {
   return first_crossing(points, segments).has_value();
 }
 
-// Minimizes E from x (flip-free, in solver numbering), keeping x flip-free.
+// Minimizes E from x (flip-free, in solver numbering, with E(x) = energy),
+// keeping x flip-free.
 // With a loop given, a step after which the boundary crosses itself is undone
 // and crossed is set: the caller goes on with a scaffold. Returns "" or why it
 // stopped early; x is the last accepted iterate either way.
 std::string minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int>& loop_dofs,
                             const SlimOptions& options, const RunControl& control, Eigen::VectorXd& x,
-                            ChartSolution& solution, bool& crossed) {
+                            double energy, ChartSolution& solution, bool& crossed) {
   ProxySystem system;
   prepare_proxy_system(faces, static_cast<int>(x.size()), system);
-  double energy = total_energy(faces, x);
   Eigen::VectorXd previous;
   for (solution.iterations = 0; solution.iterations < options.max_iterations;) {
     control.throw_if_cancelled();
@@ -516,7 +516,7 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
     if (options.scaffold_on_crossing)
       for (int v : loop) loop_dofs.push_back(2 * order[v]);
     bool crossed = false;
-    solution.failure = minimize_energy(faces, loop_dofs, options, control, x, solution, crossed);
+    solution.failure = minimize_energy(faces, loop_dofs, options, control, x, initial_energy, solution, crossed);
     if (crossed) {
       solution.scaffolded = true;
       RowMatrixX2d uv = from_solver(x, order);
