@@ -8,7 +8,7 @@
 #include <functional>
 #include <type_traits>
 
-#include "bake.hpp"
+#include "bake/bake.hpp"
 
 namespace atlas {
 namespace {

@@ -3,9 +3,9 @@
 
 #include <Eigen/Geometry>
 
-#include "aggregate.hpp"
-#include "charts.hpp"
-#include "disk_merge.hpp"
+#include "charts/aggregate.hpp"
+#include "charts/chart_graph.hpp"
+#include "charts/disk_merge.hpp"
 #include "test_meshes.hpp"
 
 using namespace atlas;

@@ -2,7 +2,7 @@
 #pragma once
 #include <vector>
 
-#include "mesh.hpp"
+#include "core/mesh.hpp"
 
 namespace atlas::testing {
 

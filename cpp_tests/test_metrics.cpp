@@ -6,9 +6,9 @@
 #include <cstdint>
 #include <random>
 
-#include "geometry.hpp"
+#include "core/geometry.hpp"
 #include "metrics.hpp"
-#include "rasterize_triangle.hpp"
+#include "core/rasterize_triangle.hpp"
 #include "test_meshes.hpp"
 
 using namespace atlas;

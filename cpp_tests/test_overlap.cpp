@@ -3,11 +3,11 @@
 
 #include <cmath>
 
-#include "aggregate.hpp"
-#include "charts.hpp"
-#include "cut_to_disk.hpp"
-#include "geometry.hpp"
-#include "overlap.hpp"
+#include "charts/aggregate.hpp"
+#include "charts/chart_graph.hpp"
+#include "flatten/cut_to_disk.hpp"
+#include "core/geometry.hpp"
+#include "flatten/flatten_chart.hpp"
 #include "test_meshes.hpp"
 
 using namespace atlas;

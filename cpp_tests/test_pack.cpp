@@ -3,10 +3,10 @@
 #include <cmath>
 #include <random>
 
-#include "chart_raster.hpp"
-#include "coarse_mask.hpp"
-#include "pack.hpp"
-#include "page_occupancy.hpp"
+#include "pack/chart_raster.hpp"
+#include "pack/coarse_mask.hpp"
+#include "pack/pack.hpp"
+#include "pack/page_occupancy.hpp"
 
 namespace atlas {
 namespace {

@@ -6,8 +6,8 @@
 #include <map>
 #include <vector>
 
-#include "geometry.hpp"
-#include "scaffold_triangulation.hpp"
+#include "core/geometry.hpp"
+#include "flatten/scaffold_triangulation.hpp"
 
 using namespace atlas;
 

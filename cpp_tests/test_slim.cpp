@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "overlap.hpp"
-#include "slim.hpp"
+#include "flatten/flatten_chart.hpp"
+#include "flatten/slim.hpp"
 #include "test_meshes.hpp"
 
 namespace atlas {

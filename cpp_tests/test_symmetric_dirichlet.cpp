@@ -2,7 +2,7 @@
 // differences of the energy itself.
 #include <gtest/gtest.h>
 
-#include "symmetric_dirichlet.hpp"
+#include "flatten/symmetric_dirichlet.hpp"
 
 namespace atlas {
 namespace {

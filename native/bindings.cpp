@@ -10,8 +10,8 @@
 #include <cstdint>
 #include <sstream>
 
-#include "bake.hpp"
-#include "charts.hpp"
+#include "bake/bake.hpp"
+#include "charts/chart_graph.hpp"
 #include "metrics.hpp"
 #include "pipeline.hpp"
 

@@ -5,9 +5,9 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "bake.hpp"
-#include "mesh.hpp"
-#include "topology.hpp"
+#include "bake/bake.hpp"
+#include "core/mesh.hpp"
+#include "core/topology.hpp"
 
 namespace atlas {
 

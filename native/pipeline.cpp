@@ -10,11 +10,11 @@
 #include <map>
 #include <numeric>
 
-#include "charts.hpp"
-#include "cut_mesh.hpp"
-#include "overlap.hpp"
-#include "reference_triangles.hpp"
-#include "topology.hpp"
+#include "charts/chart_graph.hpp"
+#include "charts/cut_mesh.hpp"
+#include "flatten/flatten_chart.hpp"
+#include "flatten/reference_triangles.hpp"
+#include "core/topology.hpp"
 
 namespace atlas {
 namespace {

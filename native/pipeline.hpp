@@ -5,11 +5,11 @@
 #include <string>
 #include <vector>
 
-#include "aggregate.hpp"
-#include "mesh.hpp"
-#include "pack.hpp"
-#include "run_control.hpp"
-#include "slim.hpp"
+#include "charts/aggregate.hpp"
+#include "core/mesh.hpp"
+#include "pack/pack.hpp"
+#include "core/run_control.hpp"
+#include "flatten/slim.hpp"
 
 namespace atlas {
 

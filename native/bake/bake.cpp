@@ -1,0 +1,449 @@
+#include "bake/bake.hpp"
+
+#include <omp.h>
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <sstream>
+
+#include "bake/pull_push_fill.hpp"
+#include "core/rasterize_triangle.hpp"
+#include "bake/sample_texture.hpp"
+#include "bake/texel_encoding.hpp"
+
+namespace atlas {
+
+namespace {
+
+// Rows per parallel work item. One thread rasterises a band from all faces overlapping
+// it, in face order: writes never race and "first face wins" does not depend on
+// scheduling, so the output is deterministic.
+constexpr int kBandRows = 16;
+// New triangles with a smaller doubled area (texels^2) have no usable new->old map.
+constexpr double kMinDoubledArea = 1e-9;
+
+// ---- validation ------------------------------------------------------------
+
+template <class T>
+int require_old_pages(const std::vector<ImageView<T>>& pages) {
+  if (pages.empty()) throw InputError("bake: no old texture pages given");
+  const int channels = pages[0].channels;
+  for (std::size_t p = 0; p < pages.size(); ++p) {
+    const ImageView<T>& page = pages[p];
+    std::ostringstream msg;
+    msg << "bake: old page " << p << " ";
+    if (!page.texels) msg << "has no texel buffer";
+    else if (page.width <= 0 || page.height <= 0)
+      msg << "has non-positive size " << page.width << "x" << page.height;
+    else if (page.channels < 1 || page.channels > kMaxTexelChannels)
+      msg << "has " << page.channels << " channels; 1 to " << kMaxTexelChannels << " are supported";
+    else if (page.channels != channels)
+      msg << "has " << page.channels << " channels but page 0 has " << channels;
+    else if (page.size != static_cast<std::size_t>(page.width) * page.height * page.channels)
+      msg << "buffer holds " << page.size << " values, expected " << page.width << "x" << page.height
+          << "x" << page.channels;
+    else continue;
+    throw InputError(msg.str());
+  }
+  return channels;
+}
+
+void require_new_pages(const std::vector<PageSize>& pages) {
+  if (pages.empty()) throw InputError("bake: no new page sizes given");
+  for (std::size_t p = 0; p < pages.size(); ++p)
+    if (pages[p].width <= 0 || pages[p].height <= 0) {
+      std::ostringstream msg;
+      msg << "bake: new page " << p << " has non-positive size " << pages[p].width << "x"
+          << pages[p].height;
+      throw InputError(msg.str());
+    }
+}
+
+void require_layout(const UvLayout& layout, const char* name, std::size_t page_count) {
+  std::ostringstream msg;
+  msg << "bake: " << name << " layout ";
+  if (!layout.corner_uv || !layout.face_page) throw InputError(msg.str() + "is missing its arrays");
+  const RowMatrixX2d& uv = *layout.corner_uv;
+  const Eigen::VectorXi& face_page = *layout.face_page;
+  if (uv.rows() != 3 * face_page.size()) {
+    msg << "has " << uv.rows() << " corner UVs for " << face_page.size() << " faces (expected 3 per face)";
+    throw InputError(msg.str());
+  }
+  if (!uv.allFinite()) throw InputError(msg.str() + "has a non-finite UV");
+  for (Eigen::Index f = 0; f < face_page.size(); ++f)
+    if (face_page[f] < 0 || static_cast<std::size_t>(face_page[f]) >= page_count) {
+      msg << "puts face " << f << " on page " << face_page[f] << " but only " << page_count
+          << " page(s) were given";
+      throw InputError(msg.str());
+    }
+}
+
+// ---- per-face geometry -----------------------------------------------------
+
+// Rotation (det >= 0) or reflection (det < 0) closest to m: the orthogonal factor of its
+// polar decomposition. For m = [a b; c d], trace(Q^T m) is maximised over rotations
+// [p -q; q p] by (p, q) ~ (a + d, c - b) and over reflections [p q; q -p] by
+// (p, q) ~ (a - d, b + c). Normalising rather than using atan2 keeps quarter turns exact.
+Eigen::Matrix2d orthogonal_factor(const Eigen::Matrix2d& m) {
+  const bool mirrors = m.determinant() < 0;
+  double p = mirrors ? m(0, 0) - m(1, 1) : m(0, 0) + m(1, 1);
+  double q = mirrors ? m(0, 1) + m(1, 0) : m(1, 0) - m(0, 1);
+  const double r = std::hypot(p, q);
+  if (!(r > 0)) return Eigen::Matrix2d::Identity();  // m == 0: old triangle is a point
+  p /= r;
+  q /= r;
+  Eigen::Matrix2d out;
+  if (mirrors) out << p, q, q, -p;
+  else out << p, -q, q, p;
+  return out;
+}
+
+// One face, ready to rasterise on its new page and to sample its old page.
+struct FaceMap {
+  int new_page = -1;  // -1: degenerate in the new layout, never rasterised
+  int old_page = 0;
+  std::array<Eigen::Vector2d, 3> corner;  // new-page texels
+  TexelTriangle raster;                   // which texel centres the face claims (exact)
+  Eigen::Vector2d old_origin;             // corner 0 in old-page texels
+  Eigen::Matrix2d new_to_old;             // Jacobian: old texels per new texel
+  Footprint footprint;                    // new texel's extent in the old page
+  Eigen::Matrix2d frame_turn;             // how the tangent frame turned: applied to normal XY
+
+  // Affine map old = old_origin + new_to_old (p - corner 0): barycentric interpolation.
+  Eigen::Vector2d old_position(const Eigen::Vector2d& p) const {
+    return old_origin + new_to_old * (p - corner[0]);
+  }
+};
+
+Eigen::Matrix2d edge_matrix(const std::array<Eigen::Vector2d, 3>& v) {
+  Eigen::Matrix2d m;
+  m << v[1] - v[0], v[2] - v[0];
+  return m;
+}
+
+FaceMap map_face(int f, const UvLayout& old_layout, const PageSize& old_size, const UvLayout& new_layout,
+                 const PageSize& new_size) {
+  const Eigen::Vector2d old_scale(old_size.width, old_size.height);
+  const Eigen::Vector2d new_scale(new_size.width, new_size.height);
+  std::array<Eigen::Vector2d, 3> old_uv, new_uv, old_texel;
+  FaceMap face;
+  for (int k = 0; k < 3; ++k) {
+    old_uv[k] = old_layout.corner_uv->row(3 * f + k).transpose();
+    new_uv[k] = new_layout.corner_uv->row(3 * f + k).transpose();
+    old_texel[k] = old_uv[k].cwiseProduct(old_scale);
+    face.corner[k] = new_uv[k].cwiseProduct(new_scale);
+  }
+  face.old_page = (*old_layout.face_page)[f];
+  const Eigen::Matrix2d new_edges = edge_matrix(face.corner);
+  const double doubled_area = new_edges.determinant();
+  if (!(std::abs(doubled_area) > kMinDoubledArea)) return face;
+  face.new_page = (*new_layout.face_page)[f];
+  face.old_origin = old_texel[0];
+  face.new_to_old = edge_matrix(old_texel) * new_edges.inverse();
+  face.footprint = footprint_of(face.new_to_old);
+  // J = dNewUV/dOldUV is the inverse of old-per-new, whose orthogonal factor is the
+  // transpose. Old-per-new exists even when the old triangle is degenerate. UV units,
+  // not texels: renderers derive tangent frames from UVs, whatever the page aspect.
+  const Eigen::Matrix2d old_per_new_uv = edge_matrix(old_uv) * edge_matrix(new_uv).inverse();
+  face.frame_turn = orthogonal_factor(old_per_new_uv).transpose();
+  face.raster.setup(face.corner[0], face.corner[1], face.corner[2]);
+  return face;
+}
+
+template <class T>
+std::vector<FaceMap> map_faces(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
+                               const UvLayout& new_layout, const std::vector<PageSize>& new_pages) {
+  const int face_count = static_cast<int>(new_layout.face_page->size());
+  std::vector<FaceMap> faces(face_count);
+#pragma omp parallel for schedule(static)
+  for (int f = 0; f < face_count; ++f) {
+    const ImageView<T>& old_page = old_pages[(*old_layout.face_page)[f]];
+    faces[f] = map_face(f, old_layout, PageSize{old_page.width, old_page.height}, new_layout,
+                        new_pages[(*new_layout.face_page)[f]]);
+  }
+  return faces;
+}
+
+// Inclusive texel ranges whose centres lie within `reach` texels of the face's bounding
+// box, clipped to the page; empty when x0 > x1 or y0 > y1.
+struct TexelBox {
+  int x0, y0, x1, y1;
+};
+
+TexelBox texel_box(const FaceMap& face, double reach, int width, int height) {
+  const double lo_x = std::min({face.corner[0].x(), face.corner[1].x(), face.corner[2].x()});
+  const double hi_x = std::max({face.corner[0].x(), face.corner[1].x(), face.corner[2].x()});
+  const double lo_y = std::min({face.corner[0].y(), face.corner[1].y(), face.corner[2].y()});
+  const double hi_y = std::max({face.corner[0].y(), face.corner[1].y(), face.corner[2].y()});
+  // Centre i + 0.5 >= lo - reach  <=>  i >= lo - reach - 0.5. Clamped in double first:
+  // far-away UVs must not overflow the int conversion.
+  auto first = [reach](double lo, int n) {
+    return static_cast<int>(std::clamp(std::ceil(lo - reach - 0.5), 0.0, double(n)));
+  };
+  auto last = [reach](double hi, int n) {
+    return static_cast<int>(std::clamp(std::floor(hi + reach - 0.5), -1.0, double(n - 1)));
+  };
+  return {first(lo_x, width), first(lo_y, height), last(hi_x, width), last(hi_y, height)};
+}
+
+// Faces overlapping each band of kBandRows rows (padding reach included), in
+// increasing face order, as compressed rows: band b holds face[start[b] .. start[b+1]).
+struct BandFaces {
+  std::vector<int> page_first_band;  // size pages + 1
+  std::vector<int> start;
+  std::vector<int> face;
+};
+
+BandFaces bin_faces(const std::vector<FaceMap>& faces, const std::vector<PageSize>& pages, double reach) {
+  BandFaces bins;
+  bins.page_first_band.assign(pages.size() + 1, 0);
+  for (std::size_t p = 0; p < pages.size(); ++p)
+    bins.page_first_band[p + 1] = bins.page_first_band[p] + (pages[p].height + kBandRows - 1) / kBandRows;
+  bins.start.assign(bins.page_first_band.back() + 1, 0);
+  auto for_each_band = [&](auto&& visit) {
+    for (std::size_t f = 0; f < faces.size(); ++f) {
+      const int p = faces[f].new_page;
+      if (p < 0) continue;
+      const TexelBox box = texel_box(faces[f], reach, pages[p].width, pages[p].height);
+      if (box.x0 > box.x1 || box.y0 > box.y1) continue;
+      for (int b = box.y0 / kBandRows; b <= box.y1 / kBandRows; ++b)
+        visit(bins.page_first_band[p] + b, static_cast<int>(f));
+    }
+  };
+  for_each_band([&](int band, int) { ++bins.start[band + 1]; });
+  for (std::size_t b = 1; b < bins.start.size(); ++b) bins.start[b] += bins.start[b - 1];
+  bins.face.resize(bins.start.back());
+  std::vector<int> cursor(bins.start.begin(), bins.start.end() - 1);
+  for_each_band([&](int band, int f) { bins.face[cursor[band]++] = f; });
+  return bins;
+}
+
+// ---- texel values ----------------------------------------------------------
+
+// Tangent-space normal XY codes: n = 2c - 1 for float texels, n = (c - 128) / 127 for
+// 8-bit ones. 8-bit maps store flat as 128, which must decode to exactly 0, or a quarter
+// turn would drift flat texels to 127; the symmetric range 1..255 also makes quarter
+// turns and mirrors exact permutations of codes.
+template <class T>
+struct NormalCode;
+
+template <>
+struct NormalCode<float> {
+  static double decode(double c) { return 2.0 * c - 1.0; }
+  static double encode(double n) { return (n + 1.0) / 2.0; }
+};
+
+template <>
+struct NormalCode<std::uint8_t> {
+  static double decode(double c) { return (c - 128.0) / 127.0; }
+  static double encode(double n) { return 128.0 + 127.0 * n; }
+};
+
+// The new tangent axes, in old UV directions, are R^T e_x and R^T e_y; the same surface
+// normal therefore has new XY components R n_xy (R a rotation, or a reflection when the
+// chart was mirrored). Z is the normal along the surface normal and does not change.
+template <class T>
+void reorient_normal(const Eigen::Matrix2d& frame_turn, double* channels) {
+  const Eigen::Vector2d n(NormalCode<T>::decode(channels[0]), NormalCode<T>::decode(channels[1]));
+  const Eigen::Vector2d turned = frame_turn * n;
+  channels[0] = NormalCode<T>::encode(turned.x());
+  channels[1] = NormalCode<T>::encode(turned.y());
+}
+
+template <class T>
+struct BakeJob {
+  const std::vector<FaceMap>& faces;
+  const std::vector<ImageView<T>>& old_pages;
+  const BakeOptions& options;
+};
+
+// Value of new-page point p (texels) of a face: old page sampled over the footprint.
+template <class T>
+void bake_texel(const BakeJob<T>& job, const FaceMap& face, const Eigen::Vector2d& p, T* out) {
+  const ImageView<T>& old_page = job.old_pages[face.old_page];
+  double value[kMaxTexelChannels];
+  sample_texture(old_page, face.old_position(p), face.footprint, value);
+  if (job.options.normal_map) reorient_normal<T>(face.frame_turn, value);
+  for (int k = 0; k < old_page.channels; ++k) out[k] = encode_texel<T>(value[k]);
+}
+
+// ---- rasterisation ---------------------------------------------------------
+
+// Rows [row0, row1] of one page, with the set flags of its texels.
+template <class T>
+struct BandTarget {
+  int row0, row1;
+  Image<T>& page;
+  std::vector<std::uint8_t>& is_set;
+
+  std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * page.width + x; }
+  T* texel(std::size_t i) const { return page.texels.data() + i * page.channels; }
+};
+
+// Bakes the texels of the band whose centres the face claims and no earlier face took.
+// TexelTriangle decides coverage exactly, so faces sharing an edge tile it without gaps.
+template <class T>
+void cover_band(const BakeJob<T>& job, const FaceMap& face, const BandTarget<T>& band) {
+  const int last_row = std::min(face.raster.row_end - 1, band.row1);
+  for (int y = std::max(face.raster.row_begin, band.row0); y <= last_row; ++y) {
+    int x0, x1;
+    face.raster.row_span(y, x0, x1);
+    for (int x = std::max(x0, 0); x < std::min(x1, band.page.width); ++x) {
+      const std::size_t i = band.index(x, y);
+      if (band.is_set[i]) continue;
+      band.is_set[i] = 1;
+      bake_texel(job, face, Eigen::Vector2d(x + 0.5, y + 0.5), band.texel(i));
+    }
+  }
+}
+
+// Nearest face found so far for every uncovered texel of a band. Only touched entries
+// are reset between bands: clearing whole bands would cost more than the padding itself.
+struct PaddingCandidates {
+  std::vector<double> distance2;       // +inf where no face is within reach
+  std::vector<int> face;               // -1 where no face is within reach
+  std::vector<Eigen::Vector2d> point;  // closest point of that face, new-page texels
+  std::vector<std::size_t> touched;    // capacity for every entry: never reallocates
+
+  explicit PaddingCandidates(std::size_t n)
+      : distance2(n, std::numeric_limits<double>::infinity()), face(n, -1), point(n) {
+    touched.reserve(n);
+  }
+  void clear() {
+    for (std::size_t local : touched) {
+      distance2[local] = std::numeric_limits<double>::infinity();
+      face[local] = -1;
+    }
+    touched.clear();
+  }
+};
+
+Eigen::Vector2d closest_on_segment(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                                   const Eigen::Vector2d& p) {
+  const Eigen::Vector2d d = b - a;
+  const double length2 = d.squaredNorm();
+  const double t = length2 > 0 ? std::clamp(d.dot(p - a) / length2, 0.0, 1.0) : 0.0;
+  return a + t * d;
+}
+
+// For a point not covered by the triangle the closest point lies on its boundary.
+Eigen::Vector2d closest_on_boundary(const FaceMap& face, const Eigen::Vector2d& p) {
+  Eigen::Vector2d best = closest_on_segment(face.corner[0], face.corner[1], p);
+  for (int k = 1; k < 3; ++k) {
+    const Eigen::Vector2d q = closest_on_segment(face.corner[k], face.corner[(k + 1) % 3], p);
+    if ((q - p).squaredNorm() < (best - p).squaredNorm()) best = q;
+  }
+  return best;
+}
+
+// Records the face as the padding source of uncovered texels within `padding` texels
+// (centre to triangle) that no earlier face is strictly closer to.
+template <class T>
+void collect_padding(const FaceMap& face, int face_index, double padding, const BandTarget<T>& band,
+                     PaddingCandidates& candidates) {
+  const TexelBox box = texel_box(face, padding, band.page.width, band.page.height);
+  for (int y = std::max(box.y0, band.row0); y <= std::min(box.y1, band.row1); ++y)
+    for (int x = box.x0; x <= box.x1; ++x) {
+      if (band.is_set[band.index(x, y)]) continue;
+      const Eigen::Vector2d p(x + 0.5, y + 0.5);
+      const Eigen::Vector2d q = closest_on_boundary(face, p);
+      const double d2 = (q - p).squaredNorm();
+      const std::size_t local = static_cast<std::size_t>(y - band.row0) * band.page.width + x;
+      if (d2 > padding * padding || d2 >= candidates.distance2[local]) continue;
+      if (candidates.face[local] < 0) candidates.touched.push_back(local);
+      candidates.distance2[local] = d2;
+      candidates.face[local] = face_index;
+      candidates.point[local] = q;
+    }
+}
+
+// Edge texels take the old texture at the nearest point of the nearest face: the chart
+// is extrapolated with its own border colours, not blended with the fill.
+template <class T>
+void pad_band(const BakeJob<T>& job, const int* band_faces, int count, const BandTarget<T>& band,
+              PaddingCandidates& candidates) {
+  for (int j = 0; j < count; ++j)
+    collect_padding(job.faces[band_faces[j]], band_faces[j], job.options.padding, band, candidates);
+  for (std::size_t local : candidates.touched) {
+    const std::size_t i = band.index(0, band.row0) + local;
+    band.is_set[i] = 1;
+    bake_texel(job, job.faces[candidates.face[local]], candidates.point[local], band.texel(i));
+  }
+  candidates.clear();
+}
+
+template <class T>
+void rasterize(const BakeJob<T>& job, const BandFaces& bins, std::vector<Image<T>>& pages,
+               std::vector<std::vector<std::uint8_t>>& is_set, const RunControl& control) {
+  const int band_count = bins.page_first_band.back();
+  int widest = 0;
+  for (const Image<T>& page : pages) widest = std::max(widest, page.width);
+  // Allocated up front: nothing may throw inside the parallel region.
+  std::vector<PaddingCandidates> scratch;
+  for (int t = 0; t < omp_get_max_threads(); ++t)
+    scratch.emplace_back(static_cast<std::size_t>(kBandRows) * widest);
+#pragma omp parallel for schedule(dynamic)
+  for (int b = 0; b < band_count; ++b) {
+    if (control.cancelled()) continue;
+    const auto after = std::upper_bound(bins.page_first_band.begin(), bins.page_first_band.end(), b);
+    const int p = static_cast<int>(after - bins.page_first_band.begin()) - 1;
+    const int row0 = (b - bins.page_first_band[p]) * kBandRows;
+    const BandTarget<T> band{row0, std::min(row0 + kBandRows, pages[p].height) - 1, pages[p], is_set[p]};
+    const int* band_faces = bins.face.data() + bins.start[b];
+    const int count = bins.start[b + 1] - bins.start[b];
+    for (int j = 0; j < count; ++j) cover_band(job, job.faces[band_faces[j]], band);
+    if (job.options.padding > 0) pad_band(job, band_faces, count, band, scratch[omp_get_thread_num()]);
+  }
+  control.throw_if_cancelled();
+}
+
+}  // namespace
+
+template <class T>
+std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
+                               const UvLayout& new_layout, const std::vector<PageSize>& new_pages,
+                               const BakeOptions& options, const RunControl& control) {
+  const int channels = require_old_pages(old_pages);
+  require_new_pages(new_pages);
+  require_layout(old_layout, "old", old_pages.size());
+  require_layout(new_layout, "new", new_pages.size());
+  if (old_layout.face_page->size() != new_layout.face_page->size())
+    throw InputError("bake: old and new layouts have different face counts");
+  if (options.padding < 0) throw InputError("bake: padding must not be negative");
+  if (options.normal_map && channels < 2) throw InputError("bake: a normal map needs at least 2 channels");
+  control.throw_if_cancelled();
+
+  const std::vector<FaceMap> faces = map_faces(old_layout, old_pages, new_layout, new_pages);
+  // One extra texel of reach: coverage uses vertices snapped to 1/256 texel.
+  const BandFaces bins = bin_faces(faces, new_pages, options.padding + 1.0);
+  std::vector<Image<T>> baked(new_pages.size());
+  std::vector<std::vector<std::uint8_t>> is_set(new_pages.size());
+  for (std::size_t p = 0; p < new_pages.size(); ++p) {
+    baked[p].width = new_pages[p].width;
+    baked[p].height = new_pages[p].height;
+    baked[p].channels = channels;
+    baked[p].texels.resize(static_cast<std::size_t>(new_pages[p].width) * new_pages[p].height * channels);
+    is_set[p].assign(static_cast<std::size_t>(new_pages[p].width) * new_pages[p].height, 0);
+  }
+  // Sampling is most of the work; the fill of each page takes the rest.
+  rasterize(BakeJob<T>{faces, old_pages, options}, bins, baked, is_set, control);
+  control.progress("bake", 0.8);
+  for (std::size_t p = 0; p < baked.size(); ++p) {
+    pull_push_fill(baked[p], is_set[p], control);
+    control.progress("bake", 0.8 + 0.2 * double(p + 1) / baked.size());
+  }
+  return baked;
+}
+
+template std::vector<Image<std::uint8_t>> bake_map<std::uint8_t>(
+    const UvLayout&, const std::vector<ImageView<std::uint8_t>>&, const UvLayout&,
+    const std::vector<PageSize>&, const BakeOptions&, const RunControl&);
+template std::vector<Image<float>> bake_map<float>(const UvLayout&, const std::vector<ImageView<float>>&,
+                                                   const UvLayout&, const std::vector<PageSize>&,
+                                                   const BakeOptions&, const RunControl&);
+
+}  // namespace atlas

@@ -1,0 +1,48 @@
+// Texture generation: every texel of the new atlas samples the old texture
+// through the old UVs of the same surface point, then empty texels are filled
+// by pull-push so that bilinear and mip sampling never see background.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "core/mesh.hpp"
+#include "core/run_control.hpp"
+
+namespace atlas {
+
+// Row-major texels, row 0 at v = 0 (the bottom, as in Blender and OpenGL).
+template <class T>
+struct Image {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  std::vector<T> texels;  // width * height * channels
+};
+
+template <class T>
+struct ImageView {
+  const T* texels = nullptr;
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  std::size_t size = 0;  // elements behind texels; bake_map requires width * height * channels
+};
+
+struct BakeOptions {
+  bool normal_map = false;  // tangent-space normal map: XY re-oriented per face
+  int padding = 4;          // texels around charts filled with edge colour before pull-push
+};
+
+struct UvLayout {
+  const RowMatrixX2d* corner_uv = nullptr;  // 3F x 2, page units
+  const Eigen::VectorXi* face_page = nullptr;
+};
+
+// Bakes one map (uint8_t or float texels). old_pages[p] is the image of old page p.
+template <class T>
+std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
+                               const UvLayout& new_layout, const std::vector<PageSize>& new_pages,
+                               const BakeOptions& options, const RunControl& control);
+
+}  // namespace atlas

@@ -1,0 +1,111 @@
+#include "bake/sample_texture.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+namespace atlas {
+
+namespace {
+
+// Beyond this many old texels per new texel a single bilinear tap skips texels.
+constexpr double kBilinearMaxExtent = 1.5;
+// 8 x 8 taps bound the cost; only extreme (> 8x) minification still aliases a little.
+constexpr int kMaxSamplesPerAxis = 8;
+
+// Written as a + (b - a) t so that equal inputs return exactly a: constant textures
+// stay bit-exact through any filter weights.
+inline double lerp(double a, double b, double t) { return a + (b - a) * t; }
+
+int samples_along(double extent) {
+  if (!(extent > 1.0)) return 1;
+  return static_cast<int>(std::min<double>(std::ceil(extent), kMaxSamplesPerAxis));
+}
+
+// The two texels bracketing continuous coordinate u on a repeating axis of n texels
+// (centres at +0.5), and the weight t of the second one.
+struct Tap {
+  int lo, hi;
+  double t;
+};
+
+inline Tap wrapped_tap(double u, int n) {
+  const double g = u - 0.5;
+  // Common case first: inside the page no wrap is needed and truncation is floor.
+  if (g >= 0 && g < n - 1) {
+    const int lo = static_cast<int>(g);
+    return {lo, lo + 1, g - lo};
+  }
+  const double r = g - n * std::floor(g / n);  // in [0, n]; n only through rounding
+  const int whole = static_cast<int>(r);
+  const int lo = whole >= n ? whole - n : whole;
+  return {lo, lo + 1 == n ? 0 : lo + 1, r - whole};
+}
+
+// Bilinear interpolation of the four texels around the taps, C channels.
+template <int C, class T>
+void blend(const ImageView<T>& page, const Tap& x, const Tap& y, double* out) {
+  const std::size_t row = static_cast<std::size_t>(page.width) * C;
+  const T* r0 = page.texels + row * y.lo;
+  const T* r1 = page.texels + row * y.hi;
+  for (int k = 0; k < C; ++k) {
+    const double bottom = lerp(r0[x.lo * C + k], r0[x.hi * C + k], x.t);
+    const double top = lerp(r1[x.lo * C + k], r1[x.hi * C + k], x.t);
+    out[k] = lerp(bottom, top, y.t);
+  }
+}
+
+// Channel count as a template argument: the per-tap loops fully unroll.
+template <int C, class T>
+void sample_channels(const ImageView<T>& page, const Eigen::Vector2d& at, const Footprint& footprint,
+                     double* out) {
+  const int nx = footprint.samples_x, ny = footprint.samples_y;
+  if (nx * ny == 1) {
+    blend<C>(page, wrapped_tap(at.x(), page.width), wrapped_tap(at.y(), page.height), out);
+    return;
+  }
+  // Stratified grid: tap (i, j) sits at the centre of cell (i, j) of the new texel,
+  // i.e. at offset ((i + 0.5) / nx - 0.5, (j + 0.5) / ny - 0.5) new texels from its centre.
+  double sum[C] = {}, tap[C];
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const Eigen::Vector2d cell((i + 0.5) / nx - 0.5, (j + 0.5) / ny - 0.5);
+      const Eigen::Vector2d p = at + footprint.axes * cell;
+      blend<C>(page, wrapped_tap(p.x(), page.width), wrapped_tap(p.y(), page.height), tap);
+      for (int k = 0; k < C; ++k) sum[k] += tap[k];
+    }
+  // Summing n equal values is exact in double for n <= 64, so constants survive the mean.
+  for (int k = 0; k < C; ++k) out[k] = sum[k] / (nx * ny);
+}
+
+}  // namespace
+
+Footprint footprint_of(const Eigen::Matrix2d& new_to_old_texels) {
+  Footprint footprint;
+  footprint.axes = new_to_old_texels;
+  const double extent_x = new_to_old_texels.col(0).norm();
+  const double extent_y = new_to_old_texels.col(1).norm();
+  if (std::max(extent_x, extent_y) <= kBilinearMaxExtent) return footprint;
+  footprint.samples_x = samples_along(extent_x);
+  footprint.samples_y = samples_along(extent_y);
+  return footprint;
+}
+
+template <class T>
+void sample_texture(const ImageView<T>& page, const Eigen::Vector2d& at, const Footprint& footprint,
+                    double* out) {
+  switch (page.channels) {
+    case 1: return sample_channels<1>(page, at, footprint, out);
+    case 2: return sample_channels<2>(page, at, footprint, out);
+    case 3: return sample_channels<3>(page, at, footprint, out);
+    default: return sample_channels<4>(page, at, footprint, out);
+  }
+}
+
+template void sample_texture<std::uint8_t>(const ImageView<std::uint8_t>&, const Eigen::Vector2d&,
+                                           const Footprint&, double*);
+template void sample_texture<float>(const ImageView<float>&, const Eigen::Vector2d&, const Footprint&,
+                                    double*);
+
+}  // namespace atlas

@@ -1,0 +1,57 @@
+// Aggregation (thesis 5.2): greedy edge collapse on the chart graph, cheapest
+// first, refusing any merge whose result is not a topological disk.
+#pragma once
+#include <vector>
+
+#include "charts/chart_graph.hpp"
+#include "core/mesh.hpp"
+#include "core/run_control.hpp"
+#include "core/topology.hpp"
+
+namespace atlas {
+
+enum class Weighting { UV, Surface };
+
+struct AggregateOptions {
+  // w_3D by default: on the three shared scans it left fewer charts and
+  // shorter seams than w_UV (Meshroom 202 vs 215 charts, Smithsonian 940 vs 971).
+  Weighting weighting = Weighting::Surface;
+  int target_charts = 0;            // stop at this many charts; 0: no target
+  // A collapse is made only while the smaller chart covers less than this
+  // fraction of the total area; 1 lets charts grow as far as topology allows.
+  double min_chart_fraction = 1.0;
+  // A merged chart's area-weighted mean normal, |sum_f A_f n_f| / sum_f A_f,
+  // may not fall below this. A spherical cap of half-angle t has (1 + cos t)/2,
+  // so 0.5 stops at a hemisphere: beyond it no flattening keeps the original
+  // texel density, and solving such a chart only to split it is what makes
+  // large closed scans slow. 0 disables.
+  double min_normal_coherence = 0.5;
+  // No merged chart grows beyond this many faces: the cost of flattening a
+  // chart grows faster than its size (sparse Cholesky fill), and many
+  // mid-sized charts keep both cores busy. 0 disables.
+  int max_chart_faces = 20000;
+};
+
+// Why the adjacent charts left at the end were not merged: one count per pair,
+// by the first rule that refuses it. It tells a chart count that topology
+// forces (not_disk, non_manifold) from one that the options chose.
+struct AggregationStops {
+  int non_manifold = 0;        // a non-manifold or flipped shared edge, or a chart that started non-manifold
+  int not_disk = 0;            // the union would have a hole or a handle
+  int normal_coherence = 0;    // see AggregateOptions
+  int max_chart_faces = 0;
+  int min_chart_fraction = 0;
+  int feasible = 0;            // nothing refuses it: the target count was reached first
+};
+
+struct Aggregation {
+  std::vector<int> face_chart;                 // F, new chart per face, -1 untextured
+  std::vector<std::vector<int>> members;       // new chart -> original charts in it
+  AggregationStops stops;
+  int chart_count() const { return static_cast<int>(members.size()); }
+};
+
+Aggregation aggregate_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                             const AggregateOptions& options, const RunControl& control);
+
+}  // namespace atlas

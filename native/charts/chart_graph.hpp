@@ -1,0 +1,49 @@
+// The chart graph (thesis 5.2): charts are the faces connected across mesh
+// edges whose UVs agree at both ends on the same page; two charts are adjacent
+// when they share a mesh edge.
+#pragma once
+#include <vector>
+
+#include "core/mesh.hpp"
+#include "core/topology.hpp"
+
+namespace atlas {
+
+struct ChartStats {
+  int page = 0;
+  int faces = 0;
+  double area_3d = 0;
+  double area_uv = 0;          // texels^2, sum of unsigned face areas
+  double signed_area_uv = 0;   // texels^2; negative when the chart is mirrored
+  double perimeter_3d = 0;     // boundary length on the surface
+  double perimeter_uv = 0;     // boundary length in texels
+  bool mirrored() const { return signed_area_uv < 0; }
+};
+
+struct ChartAdjacency {
+  int a = 0, b = 0;            // a < b
+  double length_3d = 0;        // shared boundary on the surface
+  double uv_length_a = 0;      // the shared boundary measured in a's UVs (texels)
+  double uv_length_b = 0;
+  int shared_edges = 0;
+  bool mergeable = true;       // false across non-manifold or inconsistently wound edges
+};
+
+struct ChartGraph {
+  std::vector<int> face_chart;   // F, -1 for untextured faces (page -1)
+  std::vector<char> self_seam;   // per edge, see self_seams: boundary on both sides
+  std::vector<ChartStats> charts;
+  std::vector<ChartAdjacency> adjacency;
+  int chart_count() const { return static_cast<int>(charts.size()); }
+};
+
+// face_group may be empty (one group). Untextured faces (page -1) join no chart.
+ChartGraph build_chart_graph(const Mesh& mesh, const MeshTopology& topology,
+                             const std::vector<int>& face_group);
+
+// Length of every interior edge whose two faces disagree in UV (or page),
+// counted once, divided by sqrt(total 3D area): a scale-free seam measure.
+double seam_length_ratio(const Mesh& mesh, const MeshTopology& topology,
+                         const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page);
+
+}  // namespace atlas

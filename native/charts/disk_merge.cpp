@@ -1,0 +1,152 @@
+#include "charts/disk_merge.hpp"
+
+#include <algorithm>
+#include <numeric>
+
+namespace atlas {
+namespace {
+
+int prev_corner(int c) { return 3 * (c / 3) + (c % 3 + 2) % 3; }
+
+}  // namespace
+
+DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
+                           int cluster_count, std::vector<char> kept_seams)
+    : mesh_(mesh),
+      topology_(topology),
+      face_cluster_(std::move(face_cluster)),
+      faces_(cluster_count),
+      euler_(cluster_count, 0),
+      manifold_(cluster_count, 0),
+      seam_(std::move(kept_seams)),
+      edge_stamp_(topology.edge_count(), 0),
+      vertex_stamp_(mesh.vertex_count(), 0) {
+  for (int f = 0; f < mesh.face_count(); ++f)
+    if (face_cluster_[f] >= 0) faces_[face_cluster_[f]].push_back(f);
+  for (int c = 0; c < cluster_count; ++c) {
+    euler_[c] = euler_of(c);
+    manifold_[c] = !faces_[c].empty() && manifold_inside(c);
+  }
+}
+
+// chi = V - E + F over the faces of cluster c, where a vertex whose faces in
+// c form k separate fans counts k times: touching at a single vertex costs no
+// seam, so such pinches are split rather than refused (see localize in overlap).
+// A seam the cluster keeps counts as two edges, one per side.
+int DiskClusters::euler_of(int c) {
+  ++stamp_;
+  int vertices = 0, edges = 0;
+  for (int f : faces_[c])
+    for (int k = 0; k < 3; ++k) {
+      const int e = topology_.corner_edge[3 * f + k], v = mesh_.triangles(f, k);
+      if (seam_[e]) ++edges;
+      else if (edge_stamp_[e] != stamp_) edge_stamp_[e] = stamp_, ++edges;
+      if (vertex_stamp_[v] != stamp_) vertex_stamp_[v] = stamp_, vertices += fan_count(v, c, c);
+    }
+  return vertices - edges + static_cast<int>(faces_[c].size());
+}
+
+// Inside one cluster every edge has at most two of its faces, consistently
+// wound. With chi == 1 (pinches split) that makes a disk. Merges keep it:
+// merged_euler refuses non-manifold or flipped shared edges.
+bool DiskClusters::manifold_inside(int c) {
+  for (int f : faces_[c])
+    for (int k = 0; k < 3; ++k) {
+      const int c0 = 3 * f + k, e = topology_.corner_edge[c0];
+      if (seam_[e]) continue;
+      int inside = 0;
+      for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
+        const int ci = topology_.edge_corners[i];
+        if (face_cluster_[ci / 3] != c) continue;
+        ++inside;
+        if (ci != c0 && mesh_.triangles(ci / 3, ci % 3) == mesh_.triangles(f, k)) return false;
+      }
+      if (inside > 2 || (inside == 2 && topology_.edge_valence(e) != 2)) return false;
+    }
+  return true;
+}
+
+// Number of edge-connected fans that the faces of clusters a and b form around v.
+int DiskClusters::fan_count(int v, int a, int b) const {
+  const int begin = topology_.vertex_offsets[v], end = topology_.vertex_offsets[v + 1];
+  std::vector<int> local_parent;
+  std::vector<int> local_face;
+  for (int i = begin; i < end; ++i) {
+    const int f = topology_.vertex_corners[i] / 3;
+    if (in(f, a, b)) local_face.push_back(f), local_parent.push_back(static_cast<int>(local_parent.size()));
+  }
+  auto find = [&](int x) {
+    while (local_parent[x] != x) x = local_parent[x];
+    return x;
+  };
+  auto index_of = [&](int f) {
+    return static_cast<int>(std::find(local_face.begin(), local_face.end(), f) - local_face.begin());
+  };
+  int fans = static_cast<int>(local_face.size());
+  for (int i = begin; i < end; ++i) {
+    const int c = topology_.vertex_corners[i];
+    if (!in(c / 3, a, b)) continue;
+    for (int e : {topology_.corner_edge[c], topology_.corner_edge[prev_corner(c)]}) {
+      if (!joins(e)) continue;
+      for (int j = topology_.edge_offsets[e]; j < topology_.edge_offsets[e + 1]; ++j) {
+        const int g = topology_.edge_corners[j] / 3;
+        if (g == c / 3 || !in(g, a, b)) continue;
+        const int ra = find(index_of(c / 3)), rb = find(index_of(g));
+        if (ra != rb) local_parent[ra] = rb, --fans;
+      }
+    }
+  }
+  return fans;
+}
+
+MergeCheck DiskClusters::check_merge(int a, int b) {
+  if (a == b || !manifold_[a] || !manifold_[b]) return {MergeRefusal::NonManifold};
+  if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
+  ++stamp_;
+  int shared_edges = 0, fans_joined = 0;
+  for (int f : faces_[a])
+    for (int k = 0; k < 3; ++k) {
+      const int c = 3 * f + k, e = topology_.corner_edge[c], v = mesh_.triangles(f, k);
+      if (edge_stamp_[e] != stamp_) {
+        edge_stamp_[e] = stamp_;
+        for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
+          const int ci = topology_.edge_corners[i];
+          if (face_cluster_[ci / 3] != b) continue;
+          // Never merge across a non-manifold edge or a winding flip.
+          if (topology_.edge_valence(e) != 2 || mesh_.triangles(ci / 3, ci % 3) == v)
+            return {MergeRefusal::NonManifold};
+          if (seam_[e]) continue;
+          ++shared_edges;
+        }
+      }
+      if (vertex_stamp_[v] != stamp_) {
+        vertex_stamp_[v] = stamp_;
+        bool touches_b = false;
+        for (int i = topology_.vertex_offsets[v]; i < topology_.vertex_offsets[v + 1]; ++i)
+          touches_b = touches_b || face_cluster_[topology_.vertex_corners[i] / 3] == b;
+        if (touches_b) fans_joined += fan_count(v, a, a) + fan_count(v, b, b) - fan_count(v, a, b);
+      }
+    }
+  if (shared_edges == 0) return {MergeRefusal::NotDisk};
+  // Inclusion-exclusion with pinches split: every shared edge joins two faces'
+  // sides into one, every fan that merges with another removes a vertex.
+  const int euler = euler_[a] + euler_[b] - fans_joined + shared_edges;
+  // A disk, or a step towards one: a chart with holes (chi < 1) absorbing an
+  // island fills a hole and raises chi. Anything else adds a hole or a handle.
+  // chi == 2 would close a sphere: no boundary left to flatten.
+  if (euler == 1 || (euler < 1 && euler > std::min(euler_[a], euler_[b]))) return {MergeRefusal::None, euler};
+  return {MergeRefusal::NotDisk};
+}
+
+int DiskClusters::merge(int a, int b, int merged_euler) {
+  if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
+  for (int f : faces_[a]) face_cluster_[f] = b;
+  faces_[b].insert(faces_[b].end(), faces_[a].begin(), faces_[a].end());
+  faces_[a].clear();
+  faces_[a].shrink_to_fit();
+  euler_[b] = merged_euler;
+  manifold_[a] = 0;
+  return b;
+}
+
+}  // namespace atlas

@@ -1,0 +1,70 @@
+// Clusters of faces that stay topological disks while they grow. Used by the
+// aggregation (thesis 5.2.1: a collapse whose result is not a disk has infinite
+// cost) and by the overlap backtracking, which regrows clusters the same way.
+#pragma once
+#include <vector>
+
+#include "core/mesh.hpp"
+#include "core/topology.hpp"
+
+namespace atlas {
+
+// Why two clusters may not merge: the shared border has a non-manifold edge or
+// a winding flip, or the union would not be a disk.
+//
+// A union whose boundary wraps past a full turn of reference angle somewhere
+// is allowed: SCAF (slim.cpp) keeps its flattening from crossing itself, and
+// the density check splits it if that costs detail. Refusing it up front left
+// a quarter more charts on the Smithsonian scan.
+enum class MergeRefusal { None, NonManifold, NotDisk };
+
+struct MergeCheck {
+  MergeRefusal refusal = MergeRefusal::None;
+  int euler = 0;  // of the union, when not refused
+  explicit operator bool() const { return refusal == MergeRefusal::None; }
+};
+
+class DiskClusters {
+ public:
+  // face_cluster[f] in [0, cluster_count) or -1 for faces that take no part.
+  // kept_seams (per edge, see self_seams) are edges where an original chart
+  // meets itself at a UV seam: they stay boundary on both sides for good.
+  DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
+               int cluster_count, std::vector<char> kept_seams);
+
+  // Euler characteristic chi = V - E + F of the union of a and b, counting a
+  // vertex once per fan of faces around it (pinches are split), when the shared
+  // edges are manifold and consistently wound and the union is a disk
+  // (chi == 1) or has fewer holes than the worse of the two (an island filling
+  // a hole); the refusal otherwise. Clusters that did not start manifold never merge.
+  MergeCheck check_merge(int a, int b);
+  // Merges the smaller cluster into the larger; returns the survivor.
+  int merge(int a, int b, int merged_euler);
+
+  // Connected, manifold, orientable and chi == 1: a topological disk once
+  // pinch vertices are split.
+  bool is_disk(int c) const { return manifold_[c] && euler_[c] == 1; }
+  const std::vector<int>& faces(int c) const { return faces_[c]; }
+  int cluster_of(int f) const { return face_cluster_[f]; }
+
+ private:
+  int euler_of(int c);
+  bool manifold_inside(int c);
+  int fan_count(int v, int a, int b) const;
+  bool in(int f, int a, int b) const { return face_cluster_[f] == a || face_cluster_[f] == b; }
+  // Faces of a cluster are joined across e: manifold and not a seam the cluster keeps.
+  bool joins(int e) const { return topology_.edge_valence(e) == 2 && !seam_[e]; }
+
+  const Mesh& mesh_;
+  const MeshTopology& topology_;
+  std::vector<int> face_cluster_;
+  std::vector<std::vector<int>> faces_;
+  std::vector<int> euler_;
+  std::vector<char> manifold_;
+  std::vector<char> seam_;  // kept_seams
+  // Visit stamps, so each check touches only the smaller cluster's faces.
+  std::vector<unsigned> edge_stamp_, vertex_stamp_;
+  unsigned stamp_ = 0;
+};
+
+}  // namespace atlas

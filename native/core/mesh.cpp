@@ -1,0 +1,130 @@
+#include "core/mesh.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+
+#include "core/geometry.hpp"
+
+namespace atlas {
+
+Eigen::Vector2d Mesh::uv_texels(int f, int k) const {
+  const PageSize& page = pages[face_page[f]];
+  return {corner_uv(3 * f + k, 0) * page.width, corner_uv(3 * f + k, 1) * page.height};
+}
+
+double Mesh::signed_area_uv(int f) const { return signed_area(uv_texels(f, 0), uv_texels(f, 1), uv_texels(f, 2)); }
+
+double Mesh::area_3d(int f) const {
+  return triangle_area(positions.row(triangles(f, 0)), positions.row(triangles(f, 1)), positions.row(triangles(f, 2)));
+}
+
+namespace {
+
+template <class Matrix>
+void require_finite(const Matrix& m, const char* name) {
+  for (Eigen::Index i = 0; i < m.rows(); ++i)
+    for (Eigen::Index j = 0; j < m.cols(); ++j)
+      if (!std::isfinite(m(i, j))) {
+        std::ostringstream msg;
+        msg << name << " has a non-finite value (NaN or inf) at row " << i;
+        throw InputError(msg.str());
+      }
+}
+
+void require_shapes(const RowMatrixX3d& positions, const RowMatrixX3i& triangles,
+                    const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page) {
+  if (positions.rows() == 0) throw InputError("mesh has no vertices");
+  if (triangles.rows() == 0) throw InputError("mesh has no triangles");
+  if (corner_uv.rows() != 3 * triangles.rows()) {
+    std::ostringstream msg;
+    msg << "uvs must hold 3 corners per triangle: expected " << 3 * triangles.rows()
+        << " rows, got " << corner_uv.rows();
+    throw InputError(msg.str());
+  }
+  if (face_page.size() != triangles.rows()) {
+    std::ostringstream msg;
+    msg << "face_page must hold one page per triangle: expected " << triangles.rows()
+        << ", got " << face_page.size();
+    throw InputError(msg.str());
+  }
+}
+
+void require_indices(const RowMatrixX3i& triangles, Eigen::Index vertex_count) {
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (triangles(f, k) < 0 || triangles(f, k) >= vertex_count) {
+        std::ostringstream msg;
+        msg << "triangle " << f << " has vertex index " << triangles(f, k)
+            << " out of range [0, " << vertex_count << ")";
+        throw InputError(msg.str());
+      }
+}
+
+void require_pages(const Eigen::VectorXi& face_page, const std::vector<PageSize>& pages) {
+  if (pages.empty()) throw InputError("no texture page sizes given");
+  for (size_t p = 0; p < pages.size(); ++p)
+    if (pages[p].width <= 0 || pages[p].height <= 0) {
+      std::ostringstream msg;
+      msg << "page " << p << " has non-positive size " << pages[p].width << "x" << pages[p].height;
+      throw InputError(msg.str());
+    }
+  for (Eigen::Index f = 0; f < face_page.size(); ++f)
+    if (face_page[f] < -1 || face_page[f] >= static_cast<int>(pages.size())) {
+      std::ostringstream msg;
+      msg << "triangle " << f << " uses page " << face_page[f] << " but only " << pages.size()
+          << " page(s) were given";
+      throw InputError(msg.str());
+    }
+}
+
+// Maps every input vertex to the first vertex with bit-identical coordinates.
+// Exact equality, not a tolerance: exporters duplicate seam vertices by copying
+// them, and a tolerance would fuse genuinely distinct nearby vertices.
+std::vector<int> weld_exact(const RowMatrixX3d& positions, RowMatrixX3d& welded) {
+  const Eigen::Index n = positions.rows();
+  std::vector<int> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  auto less = [&](int a, int b) {
+    for (int j = 0; j < 3; ++j)
+      if (positions(a, j) != positions(b, j)) return positions(a, j) < positions(b, j);
+    return a < b;
+  };
+  std::sort(order.begin(), order.end(), less);
+  std::vector<int> remap(n);
+  std::vector<int> kept;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int v = order[i];
+    const bool same = i > 0 && positions.row(v) == positions.row(order[i - 1]);
+    if (!same) kept.push_back(v);
+    remap[v] = static_cast<int>(kept.size()) - 1;
+  }
+  welded.resize(static_cast<Eigen::Index>(kept.size()), 3);
+  for (size_t i = 0; i < kept.size(); ++i) welded.row(i) = positions.row(kept[i]);
+  return remap;
+}
+
+}  // namespace
+
+Mesh make_mesh(const RowMatrixX3d& positions, const RowMatrixX3i& triangles,
+               const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page,
+               const std::vector<PageSize>& pages) {
+  require_shapes(positions, triangles, corner_uv, face_page);
+  require_finite(positions, "positions");
+  require_finite(corner_uv, "uvs");
+  require_indices(triangles, positions.rows());
+  require_pages(face_page, pages);
+
+  Mesh mesh;
+  const std::vector<int> remap = weld_exact(positions, mesh.positions);
+  mesh.triangles.resize(triangles.rows(), 3);
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
+    for (int k = 0; k < 3; ++k) mesh.triangles(f, k) = remap[triangles(f, k)];
+  mesh.corner_uv = corner_uv;
+  mesh.face_page = face_page;
+  mesh.pages = pages;
+  return mesh;
+}
+
+}  // namespace atlas

@@ -1,0 +1,121 @@
+#include "flatten/cut_to_disk.hpp"
+
+#include <algorithm>
+#include <map>
+#include <queue>
+#include <set>
+
+#include "core/union_find.hpp"
+
+namespace atlas {
+namespace {
+
+using Edge = std::pair<int, int>;  // undirected, smaller index first
+
+Edge undirected(int a, int b) { return {std::min(a, b), std::max(a, b)}; }
+
+// Boundary loop id of every vertex (-1 inside); returns the number of loops.
+int label_boundary_loops(const RowMatrixX3i& t, int vertex_count, std::vector<int>& loop_of) {
+  std::map<Edge, int> uses;
+  for (Eigen::Index f = 0; f < t.rows(); ++f)
+    for (int k = 0; k < 3; ++k) ++uses[undirected(t(f, k), t(f, (k + 1) % 3))];
+  std::vector<int> next(vertex_count, -1);
+  for (Eigen::Index f = 0; f < t.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (uses[undirected(t(f, k), t(f, (k + 1) % 3))] == 1) next[t(f, k)] = t(f, (k + 1) % 3);
+  loop_of.assign(vertex_count, -1);
+  int loops = 0;
+  for (int v = 0; v < vertex_count; ++v) {
+    if (next[v] < 0 || loop_of[v] >= 0) continue;
+    for (int w = v; w >= 0 && loop_of[w] < 0; w = next[w]) loop_of[w] = loops;
+    ++loops;
+  }
+  return loops;
+}
+
+// Shortest path (in edges) from loop 0 to any other loop through interior vertices.
+std::vector<int> path_between_loops(const RowMatrixX3i& t, const std::vector<int>& loop_of) {
+  const int n = static_cast<int>(loop_of.size());
+  std::vector<std::vector<int>> adjacent(n);
+  for (Eigen::Index f = 0; f < t.rows(); ++f)
+    for (int k = 0; k < 3; ++k) adjacent[t(f, k)].push_back(t(f, (k + 1) % 3)), adjacent[t(f, (k + 1) % 3)].push_back(t(f, k));
+  std::vector<int> from(n, -2);
+  std::queue<int> bfs;
+  for (int v = 0; v < n; ++v)
+    if (loop_of[v] == 0) from[v] = -1, bfs.push(v);
+  while (!bfs.empty()) {
+    const int v = bfs.front();
+    bfs.pop();
+    for (int w : adjacent[v]) {
+      if (from[w] != -2) continue;
+      from[w] = v;
+      if (loop_of[w] > 0) {
+        std::vector<int> path;
+        for (int x = w; x >= 0; x = from[x]) path.push_back(x);
+        return path;
+      }
+      if (loop_of[w] < 0) bfs.push(w);
+    }
+  }
+  return {};
+}
+
+// Renumbers vertices so corners share a vertex only across edges not in `cut`.
+void split_along(RowMatrixX3i& t, std::vector<int>& vertex_source, const std::set<Edge>& cut) {
+  const int corners = static_cast<int>(3 * t.rows());
+  UnionFind classes(corners);
+  std::map<Edge, int> first_corner;  // corner starting the edge, first face seen
+  for (int c = 0; c < corners; ++c) {
+    const int a = t(c / 3, c % 3), b = t(c / 3, (c % 3 + 1) % 3);
+    const Edge e = undirected(a, b);
+    if (cut.count(e)) continue;
+    const auto [it, fresh] = first_corner.emplace(e, c);
+    if (fresh) continue;
+    // The other face runs b -> a: its corner at b is it->second, at a the next one.
+    const int o = it->second, o_next = 3 * (o / 3) + (o % 3 + 1) % 3;
+    const int c_next = 3 * (c / 3) + (c % 3 + 1) % 3;
+    classes.unite(c, o_next);
+    classes.unite(c_next, o);
+  }
+  const std::vector<int> vertex_of_corner = classes.dense_labels();
+  std::vector<int> source;
+  RowMatrixX3i out(t.rows(), 3);
+  for (int c = 0; c < corners; ++c) {
+    const int v = vertex_of_corner[c];
+    if (v == static_cast<int>(source.size())) source.push_back(vertex_source[t(c / 3, c % 3)]);
+    out(c / 3, c % 3) = v;
+  }
+  t = std::move(out);
+  vertex_source = std::move(source);
+}
+
+}  // namespace
+
+bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source) {
+  std::vector<int> loop_of;
+  for (;;) {
+    const int loops = label_boundary_loops(triangles, static_cast<int>(vertex_source.size()), loop_of);
+    if (loops == 0) {
+      // Closed: slit open along two edges of one face, which makes a loop of
+      // four edges (two would put the whole boundary on one segment).
+      if (triangles.rows() == 0) return false;
+      split_along(triangles, vertex_source,
+                  {undirected(triangles(0, 0), triangles(0, 1)), undirected(triangles(0, 0), triangles(0, 2))});
+      continue;
+    }
+    if (loops == 1) break;
+    const std::vector<int> path = path_between_loops(triangles, loop_of);
+    if (path.empty()) return false;
+    // Named in the current numbering; once split, these edges are boundary.
+    std::set<Edge> cut;
+    for (size_t i = 0; i + 1 < path.size(); ++i) cut.insert(undirected(path[i], path[i + 1]));
+    split_along(triangles, vertex_source, cut);
+  }
+  // One loop: a disk exactly when chi = V - E + F == 1 (otherwise handles remain).
+  std::set<Edge> edges;
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
+    for (int k = 0; k < 3; ++k) edges.insert(undirected(triangles(f, k), triangles(f, (k + 1) % 3)));
+  return static_cast<long long>(vertex_source.size()) - static_cast<long long>(edges.size()) + triangles.rows() == 1;
+}
+
+}  // namespace atlas

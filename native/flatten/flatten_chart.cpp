@@ -1,0 +1,460 @@
+#include "flatten/flatten_chart.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <optional>
+#include <queue>
+#include <unordered_map>
+
+#include "flatten/cut_to_disk.hpp"
+#include "charts/disk_merge.hpp"
+#include "core/geometry.hpp"
+#include "core/segment_crossing.hpp"
+#include "core/union_find.hpp"
+
+namespace atlas {
+namespace {
+
+struct BoundaryEdge {
+  int from, to, face;
+};
+
+// Directed boundary edges (used by one face only), with their face.
+std::vector<BoundaryEdge> boundary_edges(const RowMatrixX3i& triangles) {
+  std::vector<std::pair<std::pair<int, int>, int>> keyed;  // (undirected key, corner)
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
+      keyed.push_back({{std::min(a, b), std::max(a, b)}, static_cast<int>(3 * f + k)});
+    }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<BoundaryEdge> out;
+  for (size_t i = 0; i < keyed.size(); ++i) {
+    const bool alone = (i == 0 || keyed[i - 1].first != keyed[i].first) &&
+                       (i + 1 == keyed.size() || keyed[i + 1].first != keyed[i].first);
+    if (!alone) continue;
+    const int c = keyed[i].second;
+    out.push_back({triangles(c / 3, c % 3), triangles(c / 3, (c % 3 + 1) % 3), c / 3});
+  }
+  return out;
+}
+
+}  // namespace
+
+std::optional<std::pair<int, int>> boundary_crossing(const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
+  const auto edges = boundary_edges(triangles);
+  std::vector<Eigen::Vector2d> points(uv.rows());
+  for (Eigen::Index v = 0; v < uv.rows(); ++v) points[v] = uv.row(v).transpose();
+  std::vector<Segment> segments;
+  for (const BoundaryEdge& e : edges) segments.push_back({e.from, e.to});
+  const auto crossing = first_crossing(points, segments);
+  if (!crossing) return std::nullopt;
+  return std::make_pair(edges[crossing->first].face, edges[crossing->second].face);
+}
+
+bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
+  return boundary_crossing(triangles, uv).has_value();
+}
+
+namespace {
+
+struct LocalChart {
+  std::vector<int> faces;
+  RowMatrixX3i triangles;  // local vertex indices
+  std::vector<int> vertices;  // local -> mesh vertex
+};
+
+// Calls visit(i, j, e) for every two faces i != j of `faces` (positions in
+// it) that share the manifold edge e, once from each side.
+template <class Visit>
+void for_each_shared_edge(const MeshTopology& topology, const std::vector<int>& faces, Visit visit) {
+  std::unordered_map<int, int> local;
+  for (int i = 0; i < static_cast<int>(faces.size()); ++i) local[faces[i]] = i;
+  for (int i = 0; i < static_cast<int>(faces.size()); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const int e = topology.corner_edge[3 * faces[i] + k];
+      if (topology.edge_valence(e) != 2) continue;
+      for (int j = topology.edge_offsets[e]; j < topology.edge_offsets[e + 1]; ++j) {
+        const auto other = local.find(topology.edge_corners[j] / 3);
+        if (other != local.end() && other->second != i) visit(i, other->second, e);
+      }
+    }
+}
+
+// Local vertex numbering of a chart. Corners at one mesh vertex share a local
+// vertex only when their faces connect through edges inside the chart, so a
+// vertex where the chart merely touches itself (a pinch) is split in two.
+// An original chart that meets itself at a UV seam keeps it open
+// (graph.self_seam), as DiskClusters does.
+LocalChart localize(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                    std::vector<int> faces) {
+  LocalChart c;
+  c.faces = std::move(faces);
+  const int n = static_cast<int>(c.faces.size());
+  UnionFind corners(3 * n);
+  auto local_corner_at = [&](int i, int v) { return 3 * i + mesh.corner_of(c.faces[i], v); };
+  for_each_shared_edge(topology, c.faces, [&](int i, int j, int e) {
+    if (graph.self_seam[e]) return;
+    for (int end = 0; end < 2; ++end) {
+      const int v = topology.edge_vertices(e, end);
+      corners.unite(local_corner_at(i, v), local_corner_at(j, v));
+    }
+  });
+  c.triangles.resize(n, 3);
+  const std::vector<int> vertex_of_corner = corners.dense_labels();
+  for (int corner = 0; corner < 3 * n; ++corner) {
+    const int v = vertex_of_corner[corner];
+    if (v == static_cast<int>(c.vertices.size())) c.vertices.push_back(mesh.triangles(c.faces[corner / 3], corner % 3));
+    c.triangles(corner / 3, corner % 3) = v;
+  }
+  return c;
+}
+
+ChartProblem make_problem(const Mesh& mesh, const ChartGraph& graph, const LocalChart& c) {
+  ChartProblem p;
+  p.triangles = c.triangles;
+  p.positions.resize(static_cast<Eigen::Index>(c.vertices.size()), 3);
+  for (size_t i = 0; i < c.vertices.size(); ++i) p.positions.row(i) = mesh.positions.row(c.vertices[i]);
+  p.reference_uv.resize(3 * static_cast<Eigen::Index>(c.faces.size()), 2);
+  p.mirrored.resize(static_cast<Eigen::Index>(c.faces.size()));
+  for (size_t i = 0; i < c.faces.size(); ++i) {
+    const int f = c.faces[i];
+    for (int k = 0; k < 3; ++k) p.reference_uv.row(3 * i + k) = mesh.uv_texels(f, k).transpose();
+    p.mirrored[i] = graph.charts[graph.face_chart[f]].mirrored() ? 1 : 0;
+  }
+  return p;
+}
+
+FlatChart keep_original(const Mesh& mesh, const std::vector<int>& faces) {
+  FlatChart out;
+  out.faces = faces;
+  out.kept_original = true;
+  out.corner_uv.resize(3 * static_cast<Eigen::Index>(faces.size()), 2);
+  for (size_t i = 0; i < faces.size(); ++i)
+    for (int k = 0; k < 3; ++k) out.corner_uv.row(3 * i + k) = mesh.uv_texels(faces[i], k).transpose();
+  return out;
+}
+
+FlatChart from_solution(const LocalChart& c, const ChartSolution& s) {
+  FlatChart out;
+  out.faces = c.faces;
+  out.corner_uv.resize(3 * c.triangles.rows(), 2);
+  for (Eigen::Index i = 0; i < c.triangles.rows(); ++i)
+    for (int k = 0; k < 3; ++k) out.corner_uv.row(3 * i + k) = s.uv.row(c.triangles(i, k));
+  out.energy_initial = s.energy_initial;
+  out.energy_final = s.energy_final;
+  out.iteration_seconds = s.iteration_seconds;
+  out.factorize_seconds = s.factorize_seconds;
+  return out;
+}
+
+struct SubMesh {
+  Mesh mesh;
+  MeshTopology topology;
+};
+
+// The given faces as a mesh of their own, in the given order.
+SubMesh sub_mesh(const Mesh& mesh, const std::vector<int>& faces) {
+  SubMesh sub;
+  const int n = static_cast<int>(faces.size());
+  std::unordered_map<int, int> vertex;
+  sub.mesh.triangles.resize(n, 3);
+  sub.mesh.corner_uv.resize(3 * n, 2);
+  sub.mesh.face_page.resize(n);
+  std::vector<int> source;
+  for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const auto [it, fresh] = vertex.emplace(mesh.triangles(faces[i], k), static_cast<int>(source.size()));
+      if (fresh) source.push_back(it->first);
+      sub.mesh.triangles(i, k) = it->second;
+      sub.mesh.corner_uv.row(3 * i + k) = mesh.corner_uv.row(3 * faces[i] + k);
+    }
+    sub.mesh.face_page[i] = mesh.face_page[faces[i]];
+  }
+  sub.mesh.positions.resize(static_cast<Eigen::Index>(source.size()), 3);
+  for (size_t v = 0; v < source.size(); ++v) sub.mesh.positions.row(v) = mesh.positions.row(source[v]);
+  sub.mesh.pages = mesh.pages;
+  sub.topology = build_topology(sub.mesh.triangles, sub.mesh.vertex_count());
+  return sub;
+}
+
+// Regrows the members into disk groups from two seeds that grow in turn, the
+// smaller group first: the largest member, and the culprit (the original chart
+// at a boundary crossing, so the crossing ends up between the groups) or else
+// the member farthest from the largest. Every group is strictly smaller than
+// the input, so the recursion ends.
+std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& graph,
+                                            const std::vector<std::vector<int>>& chart_faces,
+                                            const std::vector<int>& members, int culprit) {
+  const int m = static_cast<int>(members.size());
+  std::unordered_map<int, int> local;
+  for (int i = 0; i < m; ++i) local[members[i]] = i;
+  std::vector<std::vector<int>> neighbours(m);
+  for (const ChartAdjacency& adj : graph.adjacency) {
+    const auto a = local.find(adj.a), b = local.find(adj.b);
+    if (a == local.end() || b == local.end() || !adj.mergeable) continue;
+    neighbours[a->second].push_back(b->second);
+    neighbours[b->second].push_back(a->second);
+  }
+  // DiskClusters on the members' faces alone: its work and memory then scale
+  // with this chart rather than with the whole scan.
+  std::vector<int> faces, label;
+  for (int i = 0; i < m; ++i)
+    for (int f : chart_faces[members[i]]) faces.push_back(f), label.push_back(i);
+  const SubMesh sub = sub_mesh(mesh, faces);
+  DiskClusters disks(sub.mesh, sub.topology, label, m,
+                     self_seams(sub.topology, sub.mesh.triangles, sub.mesh.corner_uv, sub.mesh.face_page, label));
+
+  auto area = [&](int i) { return graph.charts[members[i]].area_uv; };
+  const int culprit_index = culprit < 0 ? -1 : static_cast<int>(std::find(members.begin(), members.end(), culprit) - members.begin());
+  int seed0 = culprit_index == 0 ? 1 : 0;
+  for (int i = 0; i < m; ++i)
+    if (i != culprit_index && area(i) > area(seed0)) seed0 = i;
+  int seed1 = culprit_index;
+  if (culprit_index < 0) {
+    std::vector<int> distance(m, -1);
+    std::queue<int> bfs;
+    bfs.push(seed0);
+    distance[seed0] = 0;
+    while (!bfs.empty()) {
+      const int i = bfs.front();
+      bfs.pop();
+      for (int n : neighbours[i])
+        if (distance[n] < 0) distance[n] = distance[i] + 1, bfs.push(n);
+    }
+    seed1 = seed0 == 0 ? 1 : 0;
+    for (int i = 0; i < m; ++i)
+      if (i != seed0 && distance[i] > distance[seed1]) seed1 = i;
+  }
+
+  // Two seeds grow in turn, the smaller group first; members neither can take
+  // seed further groups of their own, so pieces stay as large as topology allows.
+  std::vector<int> group_of(m, -1);
+  std::vector<std::vector<int>> groups;
+  std::vector<int> cluster;
+  std::vector<double> group_area;
+  auto seed = [&](int i) {
+    group_of[i] = static_cast<int>(groups.size());
+    groups.push_back({i});
+    cluster.push_back(i);
+    group_area.push_back(area(i));
+  };
+  auto grow = [&](int g) {
+    for (int i : groups[g])
+      for (int n : neighbours[i]) {
+        if (group_of[n] >= 0) continue;
+        if (const MergeCheck check = disks.check_merge(cluster[g], n)) {
+          cluster[g] = disks.merge(cluster[g], n, check.euler);
+          group_of[n] = g;
+          groups[g].push_back(n);
+          group_area[g] += area(n);
+          return true;
+        }
+      }
+    return false;
+  };
+  seed(seed0);
+  seed(seed1);
+  for (bool grew = true; grew;) {
+    const int small = group_area[0] <= group_area[1] ? 0 : 1;
+    grew = grow(small) || grow(1 - small);
+  }
+  for (int i = 0; i < m; ++i) {
+    if (group_of[i] >= 0) continue;
+    seed(i);
+    while (grow(static_cast<int>(groups.size()) - 1)) {
+    }
+  }
+  std::vector<std::vector<int>> out;
+  for (const auto& g : groups) {
+    out.emplace_back();
+    for (int i : g) out.back().push_back(members[i]);
+  }
+  return out;
+}
+
+// Share of a chart's surface allowed to end with less than half its texel
+// density. The target is 1% of the whole surface; each chart may lose 2%,
+// because the loss concentrates in few charts: the three scans end at
+// 0.16-0.58%, and the Smithsonian scan with 417 charts instead of 470 at 1%.
+constexpr double kDensityLossPerChart = 0.02;
+
+// The original chart that lost the most texel density, when faces covering
+// over kDensityLossPerChart of the chart's surface end with less than half
+// their original texel area (eq.: new UV area / original UV area < 1/2); -1
+// when the chart keeps its detail. SLIM balances distortion, it does not
+// bound it: this bounds the loss.
+int density_culprit(const Mesh& mesh, const ChartGraph& graph, const LocalChart& local, const RowMatrixX2d& uv) {
+  std::unordered_map<int, double> lost;
+  double lost_total = 0, area_total = 0;
+  for (size_t i = 0; i < local.faces.size(); ++i) {
+    const int f = local.faces[i];
+    const double area_3d = mesh.area_3d(f);
+    area_total += area_3d;
+    const double before = std::abs(mesh.signed_area_uv(f));
+    const double after = std::abs(signed_area(uv.row(local.triangles(i, 0)), uv.row(local.triangles(i, 1)),
+                                              uv.row(local.triangles(i, 2))));
+    if (before > 0 && after < 0.5 * before) lost[graph.face_chart[f]] += area_3d, lost_total += area_3d;
+  }
+  if (lost_total <= kDensityLossPerChart * area_total) return -1;
+  return std::max_element(lost.begin(), lost.end(), [](const auto& a, const auto& b) { return a.second < b.second; })
+      ->first;
+}
+
+// True when some faces wind one way in UV and some the other (faces of zero
+// UV area count for neither). A closed piece always does: its signed areas sum
+// to zero. Slivers count here, unlike in the metrics: enlarge_tiny_charts may
+// make them visible.
+bool folds_over(const Mesh& mesh, const std::vector<int>& faces) {
+  bool positive = false, negative = false;
+  for (int f : faces) {
+    const double a = mesh.signed_area_uv(f);
+    positive = positive || a > 0;
+    negative = negative || a < 0;
+  }
+  return positive && negative;
+}
+
+// Faces as two edge-connected halves, each face going to the nearer of two
+// far-apart seeds (breadth first, over manifold edges inside the set). Faces
+// not connected to the first are returned as the second part instead.
+std::vector<std::vector<int>> halves(const MeshTopology& topology, const std::vector<int>& faces) {
+  const int n = static_cast<int>(faces.size());
+  std::vector<std::vector<int>> neighbours(n);
+  for_each_shared_edge(topology, faces, [&](int i, int j, int) { neighbours[i].push_back(j); });
+  // Multi-source breadth-first search: label[i] is the seed that reached i first.
+  auto grow = [&](const std::vector<int>& seeds, std::vector<int>& label) {
+    label.assign(n, -1);
+    std::queue<int> queue;
+    for (size_t s = 0; s < seeds.size(); ++s) label[seeds[s]] = static_cast<int>(s), queue.push(seeds[s]);
+    int last = seeds.front();
+    for (; !queue.empty(); queue.pop()) {
+      last = queue.front();
+      for (int m : neighbours[last])
+        if (label[m] < 0) label[m] = label[last], queue.push(m);
+    }
+    return last;
+  };
+  std::vector<int> label;
+  const int far = grow({0}, label);
+  std::vector<std::vector<int>> out(2);
+  if (std::count(label.begin(), label.end(), -1) == 0) grow({far, grow({far}, label)}, label);
+  for (int i = 0; i < n; ++i) out[label[i] == 0 ? 0 : 1].push_back(faces[i]);
+  return out;
+}
+
+// Of the two faces at a boundary crossing, the original chart with less area.
+int smaller_chart(const ChartGraph& graph, int face_a, int face_b) {
+  const int a = graph.face_chart[face_a], b = graph.face_chart[face_b];
+  return graph.charts[a].area_uv <= graph.charts[b].area_uv ? a : b;
+}
+
+// One flattening attempt of the faces as a chart of their own: cut open to a
+// disk, solved, and refused if the solve failed, the boundary crosses itself
+// or texel density is lost (see density_culprit).
+struct Attempt {
+  std::optional<FlatChart> chart;             // set unless refused
+  int FlattenStats::*refusal = nullptr;       // the counter of the reason, when refused
+  int culprit = -1;                           // the original chart to seed a split at, or -1
+};
+
+Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                      std::vector<int> faces, const SlimOptions& options, const RunControl& control,
+                      FlattenStats& stats) {
+  LocalChart local = localize(mesh, topology, graph, std::move(faces));
+  if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
+  const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
+  stats.scaffolded += solution.scaffolded;
+  if (!solution.failure.empty() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
+  if (const auto crossing = boundary_crossing(local.triangles, solution.uv))
+    return {std::nullopt, &FlattenStats::overlapped,
+            smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second])};
+  if (const int culprit = density_culprit(mesh, graph, local, solution.uv); culprit >= 0)
+    return {std::nullopt, &FlattenStats::density_lost, culprit};
+  return {from_solution(local, solution)};
+}
+
+// True when the faces' original UVs cover some part of them twice without a
+// fold: their boundary crosses itself.
+bool original_boundary_crosses(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                               const std::vector<int>& faces) {
+  const LocalChart local = localize(mesh, topology, graph, faces);
+  RowMatrixX2d uv(static_cast<Eigen::Index>(local.vertices.size()), 2);
+  for (size_t i = 0; i < faces.size(); ++i)
+    for (int k = 0; k < 3; ++k) uv.row(local.triangles(i, k)) = mesh.uv_texels(faces[i], k).transpose();
+  return boundary_self_intersects(local.triangles, uv);
+}
+
+// A lone original chart whose UVs overlap themselves (folding over, as every
+// closed component mapped as one chart does, or with a boundary that crosses
+// itself): it is flattened whole if it can be, else its faces are halved, each
+// half kept as it was if its UVs no longer overlap, else flattened or halved
+// again. A single face cannot overlap itself, so this ends, and no face is
+// left flipped and no boundary crossing.
+void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                        const std::vector<int>& chart, const SlimOptions& options, const RunControl& control,
+                        std::vector<FlatChart>& done, FlattenStats& stats) {
+  std::vector<std::vector<int>> pending = {chart};
+  while (!pending.empty()) {
+    std::vector<int> faces = std::move(pending.back());
+    pending.pop_back();
+    if (!folds_over(mesh, faces) && !original_boundary_crosses(mesh, topology, graph, faces)) {
+      done.push_back(keep_original(mesh, faces));
+    } else if (Attempt attempt = flatten_faces(mesh, topology, graph, faces, options, control, stats); attempt.chart) {
+      done.push_back(std::move(*attempt.chart));
+    } else {
+      ++stats.overlap_halved;
+      for (auto& half : halves(topology, faces)) pending.push_back(std::move(half));
+    }
+  }
+}
+
+}  // namespace
+
+// After a split each piece is solved by a recursive call in an OpenMP task,
+// which a thread with no chart left to start takes up: one large chart that
+// splits again and again no longer leaves the other cores idle. The pieces
+// come back in a fixed order. An exception (Cancelled included) cannot leave
+// a task: it is caught there and rethrown after the wait.
+std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                                               const std::vector<std::vector<int>>& chart_faces,
+                                               const std::vector<int>& members, const SlimOptions& options,
+                                               const RunControl& control, FlattenStats& stats) {
+  std::vector<FlatChart> done;
+  if (members.size() == 1) {
+    flatten_lone_chart(mesh, topology, graph, chart_faces[members[0]], options, control, done, stats);
+    return done;
+  }
+  std::vector<int> faces;
+  for (int c : members) faces.insert(faces.end(), chart_faces[c].begin(), chart_faces[c].end());
+  Attempt attempt = flatten_faces(mesh, topology, graph, std::move(faces), options, control, stats);
+  if (attempt.chart) {
+    done.push_back(std::move(*attempt.chart));
+    return done;
+  }
+  ++(stats.*attempt.refusal);
+  const std::vector<std::vector<int>> pieces = split_members(mesh, graph, chart_faces, members, attempt.culprit);
+  std::vector<std::vector<FlatChart>> parts(pieces.size());
+  std::vector<FlattenStats> part_stats(pieces.size());
+  std::vector<std::exception_ptr> errors(pieces.size());
+  for (size_t k = 0; k < pieces.size(); ++k) {
+#pragma omp task default(shared) firstprivate(k)
+    try {
+      parts[k] = flatten_without_overlap(mesh, topology, graph, chart_faces, pieces[k], options, control,
+                                         part_stats[k]);
+    } catch (...) {
+      errors[k] = std::current_exception();
+    }
+  }
+#pragma omp taskwait
+  for (const std::exception_ptr& error : errors)
+    if (error) std::rethrow_exception(error);
+  for (size_t k = 0; k < pieces.size(); ++k) {
+    stats += part_stats[k];
+    for (FlatChart& chart : parts[k]) done.push_back(std::move(chart));
+  }
+  return done;
+}
+
+}  // namespace atlas

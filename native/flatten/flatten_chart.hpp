@@ -1,0 +1,63 @@
+// Overlaps (thesis 5.1). SLIM hands a chart whose boundary starts crossing
+// itself to SCAF (see slim.hpp), so overlaps are rare; a merged chart that
+// still overlaps is split back into two groups of its original charts, each
+// solved again. So is one whose flattening failed or lost too much texel density. A group holding a
+// single original chart keeps its original UVs, unless they overlap (fold over
+// or cross): then it is flattened, or cut into halves that are kept or
+// flattened (down to single faces if need be), so this always ends and leaves
+// no face flipped and no boundary crossing.
+#pragma once
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "charts/chart_graph.hpp"
+#include "core/mesh.hpp"
+#include "flatten/slim.hpp"
+#include "core/topology.hpp"
+
+namespace atlas {
+
+// True when two boundary edges of the chart cross or touch (other than at a
+// shared end vertex). Uses a uniform grid over the boundary's bounding box.
+// triangles are local vertex indices into uv.
+bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d& uv);
+// The faces of the first two boundary edges found crossing, if any.
+std::optional<std::pair<int, int>> boundary_crossing(const RowMatrixX3i& triangles, const RowMatrixX2d& uv);
+
+// A chart as it leaves the parameterization stage.
+struct FlatChart {
+  std::vector<int> faces;      // mesh faces
+  RowMatrixX2d corner_uv;      // 3 rows per face, texels, arbitrary placement
+  bool kept_original = false;  // single original chart, UVs copied from the input
+  double energy_initial = 0, energy_final = 0;  // per unit reference area (0 when kept)
+  double iteration_seconds = 0, factorize_seconds = 0;  // see ChartSolution
+};
+
+// Why charts were split back (each split counts once, under its first reason).
+struct FlattenStats {
+  int not_disk = 0;            // handles left after cutting holes open
+  int solver_failed = 0;       // SLIM reported a failure or left flipped faces
+  int overlapped = 0;          // the new boundary crossed itself
+  int density_lost = 0;        // over 2% of the surface kept less than half its texels
+  int overlap_halved = 0;      // not a split of merged charts: lone charts whose own UVs overlap, cut in two
+  int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
+
+  FlattenStats& operator+=(const FlattenStats& o) {
+    not_disk += o.not_disk, solver_failed += o.solver_failed, overlapped += o.overlapped;
+    density_lost += o.density_lost, overlap_halved += o.overlap_halved, scaffolded += o.scaffolded;
+    return *this;
+  }
+};
+
+// Flattens one aggregated chart (its original charts `members`), splitting on
+// overlap or solver failure until every piece is valid.
+// chart_faces[c] lists the faces of original chart c.
+std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology,
+                                               const ChartGraph& graph,
+                                               const std::vector<std::vector<int>>& chart_faces,
+                                               const std::vector<int>& members,
+                                               const SlimOptions& options, const RunControl& control,
+                                               FlattenStats& stats);
+
+}  // namespace atlas

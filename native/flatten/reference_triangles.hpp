@@ -1,0 +1,32 @@
+// The reference shape of every face of a merged chart: its original UV triangle
+// in texels, oriented like the mesh and repaired where it is unusable, so that
+// the distortion energy of the map reference -> new UV is finite everywhere.
+#pragma once
+#include <vector>
+
+#include "core/mesh.hpp"
+
+namespace atlas {
+
+struct ReferenceTriangles {
+  RowMatrixX2d corners;  // 3F x 2; row 3f+k is corner k of face f; every triangle has positive area
+  int folded = 0;        // faces folded over inside their original chart (mirror image used)
+  int repaired = 0;      // degenerate references replaced by a well-shaped triangle
+};
+
+// Orients and repairs the references of one chart.
+//  - mirrored[f] = 1 reflects the reference (x -> -x), so that mirrored original
+//    charts wind like the mesh; a reference that still has negative area is a
+//    fold-over of the original map and its mirror image is used instead.
+//  - A reference with area below 1e-3 of what the face should cover, or an angle
+//    below 1 degree, is replaced by the face's 3D triangle scaled by the chart's
+//    texel density (sum of reference areas / sum of 3D areas over good faces);
+//    if the 3D triangle is degenerate too, by an equilateral triangle of the
+//    chart's mean reference area.
+// triangles index positions; reference_uv has 3 rows per face, mirrored one entry per face.
+ReferenceTriangles repaired_reference_triangles(const RowMatrixX3i& triangles,
+                                                const RowMatrixX3d& positions,
+                                                const RowMatrixX2d& reference_uv,
+                                                const Eigen::VectorXi& mirrored);
+
+}  // namespace atlas

@@ -1,0 +1,171 @@
+#include "flatten/scaffold_triangulation.hpp"
+
+#include <algorithm>
+#include <cstdint>
+
+#include "core/bucket_grid.hpp"
+#include "core/geometry.hpp"
+
+namespace atlas {
+namespace {
+
+using Points = std::vector<Eigen::Vector2d>;
+
+// The box and the hole as one polygon: box corners counter-clockwise, and at
+// the corner below-right a detour along the bridge to the chart's rightmost
+// boundary vertex, round the boundary clockwise, and back. Every point of the
+// bridge but its chart end lies right of the whole chart, so it crosses nothing.
+std::vector<int> bridged_polygon(const Points& points, const std::vector<int>& loop, int box) {
+  const auto rightmost = std::max_element(loop.begin(), loop.end(), [&](int a, int b) {
+    return points[a].x() < points[b].x() || (points[a].x() == points[b].x() && points[a].y() < points[b].y());
+  });
+  const size_t start = static_cast<size_t>(rightmost - loop.begin());
+  std::vector<int> polygon = {box, box + 1};
+  for (size_t i = 0; i <= loop.size(); ++i) polygon.push_back(loop[(start + loop.size() - i) % loop.size()]);
+  polygon.insert(polygon.end(), {box + 1, box + 2, box + 3});
+  return polygon;
+}
+
+// p inside or on triangle (a, b, c), counter-clockwise.
+bool in_triangle(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  return signed_area(a, b, p) >= 0 && signed_area(b, c, p) >= 0 && signed_area(c, a, p) >= 0;
+}
+
+// Ear clipping of a counter-clockwise polygon that may visit a point twice
+// (the bridge). An ear is a strictly convex corner whose triangle holds no
+// other remaining reflex corner.
+bool clip_ears(const Points& points, const std::vector<int>& polygon, std::vector<Eigen::Vector3i>& triangles) {
+  const int m = static_cast<int>(polygon.size());
+  std::vector<int> prev(m), next(m);
+  std::vector<char> clipped(m, 0);
+  for (int i = 0; i < m; ++i) prev[i] = (i + m - 1) % m, next[i] = (i + 1) % m;
+  auto at = [&](int i) -> const Eigen::Vector2d& { return points[polygon[i]]; };
+  auto convex = [&](int i) { return signed_area(at(prev[i]), at(i), at(next[i])) > 0; };
+  // Only reflex corners can lie inside an ear, and corners never turn reflex
+  // while ears are clipped: the grid holds the first ones, and entries that
+  // were clipped or turned convex are skipped.
+  Eigen::Vector2d bottom_left = at(0), top_right = at(0);
+  for (int i = 0; i < m; ++i) bottom_left = bottom_left.cwiseMin(at(i)), top_right = top_right.cwiseMax(at(i));
+  std::vector<int> reflex;
+  for (int i = 0; i < m; ++i)
+    if (!convex(i)) reflex.push_back(i);
+  BucketGrid grid(bottom_left, top_right, reflex.size());
+  for (int i : reflex) grid.insert(i, at(i), at(i));
+  auto is_ear = [&](int i) {
+    if (!convex(i)) return false;
+    const int a = polygon[prev[i]], b = polygon[i], c = polygon[next[i]];
+    const Eigen::Vector2d lo = points[a].cwiseMin(points[b]).cwiseMin(points[c]);
+    const Eigen::Vector2d hi = points[a].cwiseMax(points[b]).cwiseMax(points[c]);
+    return !grid.any_near(lo, hi, [&](int j) {
+      const int p = polygon[j];
+      if (clipped[j] || p == a || p == b || p == c || convex(j)) return false;
+      return in_triangle(points[p], points[a], points[b], points[c]);
+    });
+  };
+  int i = 0, misses = 0;
+  for (int remaining = m; remaining > 3;) {
+    if (is_ear(i)) {
+      triangles.emplace_back(polygon[prev[i]], polygon[i], polygon[next[i]]);
+      clipped[i] = 1;
+      next[prev[i]] = next[i];
+      prev[next[i]] = prev[i];
+      i = prev[i];
+      --remaining;
+      misses = 0;
+    } else if (++misses > remaining) {
+      return false;
+    } else {
+      i = next[i];
+    }
+  }
+  if (!convex(i)) return false;
+  triangles.emplace_back(polygon[prev[i]], polygon[i], polygon[next[i]]);
+  return true;
+}
+
+// d strictly inside the circumcircle of counter-clockwise (a, b, c).
+bool in_circumcircle(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c,
+                     const Eigen::Vector2d& d) {
+  const Eigen::Vector2d p = a - d, q = b - d, r = c - d;
+  return p.squaredNorm() * (q.x() * r.y() - r.x() * q.y()) - q.squaredNorm() * (p.x() * r.y() - r.x() * p.y()) +
+             r.squaredNorm() * (p.x() * q.y() - q.x() * p.y()) >
+         0;
+}
+
+// Half-edge h = 3t + k runs from corner k of triangle t to corner k + 1;
+// twin[h] is the opposite half-edge, -1 on the chart's boundary or the box.
+std::vector<int> twin_half_edges(const std::vector<Eigen::Vector3i>& triangles) {
+  std::vector<std::pair<std::int64_t, int>> keyed;
+  for (int h = 0; h < 3 * static_cast<int>(triangles.size()); ++h) {
+    const std::int64_t a = triangles[h / 3][h % 3], b = triangles[h / 3][(h % 3 + 1) % 3];
+    keyed.push_back({std::min(a, b) << 32 | std::max(a, b), h});
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<int> twin(keyed.size(), -1);
+  // Only an edge of exactly two triangles has a twin; a repeated point could
+  // make more share a key, and those edges are left alone.
+  for (size_t i = 0; i < keyed.size();) {
+    size_t j = i + 1;
+    while (j < keyed.size() && keyed[j].first == keyed[i].first) ++j;
+    if (j - i == 2) twin[keyed[i].second] = keyed[i + 1].second, twin[keyed[i + 1].second] = keyed[i].second;
+    i = j;
+  }
+  return twin;
+}
+
+// Lawson flips: the edge between scaffold triangles (a, b, c) and (b, a, d)
+// becomes (c, d) when d lies in the circumcircle of (a, b, c) and both new
+// triangles stay positive. Boundary and box edges have no twin, so they stay:
+// the result tends to the constrained Delaunay triangulation. Capped, because
+// round-off could otherwise flip an edge back and forth.
+void delaunay_flips(const Points& points, std::vector<Eigen::Vector3i>& triangles) {
+  std::vector<int> twin = twin_half_edges(triangles);
+  std::vector<int> stack(twin.size());
+  for (size_t h = 0; h < twin.size(); ++h) stack[h] = static_cast<int>(h);
+  auto link = [&](int h, int g) {
+    twin[h] = g;
+    if (g >= 0) twin[g] = h;
+  };
+  for (size_t budget = 8 * twin.size(); !stack.empty() && budget > 0; --budget) {
+    const int h = stack.back();
+    stack.pop_back();
+    const int g = twin[h];
+    if (g < 0) continue;
+    const int t = h / 3, k = h % 3, u = g / 3, j = g % 3;
+    const int a = triangles[t][k], b = triangles[t][(k + 1) % 3], c = triangles[t][(k + 2) % 3];
+    const int d = triangles[u][(j + 2) % 3];
+    if (!in_circumcircle(points[a], points[b], points[c], points[d])) continue;
+    if (signed_area(points[a], points[d], points[c]) <= 0 || signed_area(points[d], points[b], points[c]) <= 0) continue;
+    // Outer half-edges b->c, c->a of t and a->d, d->b of u keep their twins.
+    const int bc = twin[3 * t + (k + 1) % 3], ca = twin[3 * t + (k + 2) % 3];
+    const int ad = twin[3 * u + (j + 1) % 3], db = twin[3 * u + (j + 2) % 3];
+    triangles[t] = {a, d, c};  // a->d, d->c, c->a
+    triangles[u] = {d, b, c};  // d->b, b->c, c->d
+    link(3 * t, ad), link(3 * t + 2, ca), link(3 * u, db), link(3 * u + 1, bc);
+    link(3 * t + 1, 3 * u + 2);
+    stack.insert(stack.end(), {3 * t, 3 * t + 2, 3 * u, 3 * u + 1});
+  }
+}
+
+}  // namespace
+
+bool triangulate_scaffold(const RowMatrixX2d& uv, const std::vector<int>& loop, double margin, Scaffold& scaffold) {
+  const int n = static_cast<int>(uv.rows());
+  const Eigen::Vector2d lo = uv.colwise().minCoeff().transpose(), hi = uv.colwise().maxCoeff().transpose();
+  const double pad = margin * std::max((hi - lo).maxCoeff(), 1e-9);
+  scaffold.box_corners.resize(4, 2);
+  scaffold.box_corners << lo.x() - pad, lo.y() - pad, hi.x() + pad, lo.y() - pad, hi.x() + pad, hi.y() + pad,
+      lo.x() - pad, hi.y() + pad;
+  Points points(n + 4);
+  for (int v = 0; v < n; ++v) points[v] = uv.row(v).transpose();
+  for (int k = 0; k < 4; ++k) points[n + k] = scaffold.box_corners.row(k).transpose();
+
+  std::vector<Eigen::Vector3i> triangles;
+  if (!clip_ears(points, bridged_polygon(points, loop, n), triangles)) return false;
+  delaunay_flips(points, triangles);
+  scaffold.triangles.resize(static_cast<Eigen::Index>(triangles.size()), 3);
+  for (size_t t = 0; t < triangles.size(); ++t) scaffold.triangles.row(t) = triangles[t].transpose();
+  return true;
+}
+
+}  // namespace atlas

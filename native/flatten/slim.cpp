@@ -1,0 +1,538 @@
+// SLIM (Rabinovich et al. 2017) on the symmetric Dirichlet energy of the map
+// from each face's reference triangle to its new UV triangle (thesis 5.3.1, 5.4):
+//   E(u) = sum_f A_ref(f) psi(J_f(u)),  psi(J) = s1^2 + s2^2 + s1^-2 + s2^-2.
+// Each iteration solves one sparse SPD system whose pattern never changes, so
+// the symbolic Cholesky analysis is done once per chart and every iteration
+// costs little more than one numeric factorization. (SCAF, the fallback for
+// charts whose boundary crosses itself, changes the pattern with its scaffold.)
+#include "flatten/slim.hpp"
+
+#include <Eigen/LU>
+#include <Eigen/OrderingMethods>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <sstream>
+#include <vector>
+
+#include "flatten/disk_boundary.hpp"
+#include "core/geometry.hpp"
+#include "flatten/reference_triangles.hpp"
+#include "flatten/scaffold_triangulation.hpp"
+#include "core/segment_crossing.hpp"
+#include "flatten/symmetric_dirichlet.hpp"
+#include "flatten/tutte_embedding.hpp"
+
+namespace atlas {
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// Take this fraction of the step at which the first triangle degenerates: the
+// energy is infinite there, so the full step would never pass the line search.
+constexpr double kSafeStepFraction = 0.8;
+// Armijo sufficient decrease: E(x + t d) <= E(x) + kArmijo t dE/dt.
+constexpr double kArmijo = 1e-4;
+// 2^-30 of a step no longer moves a vertex by anything measurable.
+constexpr int kMaxHalvings = 30;
+
+// One face in solver numbering. Unknowns are interleaved, (x, y) of a vertex
+// side by side at dof and dof + 1, so each vertex is a 2x2 block.
+struct ProxyFace {
+  int dof[3];
+  double area;                    // weight: the reference area (a scaffold face: its share, see SCAF)
+  Eigen::Matrix2d inverse_edges;  // [r1 - r0, r2 - r0]^-1, so J = [u1 - u0, u2 - u0] inverse_edges
+  double stiffness[6];            // area g_k.g_l for (k,l) = (0,1), (1,2), (2,0), (0,0), (1,1), (2,2)
+  int slot[21];                   // where those 6 blocks go in the matrix values, see assemble_proxy
+};
+
+// J = sum_k u_k g_k^T with g_1, g_2 the rows of inverse_edges and g_0 = -g_1 - g_2.
+Eigen::Vector2d corner_gradient(const ProxyFace& face, int k) {
+  if (k == 0) return -(face.inverse_edges.row(0) + face.inverse_edges.row(1)).transpose();
+  return face.inverse_edges.row(k - 1).transpose();
+}
+
+Eigen::Matrix2d edge_matrix(const ProxyFace& face, const Eigen::VectorXd& x) {
+  Eigen::Matrix2d edges;
+  edges << x[face.dof[1]] - x[face.dof[0]], x[face.dof[2]] - x[face.dof[0]],
+      x[face.dof[1] + 1] - x[face.dof[0] + 1], x[face.dof[2] + 1] - x[face.dof[0] + 1];
+  return edges;
+}
+
+Eigen::Matrix2d jacobian(const ProxyFace& face, const Eigen::VectorXd& x) {
+  return edge_matrix(face, x) * face.inverse_edges;
+}
+
+// The SLIM global step, (H + lambda I) x = b. The pattern is fixed, and only
+// the upper triangle is stored: with natural ordering Eigen then factorizes
+// the matrix in place, without the permuted copy it makes otherwise.
+struct ProxySystem {
+  Eigen::SparseMatrix<double> matrix;
+  std::vector<int> diagonal_slots;
+  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::NaturalOrdering<int>> solver;
+  Eigen::VectorXd rhs, solution;
+  double factorize_seconds = 0;  // in numeric factorizations, summed
+};
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Fill-reducing (AMD) order of the vertex graph: x and y of a vertex always
+// couple, so ordering vertices and interleaving costs 4x less than ordering
+// the 2n unknowns, for the same fill. Returns the new index of each vertex.
+std::vector<int> fill_reducing_order(const RowMatrixX3i& triangles, int vertex_count) {
+  std::vector<Eigen::Triplet<double>> edges;
+  edges.reserve(3 * triangles.rows() + vertex_count);
+  for (int v = 0; v < vertex_count; ++v) edges.emplace_back(v, v, 1.0);
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
+    for (int k = 0; k < 3; ++k) edges.emplace_back(triangles(f, k), triangles(f, (k + 1) % 3), 1.0);
+  Eigen::SparseMatrix<double> graph(vertex_count, vertex_count);
+  graph.setFromTriplets(edges.begin(), edges.end());
+  // Eigen's orderings return P^-1; P sends vertex v to row P(v).
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
+  Eigen::AMDOrdering<int>()(graph, inverse);
+  const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> order = inverse.inverse();
+  return std::vector<int>(order.indices().data(), order.indices().data() + vertex_count);
+}
+
+// Positions in solver numbering, (x, y) of vertex v at 2 order[v], and back.
+Eigen::VectorXd to_solver(const RowMatrixX2d& points, const std::vector<int>& order) {
+  Eigen::VectorXd x(2 * points.rows());
+  for (Eigen::Index v = 0; v < points.rows(); ++v) x.segment<2>(2 * order[v]) = points.row(v).transpose();
+  return x;
+}
+
+RowMatrixX2d from_solver(const Eigen::VectorXd& x, const std::vector<int>& order) {
+  RowMatrixX2d points(x.size() / 2, 2);
+  for (Eigen::Index v = 0; v < points.rows(); ++v) points.row(v) = x.segment<2>(2 * order[v]).transpose();
+  return points;
+}
+
+// One face of the proxy, weight |W (J - R)|^2 with J measured against the
+// reference triangle (a, b, c); its matrix slots are left as they were.
+void set_proxy_face(const Eigen::Vector3i& corners, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                    const Eigen::Vector2d& c, double weight, const std::vector<int>& order, ProxyFace& face) {
+  for (int k = 0; k < 3; ++k) face.dof[k] = 2 * order[corners[k]];
+  Eigen::Matrix2d edges;
+  edges << b - a, c - a;
+  face.area = weight;
+  face.inverse_edges = edges.inverse();
+  const Eigen::Vector2d g[3] = {corner_gradient(face, 0), corner_gradient(face, 1), corner_gradient(face, 2)};
+  for (int e = 0; e < 3; ++e) {
+    face.stiffness[e] = weight * g[e].dot(g[(e + 1) % 3]);
+    face.stiffness[3 + e] = weight * g[e].squaredNorm();
+  }
+}
+
+// The chart's faces, each weighted by its reference area.
+std::vector<ProxyFace> proxy_faces(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
+                                   const std::vector<int>& order) {
+  std::vector<ProxyFace> faces(triangles.rows());
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    const Eigen::Vector2d a = reference.row(3 * f), b = reference.row(3 * f + 1), c = reference.row(3 * f + 2);
+    set_proxy_face(triangles.row(f), a, b, c, signed_area(a, b, c), order, faces[f]);
+  }
+  return faces;
+}
+
+// Position of entry (row, col), row <= col, in the values of a compressed
+// column-major matrix (rows are sorted within a column).
+int value_slot(const Eigen::SparseMatrix<double>& m, int row, int col) {
+  const int* begin = m.innerIndexPtr() + m.outerIndexPtr()[col];
+  const int* end = m.innerIndexPtr() + m.outerIndexPtr()[col + 1];
+  return static_cast<int>(std::lower_bound(begin, end, row) - m.innerIndexPtr());
+}
+
+// The upper-triangle entries each face writes, in assemble_proxy's order:
+// for each edge (k, l) the full 2x2 block between the two vertices (the lower
+// dof gives the rows), then for each corner the 3 upper entries of its diagonal block.
+template <class Visit>
+void for_each_face_entry(const ProxyFace& face, Visit visit) {
+  for (int e = 0; e < 3; ++e) {
+    const int lo = std::min(face.dof[e], face.dof[(e + 1) % 3]), hi = std::max(face.dof[e], face.dof[(e + 1) % 3]);
+    visit(lo, hi), visit(lo, hi + 1), visit(lo + 1, hi), visit(lo + 1, hi + 1);
+  }
+  for (const int d : face.dof) visit(d, d), visit(d, d + 1), visit(d + 1, d + 1);
+}
+
+// Builds the pattern, records every face's value slots and runs the symbolic
+// analysis: all the per-chart work that the iterations then reuse.
+void prepare_proxy_system(std::vector<ProxyFace>& faces, int dof_count, ProxySystem& system) {
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(21 * faces.size() + dof_count);
+  for (int i = 0; i < dof_count; ++i) entries.emplace_back(i, i, 0.0);
+  for (const ProxyFace& face : faces)
+    for_each_face_entry(face, [&](int row, int col) { entries.emplace_back(row, col, 0.0); });
+  system.matrix.resize(dof_count, dof_count);
+  system.matrix.setFromTriplets(entries.begin(), entries.end());
+  system.matrix.makeCompressed();
+  for (ProxyFace& face : faces) {
+    int* slot = face.slot;
+    for_each_face_entry(face, [&](int row, int col) { *slot++ = value_slot(system.matrix, row, col); });
+  }
+  system.diagonal_slots.resize(dof_count);
+  for (int i = 0; i < dof_count; ++i) system.diagonal_slots[i] = value_slot(system.matrix, i, i);
+  system.solver.analyzePattern(system.matrix);
+  system.rhs.resize(dof_count);
+  system.solution.resize(dof_count);
+}
+
+// Local step and assembly. Per face, with R and M = W^2 from slim_proxy_target,
+// A |W (J - R)|_F^2 = sum_kl A g_k.g_l u_k^T M u_l - 2 sum_k A u_k^T M R g_k + const,
+// so block (k,l) of H is stiffness_kl M and b_k = A M R g_k. M is symmetric, so
+// a block and its transpose are equal and either can be stored. The proximal
+// term lambda |x - x_k|^2 adds lambda I and lambda x_k: it pins the translation
+// the energy does not see.
+void assemble_proxy(const std::vector<ProxyFace>& faces, const std::vector<Eigen::Matrix2d>& jacobians,
+                    const Eigen::VectorXd& x, double proximal_weight, ProxySystem& system) {
+  double* values = system.matrix.valuePtr();
+  std::fill(values, values + system.matrix.nonZeros(), 0.0);
+  system.rhs = proximal_weight * x;
+  for (size_t f = 0; f < faces.size(); ++f) {
+    const ProxyFace& face = faces[f];
+    const SlimProxyTarget target = slim_proxy_target(jacobians[f]);
+    const Eigen::Matrix2d& M = target.weight;
+    const int* slot = face.slot;
+    for (int e = 0; e < 3; ++e) {
+      const double c = face.stiffness[e];
+      values[*slot++] += c * M(0, 0), values[*slot++] += c * M(0, 1);
+      values[*slot++] += c * M(1, 0), values[*slot++] += c * M(1, 1);
+    }
+    for (int k = 0; k < 3; ++k) {
+      const double c = face.stiffness[3 + k];
+      values[*slot++] += c * M(0, 0), values[*slot++] += c * M(0, 1), values[*slot++] += c * M(1, 1);
+    }
+    const Eigen::Matrix2d target_map = face.area * M * target.rotation;
+    for (int k = 0; k < 3; ++k) system.rhs.segment<2>(face.dof[k]) += target_map * corner_gradient(face, k);
+  }
+  for (int slot : system.diagonal_slots) values[slot] += proximal_weight;
+}
+
+// Assembles and factorizes the proxy. Near-degenerate faces get huge SLIM
+// weights, and round-off can then break the Cholesky factorization of a large
+// chart: each retry strengthens the proximal term (scaled to the mean diagonal),
+// which keeps the system definite and only shortens the step.
+bool factorize_proxy(const std::vector<ProxyFace>& faces, const std::vector<Eigen::Matrix2d>& jacobians,
+                     const Eigen::VectorXd& x, double proximal_weight, ProxySystem& system) {
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    assemble_proxy(faces, jacobians, x, proximal_weight, system);
+    const auto start = std::chrono::steady_clock::now();
+    system.solver.factorize(system.matrix);
+    system.factorize_seconds += seconds_since(start);
+    if (system.solver.info() == Eigen::Success) return true;
+    double diagonal = 0;
+    for (int slot : system.diagonal_slots) diagonal += system.matrix.valuePtr()[slot];
+    proximal_weight = std::max(100 * proximal_weight, 1e-6 * diagonal / system.diagonal_slots.size());
+  }
+  return false;
+}
+
+// sum_f A_f psi(J_f); +inf as soon as one face flips or degenerates.
+double total_energy(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x) {
+  double energy = 0;
+  for (const ProxyFace& face : faces) {
+    energy += face.area * symmetric_dirichlet_density(jacobian(face, x));
+    if (!(energy < kInfinity)) return kInfinity;
+  }
+  return energy;
+}
+
+// Smallest t > 0 with a t^2 + b t + c = 0, for c > 0 (+inf if none), using
+// the cancellation-free form of the roots.
+double first_positive_root(double a, double b, double c) {
+  if (a >= 0 && b >= 0) return kInfinity;  // every term is positive for t > 0
+  if (a == 0) return b < 0 ? -c / b : kInfinity;
+  const double discriminant = b * b - 4 * a * c;
+  if (discriminant < 0) return kInfinity;
+  const double q = -0.5 * (b + std::copysign(std::sqrt(discriminant), b));
+  double t = kInfinity;
+  for (const double root : {q / a, c / q})
+    if (root > 0) t = std::min(t, root);
+  return t;
+}
+
+// J_f at x for every face.
+std::vector<Eigen::Matrix2d> face_jacobians(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x) {
+  std::vector<Eigen::Matrix2d> jacobians(faces.size());
+  for (size_t f = 0; f < faces.size(); ++f) jacobians[f] = jacobian(faces[f], x);
+  return jacobians;
+}
+
+// J is linear in the positions, so along x + t d each face's Jacobian is
+// J + t dJ with dJ = J_f(d): the line search needs neither x nor d again.
+struct SearchLine {
+  std::vector<Eigen::Matrix2d> moves;  // dJ per face
+  double slope = 0;                    // dE/dt at t = 0, sum_f A_f psi'(J_f; dJ_f)
+  double max_step = kInfinity;         // first t at which some triangle degenerates
+};
+
+// A face degenerates where det(J + t dJ), a quadratic in t, first reaches 0
+// (Smith and Schaefer 2015).
+SearchLine search_line(const std::vector<ProxyFace>& faces, const std::vector<Eigen::Matrix2d>& jacobians,
+                       const Eigen::VectorXd& d) {
+  SearchLine line;
+  line.moves.resize(faces.size());
+  for (size_t f = 0; f < faces.size(); ++f) {
+    const Eigen::Matrix2d& J = jacobians[f];
+    const Eigen::Matrix2d dJ = jacobian(faces[f], d);
+    line.moves[f] = dJ;
+    line.slope += faces[f].area * symmetric_dirichlet_rate(J, dJ);
+    line.max_step =
+        std::min(line.max_step, first_positive_root(dJ.determinant(), determinant_rate(J, dJ), J.determinant()));
+  }
+  return line;
+}
+
+// E(x + t d) = sum_f A_f psi(J_f + t dJ_f); +inf as soon as one face flips.
+double energy_along(const std::vector<ProxyFace>& faces, const std::vector<Eigen::Matrix2d>& jacobians,
+                    const SearchLine& line, double t) {
+  double energy = 0;
+  for (size_t f = 0; f < faces.size(); ++f) {
+    energy += faces[f].area * symmetric_dirichlet_density(jacobians[f] + t * line.moves[f]);
+    if (!(energy < kInfinity)) return kInfinity;
+  }
+  return energy;
+}
+
+int flipped_faces(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x) {
+  int count = 0;
+  for (const ProxyFace& face : faces) count += !(edge_matrix(face, x).determinant() > 0);
+  return count;
+}
+
+std::string input_problem(const ChartProblem& problem) {
+  std::ostringstream msg;
+  const Eigen::Index face_count = problem.triangles.rows();
+  if (problem.reference_uv.rows() != 3 * face_count)
+    msg << "reference_uv must hold 3 rows per face: expected " << 3 * face_count << ", got "
+        << problem.reference_uv.rows();
+  else if (problem.mirrored.size() != face_count)
+    msg << "mirrored must hold one entry per face: expected " << face_count << ", got " << problem.mirrored.size();
+  return msg.str();
+}
+
+// Armijo backtracking, E(x + t d) <= E(x) + kArmijo t dE/dt, halving t from
+// the largest safe flip-free step. Returns t and sets energy to E(x + t d),
+// or returns 0 if no step passed (the energy is flat at double precision).
+double backtracking_line_search(const std::vector<ProxyFace>& faces, const std::vector<Eigen::Matrix2d>& jacobians,
+                                const SearchLine& line, double& energy) {
+  double step = std::min(1.0, kSafeStepFraction * line.max_step);
+  for (int halving = 0; halving <= kMaxHalvings; ++halving, step /= 2) {
+    const double trial_energy = energy_along(faces, jacobians, line, step);
+    if (trial_energy <= energy + kArmijo * step * line.slope) {
+      energy = trial_energy;
+      return step;
+    }
+  }
+  return 0;
+}
+
+// One SLIM iteration from x: proxy solve, then the flip-free Armijo line
+// search. Each face's Jacobian is evaluated once: the assembly, the slope, the
+// largest step and every trial read J and dJ, not the positions, so little
+// besides the factorization grows with the chart (the benchmark reports the
+// ratio). Returns "" or why the solve broke down; moved is false when no step
+// was taken (no descent direction or no acceptable step: converged at double
+// precision), else x and energy hold the new iterate.
+struct SlimStep {
+  std::string failure;
+  bool moved = false;
+};
+
+SlimStep slim_step(const std::vector<ProxyFace>& faces, const SlimOptions& options, ProxySystem& system,
+                   Eigen::VectorXd& x, double& energy) {
+  const std::vector<Eigen::Matrix2d> jacobians = face_jacobians(faces, x);
+  // The line search kept J + t dJ flip-free; x itself is checked against
+  // round-off before anything is built on it.
+  if (std::any_of(jacobians.begin(), jacobians.end(), [](const Eigen::Matrix2d& J) { return !(J.determinant() > 0); }))
+    return {"SLIM: a step flipped a face in round-off"};
+  if (!factorize_proxy(faces, jacobians, x, options.proximal_weight, system))
+    return {"SLIM: proxy system is not positive definite"};
+  system.solution = system.solver.solve(system.rhs);
+  const Eigen::VectorXd direction = system.solution - x;
+  if (!direction.allFinite()) return {"SLIM: proxy solve produced non-finite values"};
+  const SearchLine line = search_line(faces, jacobians, direction);
+  if (!(line.slope < 0)) return {};
+  const double step = backtracking_line_search(faces, jacobians, line, energy);
+  if (step == 0) return {};
+  x += step * direction;
+  return {"", true};
+}
+
+// Whether the boundary loop (the dof of each loop vertex, in order) crosses itself at x.
+bool loop_crosses(const std::vector<int>& loop_dofs, const Eigen::VectorXd& x) {
+  const int n = static_cast<int>(loop_dofs.size());
+  std::vector<Eigen::Vector2d> points(n);
+  std::vector<Segment> segments(n);
+  for (int i = 0; i < n; ++i) points[i] = x.segment<2>(loop_dofs[i]), segments[i] = {i, (i + 1) % n};
+  return first_crossing(points, segments).has_value();
+}
+
+// Minimizes E from x (flip-free, in solver numbering, with E(x) = energy),
+// keeping x flip-free.
+// With a loop given, a step after which the boundary crosses itself is undone
+// and crossed is set: the caller goes on with a scaffold. Returns "" or why it
+// stopped early; x is the last accepted iterate either way.
+std::string minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int>& loop_dofs,
+                            const SlimOptions& options, const RunControl& control, Eigen::VectorXd& x,
+                            double energy, ChartSolution& solution, bool& crossed) {
+  ProxySystem system;
+  prepare_proxy_system(faces, static_cast<int>(x.size()), system);
+  Eigen::VectorXd previous;
+  for (solution.iterations = 0; solution.iterations < options.max_iterations;) {
+    control.throw_if_cancelled();
+    if (!loop_dofs.empty()) previous = x;
+    const double energy_before = energy;
+    const auto start = std::chrono::steady_clock::now();
+    const double factorized_before = system.factorize_seconds;
+    const SlimStep step = slim_step(faces, options, system, x, energy);
+    solution.iteration_seconds += seconds_since(start);
+    solution.factorize_seconds += system.factorize_seconds - factorized_before;
+    if (!step.failure.empty() || !step.moved) return step.failure;
+    if (!loop_dofs.empty() && loop_crosses(loop_dofs, x)) {
+      x.swap(previous);
+      crossed = true;
+      return "";
+    }
+    ++solution.iterations;
+    if ((energy_before - energy) / energy_before < options.relative_tolerance) return "";
+  }
+  return "";
+}
+
+// The chart and its scaffold as one problem. Scaffold triangles take their
+// current shape as reference, so they pull nowhere but resist being squashed,
+// without bound as they degenerate. As in SCAF each weighs the same, a share
+// of the chart's energy, so thin ones near the boundary stiffen first; an area
+// weight would make exactly those the weakest.
+constexpr double kScaffoldWeight = 1e-2;
+constexpr double kScaffoldMargin = 1.0;
+// The free space is triangulated again every few iterations, not every one:
+// in between the old scaffold stays valid (the line search keeps it
+// flip-free), and the ordering and symbolic analysis are reused.
+constexpr int kRemeshEvery = 8;
+// SCAF's steps are short, so it stops at 0.3 of SLIM's relative tolerance
+// (a tenth: 3 charts fewer on the Smithsonian scan, 25% slower).
+constexpr double kScaffoldToleranceFactor = 0.3;
+
+// Rewrites the scaffold faces (those after the chart's, in `faces`) with their
+// current shape as reference and the given weight each; slots stay.
+void reset_scaffold_faces(const RowMatrixX3i& all, const RowMatrixX2d& points, double weight,
+                          const std::vector<int>& order, Eigen::Index chart_faces, std::vector<ProxyFace>& faces) {
+  for (Eigen::Index t = chart_faces; t < all.rows(); ++t)
+    set_proxy_face(all.row(t), points.row(all(t, 0)), points.row(all(t, 1)), points.row(all(t, 2)), weight, order,
+                   faces[t]);
+}
+
+// SCAF (Jiang et al. 2017): SLIM iterations on the chart plus a scaffold of
+// the free space around it, so the boundary never crosses itself. uv (chart
+// vertices, flip-free, boundary not crossing) is updated in place.
+std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
+                                   const std::vector<ProxyFace>& chart_faces, const std::vector<int>& chart_order,
+                                   const std::vector<int>& loop, const SlimOptions& options,
+                                   const RunControl& control, RowMatrixX2d& uv, ChartSolution& solution) {
+  const int n = static_cast<int>(uv.rows());
+  auto chart_energy = [&] { return total_energy(chart_faces, to_solver(uv, chart_order)); };
+  double energy_before = chart_energy();
+  RowMatrixX2d points(n + 4, 2);
+  RowMatrixX3i all;
+  std::vector<int> order;
+  std::vector<ProxyFace> faces;
+  std::optional<ProxySystem> system;
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    control.throw_if_cancelled();
+    Scaffold scaffold;
+    // A rebuild that finds no ear (round-off, where the boundary nearly
+    // touches itself) keeps the old scaffold: the line search kept it valid.
+    const bool remesh = iteration % kRemeshEvery == 0 && triangulate_scaffold(uv, loop, kScaffoldMargin, scaffold);
+    if (iteration == 0 && !remesh) return "SCAF: no scaffold around the starting boundary";
+    if (remesh) {
+      points << uv, scaffold.box_corners;
+      all.resize(triangles.rows() + scaffold.triangles.rows(), 3);
+      all << triangles, scaffold.triangles;
+      order = fill_reducing_order(all, n + 4);
+      faces = proxy_faces(triangles, reference, order);
+      faces.resize(all.rows());
+    }
+    const double weight = kScaffoldWeight * energy_before / static_cast<double>(all.rows() - triangles.rows());
+    reset_scaffold_faces(all, points, weight, order, triangles.rows(), faces);
+    if (remesh) {
+      system.emplace();
+      prepare_proxy_system(faces, 2 * (n + 4), *system);  // the pattern needs every face's corners
+    }
+    Eigen::VectorXd x = to_solver(points, order);
+    double energy = total_energy(faces, x);
+    // A system that breaks down (scaffold slivers) ends the solve; uv, the
+    // last accepted iterate, is valid all the same.
+    if (!slim_step(faces, options, *system, x, energy).moved) return "";
+    points = from_solver(x, order);
+    uv = points.topRows(n);
+    ++solution.iterations;
+    const double energy_after = chart_energy();
+    const double decrease = (energy_before - energy_after) / energy_before;
+    energy_before = energy_after;
+    if (decrease >= 0 && decrease < kScaffoldToleranceFactor * options.relative_tolerance) return "";
+  }
+  return "";
+}
+
+}  // namespace
+
+ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions& options,
+                                 const RunControl& control) {
+  control.throw_if_cancelled();
+  const int vertex_count = static_cast<int>(problem.positions.rows());
+  ChartSolution solution;
+  solution.uv = RowMatrixX2d::Zero(vertex_count, 2);
+  std::vector<int> boundary_corners;
+  solution.failure = input_problem(problem);
+  if (solution.failure.empty())
+    solution.failure = disk_boundary_loop(problem.triangles, vertex_count, boundary_corners);
+  if (!solution.failure.empty()) return solution;
+
+  const ReferenceTriangles reference = repaired_reference_triangles(problem.triangles, problem.positions,
+                                                                    problem.reference_uv, problem.mirrored);
+  solution.folded_references = reference.folded;
+  solution.repaired_references = reference.repaired;
+  RowMatrixX2d initial;
+  solution.failure =
+      mean_value_embedding(problem.triangles, reference.corners, boundary_corners, vertex_count, initial);
+  if (!solution.failure.empty()) return solution;
+
+  const std::vector<int> order = fill_reducing_order(problem.triangles, vertex_count);
+  std::vector<ProxyFace> faces = proxy_faces(problem.triangles, reference.corners, order);
+  double reference_area = 0;
+  for (const ProxyFace& face : faces) reference_area += face.area;
+  Eigen::VectorXd x = to_solver(initial, order);
+
+  const double initial_energy = total_energy(faces, x);
+  if (initial_energy < kInfinity) {
+    solution.energy_initial = initial_energy / reference_area;
+    std::vector<int> loop, loop_dofs;
+    for (int c : boundary_corners) loop.push_back(problem.triangles(c / 3, c % 3));
+    if (options.scaffold_on_crossing)
+      for (int v : loop) loop_dofs.push_back(2 * order[v]);
+    bool crossed = false;
+    solution.failure = minimize_energy(faces, loop_dofs, options, control, x, initial_energy, solution, crossed);
+    if (crossed) {
+      solution.scaffolded = true;
+      RowMatrixX2d uv = from_solver(x, order);
+      solution.failure = minimize_with_scaffold(problem.triangles, reference.corners, faces, order, loop, options,
+                                                control, uv, solution);
+      x = to_solver(uv, order);
+    }
+    solution.energy_final = total_energy(faces, x) / reference_area;
+  } else {
+    std::ostringstream msg;
+    msg << "initial embedding is not flip-free (" << flipped_faces(faces, x) << " faces)";
+    solution.failure = msg.str();
+  }
+  solution.flipped = flipped_faces(faces, x);
+  solution.uv = from_solver(x, order);
+  return solution;
+}
+
+}  // namespace atlas

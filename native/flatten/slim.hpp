@@ -1,0 +1,61 @@
+// Parameterization of one merged chart (thesis 3.4.5, 5.3-5.4): a flip-free
+// initial embedding, then SLIM on the symmetric Dirichlet energy of the map
+// from each face's ORIGINAL UV triangle (the reference) to its new one.
+#pragma once
+#include <string>
+
+#include "core/mesh.hpp"
+#include "core/run_control.hpp"
+
+namespace atlas {
+
+// One chart, in local vertex numbering. The faces form a consistently
+// oriented topological disk (cut_to_disk makes sure of it).
+struct ChartProblem {
+  RowMatrixX3i triangles;        // F x 3, local vertex indices 0..n-1
+  RowMatrixX3d positions;        // n x 3, 3D positions (used to repair references)
+  RowMatrixX2d reference_uv;     // 3F x 2, the face's original UV triangle in texels
+  Eigen::VectorXi mirrored;      // F, 1 where the face's original chart is mirrored
+};
+
+struct SlimOptions {
+  int max_iterations = 60;
+  // Stop when (E_k - E_k+1) / E_k falls below. 1e-2 leaves the median chart
+  // within 2-8% of the isometric energy; tighter costs time and, before SCAF
+  // existed, folded more charts over themselves (measured on the three scans).
+  // SLIM and SCAF (see below) each get max_iterations.
+  double relative_tolerance = 1e-2;
+  double proximal_weight = 1e-4;     // keeps the proxy system definite (translation)
+  // A step after which the boundary crosses itself is undone, and the solve
+  // goes on inside a scaffold (SCAF, Jiang et al. 2017) that cannot cross.
+  // Slower per iteration (the scaffold, so the pattern, is rebuilt every 8
+  // steps), but it spares splitting the chart. false: plain SLIM, which never
+  // looks at the boundary and may leave it crossing itself.
+  bool scaffold_on_crossing = true;
+};
+
+struct ChartSolution {
+  RowMatrixX2d uv;             // n x 2 new positions in texels (arbitrary placement)
+  double energy_initial = 0;   // per unit reference area, at the initial embedding
+  double energy_final = 0;     // per unit reference area; 4 is the isometric minimum
+  int iterations = 0;
+  bool scaffolded = false;     // the boundary crossed itself once and SCAF took over
+  // Wall time of the plain SLIM iterations, and of the numeric Cholesky
+  // factorizations within them: the benchmark reports their ratio.
+  double iteration_seconds = 0, factorize_seconds = 0;
+  int flipped = 0;             // faces with non-positive signed area in uv
+  int folded_references = 0;   // references folded over inside their original chart (mirror image used)
+  int repaired_references = 0; // degenerate references replaced by a well-shaped triangle
+  std::string failure;         // empty on success; otherwise why the result is unusable
+};
+
+// Solves one chart. Never throws on bad geometry: problems are reported in
+// ChartSolution::failure. Throws Cancelled if control is cancelled.
+// uv and the energies are always finite: when failure is set, uv is the last
+// flip-free iterate, or the initial map (flipped > 0) if that already folds, or
+// zeros if the chart is not a disk; energies stay 0 until a flip-free map exists.
+// Thread-safe; meant to be called concurrently, one chart per thread.
+ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions& options,
+                                 const RunControl& control);
+
+}  // namespace atlas

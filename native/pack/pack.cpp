@@ -1,0 +1,264 @@
+#include "pack/pack.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <sstream>
+#include <utility>
+
+#include "pack/page_filling.hpp"
+#include "pack/scaled_chart.hpp"
+
+namespace atlas {
+namespace {
+
+constexpr double kScaleTolerance = 1.005;  // scale searches stop within 0.5% of the answer
+constexpr int kScaleSteps = 12;            // ... or after this many packings
+constexpr double kAimBelow = 0.998;        // scale guesses aim just under the limit
+constexpr int kTallPage = 4;               // fixed size: trial pages are this much taller
+// Fixed size: first guess of the share of the page the charts' own area fills.
+constexpr double kExpectedFill = 0.6;
+
+struct Packing {
+  double scale = 1.0;
+  std::vector<ScaledChart> charts;
+  Layout layout;
+};
+
+long long page_texels(const std::vector<PageSize>& pages) {
+  long long total = 0;
+  for (const PageSize& p : pages) total += static_cast<long long>(p.width) * p.height;
+  return total;
+}
+
+void require_valid(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& o) {
+  std::ostringstream msg;
+  if (!(o.density_scale > 0.0 && std::isfinite(o.density_scale)))
+    msg << "density_scale must be positive and finite, got " << o.density_scale;
+  else if (o.padding < 0)
+    msg << "padding must be >= 0, got " << o.padding;
+  else if (o.max_page_size < kSideQuantum)
+    msg << "max_page_size must be >= " << kSideQuantum << ", got " << o.max_page_size;
+  else if (o.fixed_page_size < 0)
+    msg << "fixed_page_size must be >= 0, got " << o.fixed_page_size;
+  else if (o.texel_budget < 0)
+    msg << "texel_budget must be >= 0, got " << o.texel_budget;
+  else if (o.fixed_page_size > 0 && o.texel_budget > 0 &&
+           static_cast<long long>(o.fixed_page_size) * o.fixed_page_size > o.texel_budget)
+    msg << "fixed_page_size " << o.fixed_page_size << " exceeds texel_budget " << o.texel_budget;
+  else if (o.fixed_page_size == 0 && o.texel_budget > 0 &&
+           o.texel_budget < kSideQuantum * kSideQuantum)
+    msg << "texel_budget must hold at least one " << kSideQuantum << "x" << kSideQuantum
+        << " page, got " << o.texel_budget;
+  for (size_t c = 0; msg.tellp() == 0 && c < chart_uv.size(); ++c)
+    if (chart_uv[c].rows() % 3 != 0)
+      msg << "chart " << c << " must hold 3 corners per face, got " << chart_uv[c].rows()
+          << " rows";
+  if (msg.tellp() != 0) throw InputError(msg.str());
+}
+
+// Non-finite corners (from a failed upstream solve) are pulled onto the mean
+// of the chart's finite corners, so they cannot poison page sizes or output.
+RowMatrixX2d with_finite_corners(const RowMatrixX2d& uv) {
+  const auto finite = uv.array().isFinite().rowwise().all().eval();
+  Eigen::RowVector2d mean = Eigen::RowVector2d::Zero();
+  for (Eigen::Index i = 0; i < uv.rows(); ++i)
+    if (finite(i)) mean += uv.row(i);
+  if (finite.count() > 0) mean /= static_cast<double>(finite.count());
+  RowMatrixX2d out = uv;
+  for (Eigen::Index i = 0; i < uv.rows(); ++i)
+    if (!finite(i)) out.row(i) = mean;
+  return out;
+}
+
+// Largest scale at which every chart, grown by padding, fits a square of
+// `virtual_side` in either orientation: a chart spanning E texels covers at
+// most E + 2 of them. Infinite when every chart is a point.
+double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, int virtual_side,
+                             int padding) {
+  const double room = virtual_side - 2.0 - 2.0 * padding;
+  if (room < 1.0) {
+    std::ostringstream msg;
+    msg << "padding " << padding << " leaves no room on a page of " << virtual_side << " texels";
+    throw InputError(msg.str());
+  }
+  double extent = 0.0;
+  for (const RowMatrixX2d* uv : chart_uv)
+    if (uv->rows() > 0)
+      extent = std::max(extent, (uv->colwise().maxCoeff() - uv->colwise().minCoeff()).maxCoeff());
+  return extent > 0.0 ? room / extent : std::numeric_limits<double>::infinity();
+}
+
+// Default sizing at one scale: the smallest page, else the fewest max pages.
+Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale, const Frame& frame,
+                  int max_side, const RunControl& control) {
+  Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, control), {}};
+  const std::vector<int> order = largest_first(packing.charts);
+  if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control))
+    packing.layout = std::move(*single);
+  else
+    packing.layout = pack_many_pages(order, packing.charts, frame, max_side, control);
+  return packing;
+}
+
+// The packing at the largest scale < failed (and <= cap) that fits, where
+// try_scale(s) packs at s and returns it with its fill ratio r: it fits iff
+// r <= 1. r grows about as s^e, e = 2 while the charts dominate and less
+// when their padding does; e is re-estimated from the last two tries and
+// s * r^(-1/e) predicts the answer. A prediction outside the bracket
+// (largest fitting, smallest failing) is replaced by the bracket's middle.
+template <class TryScale>
+Packing largest_fitting_packing(TryScale try_scale, double start, double cap, double failed,
+                                const char* too_small) {
+  std::optional<Packing> fitting;
+  double s = std::min(start, cap), last_s = 0.0, last_ratio = 0.0;
+  for (int step = 0; step < kScaleSteps; ++step) {
+    auto [packing, ratio] = try_scale(s);
+    if (ratio <= 1.0 && (!fitting || s > fitting->scale))
+      fitting = std::move(packing);
+    else if (ratio > 1.0)
+      failed = std::min(failed, s);
+    const double lo = fitting ? fitting->scale : 0.0;
+    if (lo >= cap || failed <= lo * kScaleTolerance) break;
+    double exponent = 2.0;
+    if (last_ratio > 0.0 && std::isfinite(ratio) && s != last_s)
+      exponent = std::clamp(std::log(ratio / last_ratio) / std::log(s / last_s), 0.25, 2.0);
+    double next = std::isfinite(ratio) ? kAimBelow * s * std::pow(ratio, -1.0 / exponent) : 0.5 * s;
+    next = std::min(cap, next);
+    if (next <= lo || next >= failed)
+      next = !fitting ? 0.5 * failed
+                      : std::isfinite(failed) ? std::sqrt(lo * failed) : std::min(cap, 1.1 * lo);
+    if (fitting && next < lo * kScaleTolerance) break;  // already within tolerance
+    if (std::isfinite(ratio)) {
+      last_s = s;
+      last_ratio = ratio;
+    }
+    s = next;
+  }
+  if (!fitting) throw InputError(too_small);
+  return std::move(*fitting);
+}
+
+// texel_budget: the largest scale below the first packing's whose pages fit
+// the budget; page area grows as scale^2.
+Packing shrink_to_budget(const std::vector<const RowMatrixX2d*>& chart_uv, Packing first,
+                         const Frame& frame, int max_side, long long budget,
+                         const RunControl& control) {
+  auto try_scale = [&](double s) {
+    Packing packing = pack_free(chart_uv, s, frame, max_side, control);
+    const double ratio = static_cast<double>(page_texels(packing.layout.pages)) / budget;
+    return std::make_pair(std::move(packing), ratio);
+  };
+  const double ratio = static_cast<double>(page_texels(first.layout.pages)) / budget;
+  return largest_fitting_packing(try_scale, kAimBelow * first.scale / std::sqrt(ratio),
+                                 first.scale, first.scale,
+                                 "texel_budget is too small to hold the charts with their padding");
+}
+
+// fixed_page_size: the largest scale at which the charts fit one side x side
+// page. Each try packs on a page as wide but kTallPage times taller, so it
+// also tells the height the charts need: at a fixed width it grows as scale^2.
+Packing pack_fixed(const std::vector<const RowMatrixX2d*>& chart_uv, const Frame& frame, int side,
+                   const RunControl& control) {
+  const int virtual_side = side + 2 * frame.margin;
+  auto try_scale = [&](double s) {
+    Packing packing{s, scale_charts(chart_uv, s, frame.padding, kHoleCell, control), {}};
+    const auto page = pack_one_page(largest_first(packing.charts), packing.charts, virtual_side,
+                                    kTallPage * virtual_side, control);
+    if (!page) return std::make_pair(std::move(packing), std::numeric_limits<double>::infinity());
+    packing.layout = {page->placement, {{side, side}}};
+    return std::make_pair(std::move(packing), static_cast<double>(page->used.height) / virtual_side);
+  };
+  double cap = largest_fitting_scale(chart_uv, virtual_side, frame.padding);
+  if (std::isinf(cap)) cap = 1.0;  // every chart is a point: any scale packs the same
+  double area = 0.0;                // at scale 1, of the corner polygons
+  for (const RowMatrixX2d* uv : chart_uv)
+    for (Eigen::Index f = 0; f + 2 < uv->rows(); f += 3) {
+      const Eigen::RowVector2d a = uv->row(f + 1) - uv->row(f), b = uv->row(f + 2) - uv->row(f);
+      area += 0.5 * std::abs(a.x() * b.y() - a.y() * b.x());
+    }
+  const double start = area > 0.0 ? std::sqrt(kExpectedFill * side * side / area) : cap;
+  return largest_fitting_packing(try_scale, start, cap, std::numeric_limits<double>::infinity(),
+                                 "fixed_page_size is too small to hold the charts with their padding");
+}
+
+// Page units of every chart and the exact transform that produced them.
+PackResult to_result(const std::vector<const RowMatrixX2d*>& chart_uv, const Packing& packing,
+                     const Frame& frame) {
+  const Layout& layout = packing.layout;
+  PackResult result;
+  result.scale = packing.scale;
+  result.pages = layout.pages;
+  result.placed_uv.resize(chart_uv.size());
+  result.chart_page.resize(chart_uv.size());
+  result.chart_rotated.resize(chart_uv.size());
+  result.chart_translation.resize(static_cast<Eigen::Index>(chart_uv.size()), 2);
+  long long chart_texels = 0;
+  for (size_t c = 0; c < chart_uv.size(); ++c) {
+    const Placement& at = layout.placement[c];
+    const ScaledChart& chart = packing.charts[c];
+    const TexelMask& mask = chart.turned[at.turn].mask;
+    // Mask texel (0, 0) is texel mask.origin of scale * R * uv - shift and
+    // lands on virtual texel (at.x, at.y), i.e. page texel (at.x, at.y) - margin.
+    const Eigen::RowVector2d offset(at.x - frame.margin - mask.origin_x,
+                                    at.y - frame.margin - mask.origin_y);
+    const Eigen::RowVector2d translation = offset - chart.shift[at.turn];
+    RowMatrixX2d corners = turned_corners(*chart_uv[c], packing.scale, at.turn);
+    corners.rowwise() += translation;
+    const PageSize& page = layout.pages[at.page];
+    corners.col(0) /= page.width;
+    corners.col(1) /= page.height;
+    result.placed_uv[c] = std::move(corners);
+    result.chart_page[c] = at.page;
+    result.chart_rotated[c] = at.turn == 1;
+    result.chart_translation.row(static_cast<Eigen::Index>(c)) = translation;
+    chart_texels += chart.raster_texels[at.turn];
+  }
+  result.efficiency = static_cast<double>(chart_texels) / page_texels(layout.pages);
+  return result;
+}
+
+}  // namespace
+
+PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
+                       const RunControl& control) {
+  require_valid(chart_uv, options);
+  control.throw_if_cancelled();
+  // Half the padding may lie beyond the border: pages wrap when sampled, so
+  // the two borders together still give a chart its full padding.
+  const Frame frame{options.padding, options.padding / 2};
+  if (chart_uv.empty()) {
+    PackResult empty;
+    empty.scale = options.density_scale;
+    const int side = options.fixed_page_size > 0 ? options.fixed_page_size : kSideQuantum;
+    empty.pages.push_back({side, side});
+    empty.chart_translation.resize(0, 2);
+    return empty;
+  }
+
+  std::vector<RowMatrixX2d> repaired;  // charts that had non-finite corners
+  repaired.reserve(chart_uv.size());   // no reallocation: uv points into it
+  std::vector<const RowMatrixX2d*> uv(chart_uv.size());
+  for (size_t c = 0; c < chart_uv.size(); ++c) {
+    if (chart_uv[c].allFinite()) {
+      uv[c] = &chart_uv[c];
+    } else {
+      repaired.push_back(with_finite_corners(chart_uv[c]));
+      uv[c] = &repaired.back();
+    }
+  }
+
+  if (options.fixed_page_size > 0)
+    return to_result(uv, pack_fixed(uv, frame, options.fixed_page_size, control), frame);
+
+  const int max_side = options.max_page_size / kSideQuantum * kSideQuantum;
+  const double scale = std::min(
+      options.density_scale, largest_fitting_scale(uv, max_side + 2 * frame.margin, frame.padding));
+  Packing packing = pack_free(uv, scale, frame, max_side, control);
+  if (options.texel_budget > 0 && page_texels(packing.layout.pages) > options.texel_budget)
+    packing = shrink_to_budget(uv, std::move(packing), frame, max_side, options.texel_budget, control);
+  return to_result(uv, packing, frame);
+}
+
+}  // namespace atlas

@@ -1,0 +1,48 @@
+// Packing: places every chart on as few pages as possible, rasterised at texel
+// resolution so that no two charts (padding included) share a texel.
+#pragma once
+#include <vector>
+
+#include "core/mesh.hpp"
+#include "core/run_control.hpp"
+
+namespace atlas {
+
+struct PackOptions {
+  double density_scale = 1.0;  // texels per original texel
+  int padding = 4;             // empty texels kept around every chart
+  int max_page_size = 8192;    // largest page side
+  int fixed_page_size = 0;     // > 0: square pages of this side, charts scaled to fit one page
+  long long texel_budget = 0;  // > 0: total output texels may not exceed this; charts are
+                               // scaled down uniformly if they would
+};
+
+struct PackResult {
+  std::vector<RowMatrixX2d> placed_uv;  // per chart: 3F_c x 2 corner UVs in page units [0,1]
+  std::vector<int> chart_page;          // per chart: output page
+  std::vector<PageSize> pages;
+  double scale = 1.0;                   // uniform scale finally applied (< density_scale if shrunk)
+  double efficiency = 0.0;              // chart texels / page texels
+  // The exact transform, per chart: page texel = scale * R * input texel + translation,
+  // R turning 90 degrees counter-clockwise ((x, y) -> (-y, x)) when chart_rotated.
+  // The translation is whole texels, so at scale 1 texels copy 1:1.
+  std::vector<bool> chart_rotated;
+  RowMatrixX2d chart_translation;  // C x 2, texels
+};
+
+// chart_uv[c] holds chart c's corner UVs in texels (3 rows per face, any placement).
+// Charts are rasterised conservatively, grown by options.padding, and placed
+// largest first, at 0 or 90 degrees: dropped onto the horizon of what is
+// already placed, or lower, into a hole under it (searched on a 4-texel grid).
+// Page size: by default the smallest near-square page (sides multiples of 4) or,
+// beyond max_page_size, the fewest pages of that size (the last one shrunk);
+// fixed_page_size: one page of exactly that side, charts scaled as large as fit
+// (density_scale is then ignored). Charts keep at least padding / 2 texels from
+// page borders (pages wrap, so both borders together give the full padding).
+// Throws InputError on bad options, rows not a multiple of 3, or a budget or
+// fixed page too small for the charts' padding alone; non-finite corners are
+// pulled onto their chart's mean corner.
+PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
+                       const RunControl& control);
+
+}  // namespace atlas

@@ -1,0 +1,211 @@
+#include "pack/page_filling.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+
+#include "pack/coarse_mask.hpp"
+#include "pack/page_occupancy.hpp"
+
+namespace atlas {
+namespace {
+
+// First guess of the packing density (set texels of the dilated masks / page
+// texels) when sizing a page; the width search corrects it.
+constexpr double kExpectedDensity = 0.8;
+constexpr int kSquareProbes = 2;  // widths tried after the first one
+constexpr double kSquareTolerance = 0.03;
+// A chart that found no hole rules out holes for charts of >= this fraction
+// of its texels on that page; charts come largest first, so holes are tried
+// again each time charts have shrunk by another 10%.
+constexpr double kHoleMissMargin = 0.9;
+
+// A page being filled: its texels, for drops, and the same on the hole grid
+// (a cell is occupied when any of its texels is), for hole searches.
+struct Page {
+  PageOccupancy texels;
+  PageOccupancy cells;
+  long long hole_miss_texels = std::numeric_limits<long long>::max();
+
+  Page(int width, int height)
+      : texels(width, height), cells(width / kHoleCell, height / kHoleCell) {}
+};
+
+// Lowest spot in a hole for one orientation, with its top below top_limit.
+// Cell spot (X, Y) is texel spot (kHoleCell X, kHoleCell Y): the chart's
+// cells are aligned with the page's there, and free cells mean free texels.
+std::optional<Eigen::Vector2i> spot_in_hole(const Page& page, const ScaledChart& chart, int turn,
+                                            int top_limit) {
+  const int room = top_limit - chart.turned[turn].mask.height;  // highest texel y allowed
+  if (room < 0) return std::nullopt;
+  const PlacementShape& cells = chart.cells[turn];
+  const auto at = page.cells.first_fit(cells, room / kHoleCell + cells.mask.height);
+  if (!at) return std::nullopt;
+  return Eigen::Vector2i(*at * kHoleCell);
+}
+
+void occupy(Page& page, const TexelMask& mask, Eigen::Vector2i at) {
+  page.texels.occupy(mask, at.x(), at.y());
+  const TexelMask cells = coarsen_mask(mask, at.x(), at.y(), kHoleCell, page.cells.width(),
+                                       page.cells.height());
+  if (cells.width > 0) page.cells.occupy(cells, cells.origin_x, cells.origin_y);
+}
+
+// Both orientations are tried; the one whose top ends lowest wins (a long
+// chart lies down), which keeps the packed region low and compact. Each is
+// dropped onto the horizon, then holes below are searched for a lower spot
+// unless the page lately had no hole for a chart that large.
+bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
+  const int flat_first = chart.turned[1].mask.height < chart.turned[0].mask.height ? 1 : 0;
+  const std::array<int, 2> turns = {flat_first, 1 - flat_first};
+  std::optional<Eigen::Vector2i> best;
+  int best_turn = 0, best_top = page.texels.height() + 1;
+  auto keep_if_lower = [&](int turn, const std::optional<Eigen::Vector2i>& at) {
+    if (!at) return false;
+    best = at;
+    best_turn = turn;
+    best_top = at->y() + chart.turned[turn].mask.height;
+    return true;
+  };
+  for (int turn : turns)
+    keep_if_lower(turn, page.texels.lowest_drop(chart.turned[turn], best_top - 1));
+  // Without a drop spot the holes are the only chance, whatever was missed before.
+  const long long texels = chart.turned[0].texels;
+  if (!best || texels < page.hole_miss_texels) {
+    bool in_hole = false;
+    for (int turn : turns)
+      in_hole |= keep_if_lower(turn, spot_in_hole(page, chart, turn, best_top - 1));
+    if (!in_hole)
+      page.hole_miss_texels =
+          std::min(page.hole_miss_texels, static_cast<long long>(kHoleMissMargin * texels));
+  }
+  if (!best) return false;
+  occupy(page, chart.turned[best_turn].mask, *best);
+  placement.x = best->x();
+  placement.y = best->y();
+  placement.turn = best_turn;
+  return true;
+}
+
+int round_up_to_quantum(double side) {
+  return std::max(kSideQuantum,
+                  static_cast<int>(std::ceil(side / kSideQuantum - 1e-9)) * kSideQuantum);
+}
+
+long long area(const PageSize& page) { return static_cast<long long>(page.width) * page.height; }
+
+}  // namespace
+
+std::vector<int> largest_first(const std::vector<ScaledChart>& charts) {
+  std::vector<int> order(charts.size());
+  std::iota(order.begin(), order.end(), 0);
+  auto box = [&](int c) {
+    const TexelMask& m = charts[c].turned[0].mask;
+    return static_cast<long long>(m.width) * m.height;
+  };
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return box(a) > box(b); });
+  return order;
+}
+
+int trimmed_side(int used, const Frame& frame) {
+  return round_up_to_quantum(std::max(1, used - 2 * frame.margin));
+}
+
+std::optional<OnePage> pack_one_page(const std::vector<int>& order,
+                                     const std::vector<ScaledChart>& charts, int width,
+                                     int height, const RunControl& control) {
+  OnePage result;
+  result.placement.resize(charts.size());
+  Page page(width, height);
+  for (int c : order) {
+    control.throw_if_cancelled();
+    if (!place_chart(page, charts[c], result.placement[c])) return std::nullopt;
+  }
+  result.used = {page.texels.used_width(), page.texels.used_height()};
+  return result;
+}
+
+// Page width w gives height h(w); the next width tried is sqrt(w * h), the
+// side of the square of equal area. The first width assumes kExpectedDensity.
+std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
+                                         const std::vector<ScaledChart>& charts,
+                                         const Frame& frame, int max_side,
+                                         const RunControl& control) {
+  const int to_virtual = 2 * frame.margin, max_virtual = max_side + to_virtual;
+  double dilated_texels = 0.0;
+  int narrowest = 1;  // the page must be at least this wide in virtual texels
+  for (int c : order) {
+    dilated_texels += static_cast<double>(charts[c].turned[0].texels);
+    const TexelMask& m = charts[c].turned[0].mask;
+    narrowest = std::max(narrowest, std::min(m.width, m.height));
+  }
+  if (dilated_texels > static_cast<double>(max_virtual) * max_virtual) return std::nullopt;
+  auto width_for = [&](double virtual_width) {
+    return std::min(max_side, round_up_to_quantum(virtual_width - to_virtual));
+  };
+  auto pack = [&](int width) -> std::optional<Layout> {
+    auto page = pack_one_page(order, charts, width + to_virtual, max_virtual, control);
+    if (!page) return std::nullopt;
+    return Layout{std::move(page->placement),
+                  {{trimmed_side(page->used.width, frame), trimmed_side(page->used.height, frame)}}};
+  };
+  int width = width_for(std::max(narrowest, static_cast<int>(std::sqrt(dilated_texels / kExpectedDensity))));
+  std::optional<Layout> best = pack(width);
+  while (!best && width < max_side) {  // too narrow for the height cap
+    width = width_for((width + to_virtual) * 1.25);
+    best = pack(width);
+  }
+  if (!best) return std::nullopt;
+  int height = best->pages[0].height;
+  for (int probe = 0; probe < kSquareProbes; ++probe) {
+    const int next = width_for(std::sqrt(static_cast<double>(width) * height) + to_virtual);
+    // Near enough to square: another probe would change the area by little.
+    if (std::abs(next - width) <= std::max<double>(kSideQuantum, kSquareTolerance * width)) break;
+    width = next;
+    auto candidate = pack(width);
+    if (!candidate) break;
+    height = candidate->pages[0].height;
+    if (area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
+  }
+  return best;
+}
+
+Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledChart>& charts,
+                       const Frame& frame, int max_side, const RunControl& control) {
+  const int side = max_side + 2 * frame.margin;
+  Layout layout;
+  layout.placement.resize(charts.size());
+  std::vector<Page> pages;
+  for (int c : order) {
+    control.throw_if_cancelled();
+    Placement& placement = layout.placement[c];
+    for (placement.page = 0; placement.page < static_cast<int>(pages.size()); ++placement.page)
+      if (place_chart(pages[placement.page], charts[c], placement)) break;
+    if (placement.page == static_cast<int>(pages.size())) {
+      pages.emplace_back(side, side);
+      if (!place_chart(pages.back(), charts[c], placement))
+        throw std::logic_error("pack_many_pages: a chart is larger than an empty page");
+    }
+  }
+  for (const Page& page : pages)
+    layout.pages.push_back({trimmed_side(page.texels.used_width(), frame),
+                            trimmed_side(page.texels.used_height(), frame)});
+
+  const int last = static_cast<int>(pages.size()) - 1;
+  std::vector<int> last_order;
+  for (int c : order)
+    if (layout.placement[c].page == last) last_order.push_back(c);
+  if (auto small = pack_smallest_page(last_order, charts, frame, max_side, control)) {
+    for (int c : last_order) {
+      layout.placement[c] = small->placement[c];
+      layout.placement[c].page = last;
+    }
+    layout.pages[last] = small->pages[0];
+  }
+  return layout;
+}
+
+}  // namespace atlas

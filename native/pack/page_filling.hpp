@@ -1,0 +1,68 @@
+// Placing scaled charts on pages: on one page of a given size, on the
+// smallest near-square page, or on as many pages of the largest size as needed.
+#pragma once
+#include <optional>
+#include <vector>
+
+#include "core/mesh.hpp"
+#include "core/run_control.hpp"
+#include "pack/scaled_chart.hpp"
+
+namespace atlas {
+
+constexpr int kSideQuantum = 4;  // page sides are multiples of this
+// Holes are searched on a grid of kHoleCell x kHoleCell texel cells: 16x less
+// work than texel by texel, at the price of hole spots on multiples of 4.
+constexpr int kHoleCell = 4;
+
+// Pages are packed in a virtual frame reaching `margin` texels beyond every
+// border: dilated masks must stay inside it, so a chart's own texels keep
+// padding - margin texels from the border.
+struct Frame {
+  int padding = 0;
+  int margin = 0;
+};
+
+// Where a chart went: its dilated mask's texel (0, 0) sits at (x, y) of the
+// virtual frame of page `page`.
+struct Placement {
+  int page = 0;
+  int x = 0, y = 0;
+  int turn = 0;  // index into ScaledChart::turned
+};
+
+struct Layout {
+  std::vector<Placement> placement;  // per chart
+  std::vector<PageSize> pages;
+};
+
+struct OnePage {
+  std::vector<Placement> placement;  // per chart; only charts in the order are set
+  PageSize used;                     // extent used in the virtual frame
+};
+
+// Charts, largest bounding box first: big charts shape the page, small ones fill gaps.
+std::vector<int> largest_first(const std::vector<ScaledChart>& charts);
+
+// Page side (a multiple of kSideQuantum) holding `used` virtual texels.
+int trimmed_side(int used, const Frame& frame);
+
+// The charts of `order` on one page whose virtual frame is width x height,
+// or nullopt as soon as one does not fit.
+std::optional<OnePage> pack_one_page(const std::vector<int>& order,
+                                     const std::vector<ScaledChart>& charts, int width,
+                                     int height, const RunControl& control);
+
+// The smallest near-square page with sides <= max_side holding the charts,
+// or nullopt if they need more than one page.
+std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
+                                         const std::vector<ScaledChart>& charts,
+                                         const Frame& frame, int max_side,
+                                         const RunControl& control);
+
+// First fit over pages of max_side; the last page is then made as small as it
+// can be. Every chart must fit an empty page.
+Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledChart>& charts,
+                       const Frame& frame, int max_side, const RunControl& control);
+
+}  // namespace atlas

@@ -1,0 +1,53 @@
+#include "pack/scaled_chart.hpp"
+
+#include "pack/chart_raster.hpp"
+#include "pack/coarse_mask.hpp"
+
+namespace atlas {
+namespace {
+
+ScaledChart scale_chart(const RowMatrixX2d& uv, double scale, int padding, int cell) {
+  ScaledChart chart;
+  for (int turn = 0; turn < 2; ++turn) {
+    RowMatrixX2d corners = turned_corners(uv, scale, turn);
+    // Whole texels keep the texel grid, so texels copy 1:1 at scale 1.
+    if (corners.rows() > 0) chart.shift[turn] = corners.colwise().minCoeff().array().floor();
+    corners.rowwise() -= chart.shift[turn];
+    const TexelMask raster = rasterize_chart(corners);
+    chart.raster_texels[turn] = count_set_texels(raster);
+    TexelMask dilated = dilate_mask(raster, padding);
+    chart.cells[turn] = make_placement_shape(coarsen_mask(
+        dilated, 0, 0, cell, (dilated.width + cell - 1) / cell, (dilated.height + cell - 1) / cell));
+    chart.turned[turn] = make_placement_shape(std::move(dilated));
+  }
+  return chart;
+}
+
+}  // namespace
+
+RowMatrixX2d turned_corners(const RowMatrixX2d& uv, double scale, int turn) {
+  RowMatrixX2d out(uv.rows(), 2);
+  if (turn == 0) {
+    out = scale * uv;
+  } else {
+    out.col(0) = -scale * uv.col(1);
+    out.col(1) = scale * uv.col(0);
+  }
+  return out;
+}
+
+std::vector<ScaledChart> scale_charts(const std::vector<const RowMatrixX2d*>& chart_uv,
+                                      double scale, int padding, int cell,
+                                      const RunControl& control) {
+  control.throw_if_cancelled();
+  std::vector<ScaledChart> charts(chart_uv.size());
+  const int n = static_cast<int>(chart_uv.size());
+  // Exceptions must not leave an OpenMP region: cancelled workers just skip.
+#pragma omp parallel for schedule(dynamic, 16)
+  for (int c = 0; c < n; ++c)
+    if (!control.cancelled()) charts[c] = scale_chart(*chart_uv[c], scale, padding, cell);
+  control.throw_if_cancelled();
+  return charts;
+}
+
+}  // namespace atlas

@@ -1,0 +1,33 @@
+// Charts rasterised at one scale, in both orientations, ready to be placed.
+#pragma once
+#include <array>
+#include <vector>
+
+#include "core/mesh.hpp"
+#include "pack/placement_shape.hpp"
+#include "core/run_control.hpp"
+
+namespace atlas {
+
+struct ScaledChart {
+  // Turn 0 is the chart as given, turn 1 turned 90 degrees counter-clockwise.
+  std::array<PlacementShape, 2> turned;  // conservative raster grown by the padding
+  std::array<PlacementShape, 2> cells;   // the same on a grid of coarser cells
+  // Whole texels subtracted from scale * R * uv before rasterising, so that
+  // mask coordinates stay small: mask texel (0, 0) is texel mask.origin of
+  // scale * R * uv - shift.
+  std::array<Eigen::RowVector2d, 2> shift = {Eigen::RowVector2d::Zero(),
+                                             Eigen::RowVector2d::Zero()};
+  std::array<long long, 2> raster_texels = {0, 0};  // set before padding
+};
+
+// scale * R * uv with R = identity (turn 0) or (x, y) -> (-y, x) (turn 1).
+RowMatrixX2d turned_corners(const RowMatrixX2d& uv, double scale, int turn);
+
+// Every chart (corners in texels, all finite) at `scale`; `cell` texels per
+// side of a coarse cell. Runs on all OpenMP threads.
+std::vector<ScaledChart> scale_charts(const std::vector<const RowMatrixX2d*>& chart_uv,
+                                      double scale, int padding, int cell,
+                                      const RunControl& control);
+
+}  // namespace atlas
