@@ -7,8 +7,8 @@
 #include <random>
 
 #include "core/geometry.hpp"
-#include "metrics.hpp"
 #include "core/rasterize_triangle.hpp"
+#include "metrics.hpp"
 #include "test_meshes.hpp"
 
 using namespace atlas;

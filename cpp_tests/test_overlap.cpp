@@ -5,8 +5,8 @@
 
 #include "charts/aggregate.hpp"
 #include "charts/chart_graph.hpp"
-#include "flatten/cut_to_disk.hpp"
 #include "core/geometry.hpp"
+#include "flatten/cut_to_disk.hpp"
 #include "flatten/flatten_chart.hpp"
 #include "test_meshes.hpp"
 

@@ -8,10 +8,10 @@
 #include <sstream>
 #include <utility>
 
+#include "bake/sample_texture.hpp"
 #include "charts/chart_graph.hpp"
 #include "core/geometry.hpp"
 #include "core/rasterize_triangle.hpp"
-#include "bake/sample_texture.hpp"
 
 namespace atlas {
 namespace {

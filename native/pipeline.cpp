@@ -12,9 +12,9 @@
 
 #include "charts/chart_graph.hpp"
 #include "charts/cut_mesh.hpp"
+#include "core/topology.hpp"
 #include "flatten/flatten_chart.hpp"
 #include "flatten/reference_triangles.hpp"
-#include "core/topology.hpp"
 
 namespace atlas {
 namespace {

@@ -7,9 +7,9 @@
 
 #include "charts/aggregate.hpp"
 #include "core/mesh.hpp"
-#include "pack/pack.hpp"
 #include "core/run_control.hpp"
 #include "flatten/slim.hpp"
+#include "pack/pack.hpp"
 
 namespace atlas {
 

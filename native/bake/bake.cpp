@@ -11,9 +11,9 @@
 #include <sstream>
 
 #include "bake/pull_push_fill.hpp"
-#include "core/rasterize_triangle.hpp"
 #include "bake/sample_texture.hpp"
 #include "bake/texel_encoding.hpp"
+#include "core/rasterize_triangle.hpp"
 
 namespace atlas {
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <unordered_map>
 
+#include "core/corners.hpp"
 #include "core/union_find.hpp"
 
 namespace atlas {
@@ -33,12 +34,12 @@ std::vector<int> label_charts(const Mesh& mesh, const MeshTopology& topology, co
 }
 
 double edge_length_3d(const Mesh& mesh, int c) {
-  return (mesh.positions.row(mesh.triangles(c / 3, c % 3)) -
-          mesh.positions.row(mesh.triangles(c / 3, (c % 3 + 1) % 3))).norm();
+  return (mesh.positions.row(corner_vertex(mesh.triangles, c)) -
+          mesh.positions.row(corner_vertex(mesh.triangles, next_corner(c)))).norm();
 }
 
 double edge_length_uv(const Mesh& mesh, int c) {
-  return (mesh.uv_texels(c / 3, c % 3) - mesh.uv_texels(c / 3, (c % 3 + 1) % 3)).norm();
+  return (mesh.uv_texels(c / 3, c % 3) - mesh.uv_texels(c / 3, next_corner(c) % 3)).norm();
 }
 
 void accumulate_face_stats(const Mesh& mesh, ChartGraph& g) {

@@ -1,6 +1,6 @@
 #include "charts/cut_mesh.hpp"
 
-#include "core/union_find.hpp"
+#include "core/corners.hpp"
 
 namespace atlas {
 namespace {
@@ -9,7 +9,7 @@ bool keeps_edge(const Mesh& mesh, const MeshTopology& topology, const ChartGraph
   if (topology.edge_valence(e) != 2) return false;
   const int c0 = topology.edge_corners[topology.edge_offsets[e]];
   const int c1 = topology.edge_corners[topology.edge_offsets[e] + 1];
-  if (mesh.triangles(c0 / 3, c0 % 3) == mesh.triangles(c1 / 3, c1 % 3)) return false;  // winding flip
+  if (corner_vertex(mesh.triangles, c0) == corner_vertex(mesh.triangles, c1)) return false;  // winding flip
   if (mesh.repeats_vertex(c0 / 3) || mesh.repeats_vertex(c1 / 3)) return false;
   const int chart = graph.face_chart[c0 / 3];
   const bool same_chart = chart >= 0 && chart == graph.face_chart[c1 / 3];
@@ -32,14 +32,10 @@ Mesh cut_internal_seams(const Mesh& mesh, const MeshTopology& topology, const Ch
     }
   }
   Mesh cut;
-  cut.triangles.resize(mesh.face_count(), 3);
-  const std::vector<int> vertex_of_corner = corners.dense_labels();
   std::vector<int> source_vertex;
-  for (int c = 0; c < 3 * mesh.face_count(); ++c) {
-    const int v = vertex_of_corner[c];
-    if (v == static_cast<int>(source_vertex.size())) source_vertex.push_back(mesh.triangles(c / 3, c % 3));
-    cut.triangles(c / 3, c % 3) = v;
-  }
+  vertices_from_corner_classes(
+      corners, mesh.face_count(), [&](int c) { return corner_vertex(mesh.triangles, c); }, cut.triangles,
+      source_vertex);
   cut.positions.resize(static_cast<Eigen::Index>(source_vertex.size()), 3);
   for (size_t v = 0; v < source_vertex.size(); ++v) cut.positions.row(v) = mesh.positions.row(source_vertex[v]);
   cut.corner_uv = mesh.corner_uv;

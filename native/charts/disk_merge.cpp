@@ -3,12 +3,9 @@
 #include <algorithm>
 #include <numeric>
 
+#include "core/corners.hpp"
+
 namespace atlas {
-namespace {
-
-int prev_corner(int c) { return 3 * (c / 3) + (c % 3 + 2) % 3; }
-
-}  // namespace
 
 DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
                            int cluster_count, std::vector<char> kept_seams)
@@ -86,7 +83,7 @@ int DiskClusters::fan_count(int v, int a, int b) const {
   for (int i = begin; i < end; ++i) {
     const int c = topology_.vertex_corners[i];
     if (!in(c / 3, a, b)) continue;
-    for (int e : {topology_.corner_edge[c], topology_.corner_edge[prev_corner(c)]}) {
+    for (int e : {topology_.corner_edge[c], topology_.corner_edge[previous_corner(c)]}) {
       if (!joins(e)) continue;
       for (int j = topology_.edge_offsets[e]; j < topology_.edge_offsets[e + 1]; ++j) {
         const int g = topology_.edge_corners[j] / 3;

@@ -1,7 +1,6 @@
 #include "core/topology.hpp"
 
-#include <algorithm>
-#include <cstdint>
+#include "core/corners.hpp"
 
 namespace atlas {
 namespace {
@@ -21,14 +20,7 @@ void bucket(const std::vector<int>& keys, int key_count, std::vector<int>& offse
 
 MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count) {
   const int corners = static_cast<int>(3 * triangles.rows());
-  // Sort corners by their undirected edge key so equal edges become adjacent.
-  std::vector<std::pair<std::uint64_t, int>> keyed(corners);
-  for (int c = 0; c < corners; ++c) {
-    const int a = triangles(c / 3, c % 3), b = triangles(c / 3, (c + 1) % 3);
-    const std::uint64_t lo = std::min(a, b), hi = std::max(a, b);
-    keyed[c] = {(lo << 32) | hi, c};
-  }
-  std::sort(keyed.begin(), keyed.end());
+  const auto keyed = corners_by_edge(corners, [&](int c) { return corner_vertex(triangles, c); });
 
   MeshTopology t;
   t.corner_edge.resize(corners);
@@ -43,9 +35,9 @@ MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count) {
   for (size_t e = 0; e < ends.size(); ++e) t.edge_vertices.row(e) << ends[e].first, ends[e].second;
   bucket(t.corner_edge, t.edge_count(), t.edge_offsets, t.edge_corners);
 
-  std::vector<int> corner_vertex(corners);
-  for (int c = 0; c < corners; ++c) corner_vertex[c] = triangles(c / 3, c % 3);
-  bucket(corner_vertex, vertex_count, t.vertex_offsets, t.vertex_corners);
+  std::vector<int> vertex_at(corners);
+  for (int c = 0; c < corners; ++c) vertex_at[c] = corner_vertex(triangles, c);
+  bucket(vertex_at, vertex_count, t.vertex_offsets, t.vertex_corners);
   return t;
 }
 
@@ -55,16 +47,15 @@ bool uv_continuous_across(const MeshTopology& topology, const RowMatrixX3i& tria
   const int c0 = topology.edge_corners[topology.edge_offsets[e]];
   const int c1 = topology.edge_corners[topology.edge_offsets[e] + 1];
   if (face_page[c0 / 3] != face_page[c1 / 3]) return false;
-  auto next = [](int c) { return 3 * (c / 3) + (c % 3 + 1) % 3; };
   // Pair each end of the edge in face 0 with the corner of face 1 at the same
   // vertex; with opposite windings c0's start meets c1's end.
-  const bool same_winding = triangles(c0 / 3, c0 % 3) == triangles(c1 / 3, c1 % 3);
-  const int a1 = same_winding ? c1 : next(c1);
-  const int b1 = same_winding ? next(c1) : c1;
+  const bool same_winding = corner_vertex(triangles, c0) == corner_vertex(triangles, c1);
+  const int a1 = same_winding ? c1 : next_corner(c1);
+  const int b1 = same_winding ? next_corner(c1) : c1;
   // 1e-7 page units is far below a texel, yet absorbs text round-off of exporters.
   constexpr double tol = 1e-7;
   return (corner_uv.row(c0) - corner_uv.row(a1)).cwiseAbs().maxCoeff() <= tol &&
-         (corner_uv.row(next(c0)) - corner_uv.row(b1)).cwiseAbs().maxCoeff() <= tol;
+         (corner_uv.row(next_corner(c0)) - corner_uv.row(b1)).cwiseAbs().maxCoeff() <= tol;
 }
 
 std::vector<char> self_seams(const MeshTopology& topology, const RowMatrixX3i& triangles,

@@ -5,7 +5,7 @@
 #include <queue>
 #include <set>
 
-#include "core/union_find.hpp"
+#include "core/corners.hpp"
 
 namespace atlas {
 namespace {
@@ -66,25 +66,20 @@ void split_along(RowMatrixX3i& t, std::vector<int>& vertex_source, const std::se
   UnionFind classes(corners);
   std::map<Edge, int> first_corner;  // corner starting the edge, first face seen
   for (int c = 0; c < corners; ++c) {
-    const int a = t(c / 3, c % 3), b = t(c / 3, (c % 3 + 1) % 3);
+    const int a = corner_vertex(t, c), b = corner_vertex(t, next_corner(c));
     const Edge e = undirected(a, b);
     if (cut.count(e)) continue;
     const auto [it, fresh] = first_corner.emplace(e, c);
     if (fresh) continue;
     // The other face runs b -> a: its corner at b is it->second, at a the next one.
-    const int o = it->second, o_next = 3 * (o / 3) + (o % 3 + 1) % 3;
-    const int c_next = 3 * (c / 3) + (c % 3 + 1) % 3;
-    classes.unite(c, o_next);
-    classes.unite(c_next, o);
+    const int o = it->second;
+    classes.unite(c, next_corner(o));
+    classes.unite(next_corner(c), o);
   }
-  const std::vector<int> vertex_of_corner = classes.dense_labels();
   std::vector<int> source;
-  RowMatrixX3i out(t.rows(), 3);
-  for (int c = 0; c < corners; ++c) {
-    const int v = vertex_of_corner[c];
-    if (v == static_cast<int>(source.size())) source.push_back(vertex_source[t(c / 3, c % 3)]);
-    out(c / 3, c % 3) = v;
-  }
+  RowMatrixX3i out;
+  vertices_from_corner_classes(
+      classes, static_cast<int>(t.rows()), [&](int c) { return vertex_source[corner_vertex(t, c)]; }, out, source);
   t = std::move(out);
   vertex_source = std::move(source);
 }

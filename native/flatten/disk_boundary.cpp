@@ -1,16 +1,11 @@
 #include "flatten/disk_boundary.hpp"
 
-#include <algorithm>
-#include <cstdint>
 #include <sstream>
+
+#include "core/corners.hpp"
 
 namespace atlas {
 namespace {
-
-int next_corner(int c) { return c % 3 == 2 ? c - 2 : c + 1; }
-int previous_corner(int c) { return c % 3 == 0 ? c + 2 : c - 1; }
-
-int corner_vertex(const RowMatrixX3i& triangles, int c) { return triangles(c / 3, c % 3); }
 
 std::string describe(const char* problem, int where) {
   std::ostringstream msg;
@@ -23,29 +18,22 @@ std::string describe(const char* problem, int where) {
 // reason: an edge used by more than two faces, or twice in the same direction.
 std::string pair_half_edges(const RowMatrixX3i& triangles, std::vector<int>& opposite, int& edge_count) {
   const int corner_count = static_cast<int>(3 * triangles.rows());
-  std::vector<std::pair<std::int64_t, int>> keyed(corner_count);
-  for (int c = 0; c < corner_count; ++c) {
-    const std::int64_t a = corner_vertex(triangles, c), b = corner_vertex(triangles, next_corner(c));
-    keyed[c] = {std::min(a, b) << 32 | std::max(a, b), c};
-  }
-  std::sort(keyed.begin(), keyed.end());
+  const auto keyed = corners_by_edge(corner_count, [&](int c) { return corner_vertex(triangles, c); });
   opposite.assign(corner_count, -1);
   edge_count = 0;
-  for (int i = 0; i < corner_count;) {
-    int j = i + 1;
-    while (j < corner_count && keyed[j].first == keyed[i].first) ++j;
+  std::string problem;
+  for_each_edge_run(keyed, [&](int first, int count) {
+    if (!problem.empty()) return;
     ++edge_count;
-    if (j - i > 2) return describe("edge shared by more than two faces at corner", keyed[i].second);
-    if (j - i == 2) {
-      const int c = keyed[i].second, d = keyed[i + 1].second;
-      if (corner_vertex(triangles, c) == corner_vertex(triangles, d))
-        return describe("faces with opposite orientation meet at corner", c);
-      opposite[c] = d;
-      opposite[d] = c;
-    }
-    i = j;
-  }
-  return "";
+    if (count > 2) problem = describe("edge shared by more than two faces at corner", keyed[first].second);
+    if (count != 2) return;
+    const int c = keyed[first].second, d = keyed[first + 1].second;
+    if (corner_vertex(triangles, c) == corner_vertex(triangles, d))
+      problem = describe("faces with opposite orientation meet at corner", c);
+    opposite[c] = d;
+    opposite[d] = c;
+  });
+  return problem;
 }
 
 // Faces met by turning around the vertex of corner c, from c until the

@@ -7,11 +7,12 @@
 #include <queue>
 #include <unordered_map>
 
-#include "flatten/cut_to_disk.hpp"
 #include "charts/disk_merge.hpp"
+#include "core/corners.hpp"
 #include "core/geometry.hpp"
 #include "core/segment_crossing.hpp"
 #include "core/union_find.hpp"
+#include "flatten/cut_to_disk.hpp"
 
 namespace atlas {
 namespace {
@@ -22,21 +23,14 @@ struct BoundaryEdge {
 
 // Directed boundary edges (used by one face only), with their face.
 std::vector<BoundaryEdge> boundary_edges(const RowMatrixX3i& triangles) {
-  std::vector<std::pair<std::pair<int, int>, int>> keyed;  // (undirected key, corner)
-  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
-    for (int k = 0; k < 3; ++k) {
-      const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
-      keyed.push_back({{std::min(a, b), std::max(a, b)}, static_cast<int>(3 * f + k)});
-    }
-  std::sort(keyed.begin(), keyed.end());
+  const auto keyed = corners_by_edge(static_cast<int>(3 * triangles.rows()),
+                                     [&](int c) { return corner_vertex(triangles, c); });
   std::vector<BoundaryEdge> out;
-  for (size_t i = 0; i < keyed.size(); ++i) {
-    const bool alone = (i == 0 || keyed[i - 1].first != keyed[i].first) &&
-                       (i + 1 == keyed.size() || keyed[i + 1].first != keyed[i].first);
-    if (!alone) continue;
-    const int c = keyed[i].second;
-    out.push_back({triangles(c / 3, c % 3), triangles(c / 3, (c % 3 + 1) % 3), c / 3});
-  }
+  for_each_edge_run(keyed, [&](int first, int count) {
+    if (count != 1) return;
+    const int c = keyed[first].second;
+    out.push_back({corner_vertex(triangles, c), corner_vertex(triangles, next_corner(c)), corner_face(c)});
+  });
   return out;
 }
 
@@ -101,13 +95,9 @@ LocalChart localize(const Mesh& mesh, const MeshTopology& topology, const ChartG
       corners.unite(local_corner_at(i, v), local_corner_at(j, v));
     }
   });
-  c.triangles.resize(n, 3);
-  const std::vector<int> vertex_of_corner = corners.dense_labels();
-  for (int corner = 0; corner < 3 * n; ++corner) {
-    const int v = vertex_of_corner[corner];
-    if (v == static_cast<int>(c.vertices.size())) c.vertices.push_back(mesh.triangles(c.faces[corner / 3], corner % 3));
-    c.triangles(corner / 3, corner % 3) = v;
-  }
+  vertices_from_corner_classes(
+      corners, n, [&](int corner) { return mesh.triangles(c.faces[corner / 3], corner % 3); }, c.triangles,
+      c.vertices);
   return c;
 }
 

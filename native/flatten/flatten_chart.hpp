@@ -13,8 +13,8 @@
 
 #include "charts/chart_graph.hpp"
 #include "core/mesh.hpp"
-#include "flatten/slim.hpp"
 #include "core/topology.hpp"
+#include "flatten/slim.hpp"
 
 namespace atlas {
 

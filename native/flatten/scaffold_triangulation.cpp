@@ -4,6 +4,7 @@
 #include <cstdint>
 
 #include "core/bucket_grid.hpp"
+#include "core/corners.hpp"
 #include "core/geometry.hpp"
 
 namespace atlas {
@@ -95,22 +96,10 @@ bool in_circumcircle(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const E
 // Half-edge h = 3t + k runs from corner k of triangle t to corner k + 1;
 // twin[h] is the opposite half-edge, -1 on the chart's boundary or the box.
 std::vector<int> twin_half_edges(const std::vector<Eigen::Vector3i>& triangles) {
-  std::vector<std::pair<std::int64_t, int>> keyed;
-  for (int h = 0; h < 3 * static_cast<int>(triangles.size()); ++h) {
-    const std::int64_t a = triangles[h / 3][h % 3], b = triangles[h / 3][(h % 3 + 1) % 3];
-    keyed.push_back({std::min(a, b) << 32 | std::max(a, b), h});
-  }
-  std::sort(keyed.begin(), keyed.end());
-  std::vector<int> twin(keyed.size(), -1);
   // Only an edge of exactly two triangles has a twin; a repeated point could
   // make more share a key, and those edges are left alone.
-  for (size_t i = 0; i < keyed.size();) {
-    size_t j = i + 1;
-    while (j < keyed.size() && keyed[j].first == keyed[i].first) ++j;
-    if (j - i == 2) twin[keyed[i].second] = keyed[i + 1].second, twin[keyed[i + 1].second] = keyed[i].second;
-    i = j;
-  }
-  return twin;
+  return opposite_corners(corners_by_edge(3 * static_cast<int>(triangles.size()),
+                                          [&](int h) { return triangles[h / 3][h % 3]; }));
 }
 
 // Lawson flips: the edge between scaffold triangles (a, b, c) and (b, a, d)

@@ -18,11 +18,12 @@
 #include <sstream>
 #include <vector>
 
-#include "flatten/disk_boundary.hpp"
+#include "core/corners.hpp"
 #include "core/geometry.hpp"
+#include "core/segment_crossing.hpp"
+#include "flatten/disk_boundary.hpp"
 #include "flatten/reference_triangles.hpp"
 #include "flatten/scaffold_triangulation.hpp"
-#include "core/segment_crossing.hpp"
 #include "flatten/symmetric_dirichlet.hpp"
 #include "flatten/tutte_embedding.hpp"
 
@@ -512,7 +513,7 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
   if (initial_energy < kInfinity) {
     solution.energy_initial = initial_energy / reference_area;
     std::vector<int> loop, loop_dofs;
-    for (int c : boundary_corners) loop.push_back(problem.triangles(c / 3, c % 3));
+    for (int c : boundary_corners) loop.push_back(corner_vertex(problem.triangles, c));
     if (options.scaffold_on_crossing)
       for (int v : loop) loop_dofs.push_back(2 * order[v]);
     bool crossed = false;

@@ -3,6 +3,7 @@
 #include <Eigen/SparseCholesky>
 #include <cmath>
 
+#include "core/corners.hpp"
 #include "core/geometry.hpp"
 
 namespace atlas {
@@ -34,7 +35,7 @@ void place_boundary_on_circle(const RowMatrixX3i& triangles, const RowMatrixX2d&
   }
   for (size_t i = 0; i < boundary_corners.size(); ++i) {
     const double angle = kTwoPi * arc_start[i] / perimeter;
-    uv.row(triangles(boundary_corners[i] / 3, boundary_corners[i] % 3)) << std::cos(angle), std::sin(angle);
+    uv.row(corner_vertex(triangles, boundary_corners[i])) << std::cos(angle), std::sin(angle);
   }
 }
 
@@ -62,7 +63,7 @@ std::string mean_value_embedding(const RowMatrixX3i& triangles, const RowMatrixX
 
   // Interior vertices are the unknowns; boundary ones move to the right-hand side.
   std::vector<int> unknown(vertex_count, 0);
-  for (int c : boundary_corners) unknown[triangles(c / 3, c % 3)] = -1;
+  for (int c : boundary_corners) unknown[corner_vertex(triangles, c)] = -1;
   int unknown_count = 0;
   for (int& u : unknown)
     if (u == 0) u = unknown_count++;

@@ -4,8 +4,8 @@
 #include <vector>
 
 #include "core/mesh.hpp"
-#include "pack/placement_shape.hpp"
 #include "core/run_control.hpp"
+#include "pack/placement_shape.hpp"
 
 namespace atlas {
 
