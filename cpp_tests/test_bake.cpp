@@ -67,8 +67,16 @@ Eigen::Matrix2d turn(double scale, double a, double b, double c, double d) {
 struct Layout {
   RowMatrixX2d uv;
   Eigen::VectorXi face_page;
-  UvLayout view() const { return {&uv, &face_page}; }
+  UvLayout view(const std::vector<PageSize>& pages) const { return {&uv, &face_page, &pages}; }
 };
+
+// The page sizes of the old images, as the old layout must give them.
+template <class T>
+std::vector<PageSize> sizes_of(const std::vector<ImageView<T>>& views) {
+  std::vector<PageSize> sizes;
+  for (const ImageView<T>& v : views) sizes.push_back({v.width, v.height});
+  return sizes;
+}
 
 Layout place(const ChartedSquare& s, const std::vector<Placement>& placements) {
   Layout layout;
@@ -199,7 +207,9 @@ struct Scene {
     return v;
   }
   std::vector<Image<T>> bake(const BakeOptions& options = {}) const {
-    return bake_map<T>(old_layout.view(), old_views(), new_layout.view(), new_pages, options, RunControl());
+    const std::vector<ImageView<T>> views = old_views();
+    const std::vector<PageSize> old_pages = sizes_of(views);
+    return bake_map<T>(old_layout.view(old_pages), views, new_layout.view(new_pages), options, RunControl());
   }
 };
 
@@ -463,7 +473,8 @@ TEST(Bake, RejectsBadInputAndHonoursCancel) {
   const RunControl run;
   auto bake = [&](const Layout& old_layout, const std::vector<ImageView<std::uint8_t>>& views,
                   const Layout& new_layout, const std::vector<PageSize>& pages, const RunControl& control) {
-    return bake_map<std::uint8_t>(old_layout.view(), views, new_layout.view(), pages, options, control);
+    const std::vector<PageSize> old_pages = sizes_of(views);
+    return bake_map<std::uint8_t>(old_layout.view(old_pages), views, new_layout.view(pages), options, control);
   };
 
   std::vector<ImageView<std::uint8_t>> short_buffer = sc.old_views();

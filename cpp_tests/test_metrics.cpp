@@ -19,7 +19,7 @@ constexpr double kPi = 3.14159265358979323846;
 
 AtlasMeasures measure(const Mesh& mesh) {
   const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
-  return measure_atlas(mesh, topology, atlas_of(mesh));
+  return measure_atlas(mesh, topology, layout_of(mesh));
 }
 
 // Corner UVs from one UV per vertex (keeps the layout continuous: one chart).
@@ -252,7 +252,7 @@ TEST(TexelTriangle, SharedEdgeThroughCentresIsClaimedOnce) {
 
 TEST(MeasureMap, IdentityIsPerfect) {
   const Mesh mesh = atlas::testing::grid_disk(8, 0.6, 512);
-  const MapMeasures m = measure_map(mesh, atlas_of(mesh), atlas_of(mesh));
+  const MapMeasures m = measure_map(mesh, layout_of(mesh), layout_of(mesh));
   EXPECT_DOUBLE_EQ(m.density_loss_area_share, 0.0);
   EXPECT_NEAR(m.density_ratio_p5, 1.0, 1e-12);
   EXPECT_NEAR(m.density_ratio_p50, 1.0, 1e-12);
@@ -265,7 +265,7 @@ TEST(MeasureMap, IdentityIsPerfect) {
 TEST(MeasureMap, HalfScaleLosesAllDensity) {
   const Mesh mesh = atlas::testing::grid_disk(8, 0.6, 512);
   const RowMatrixX2d half = mesh.corner_uv * 0.5;
-  const MapMeasures m = measure_map(mesh, atlas_of(mesh), {&half, &mesh.face_page, &mesh.pages});
+  const MapMeasures m = measure_map(mesh, layout_of(mesh), {&half, &mesh.face_page, &mesh.pages});
   EXPECT_DOUBLE_EQ(m.density_loss_area_share, 1.0);
   EXPECT_NEAR(m.density_ratio_p5, 0.25, 1e-12);
   EXPECT_NEAR(m.density_ratio_p50, 0.25, 1e-12);
@@ -278,7 +278,7 @@ TEST(MeasureMap, WiderPageStretchesInTexels) {
   // isoceles triangles shear to 26.57 / 63.43 / 90 degrees.
   const Mesh mesh = atlas::testing::grid_disk(4, 1.0, 256);
   const std::vector<PageSize> wide = {PageSize{512, 256}};
-  const MapMeasures m = measure_map(mesh, atlas_of(mesh), {&mesh.corner_uv, &mesh.face_page, &wide});
+  const MapMeasures m = measure_map(mesh, layout_of(mesh), {&mesh.corner_uv, &mesh.face_page, &wide});
   EXPECT_DOUBLE_EQ(m.density_loss_area_share, 0.0);
   EXPECT_NEAR(m.density_ratio_p5, 2.0, 1e-12);
   EXPECT_NEAR(m.density_ratio_p95, 2.0, 1e-12);
@@ -305,7 +305,7 @@ TEST(MeasureMap, DegenerateAndUntexturedFacesAreSkipped) {
 
   Mesh none = mesh;
   none.face_page.setConstant(-1);
-  const MapMeasures empty = measure_map(none, atlas_of(none), atlas_of(none));
+  const MapMeasures empty = measure_map(none, layout_of(none), layout_of(none));
   EXPECT_EQ(empty.density_loss_area_share, 0.0);
   EXPECT_EQ(empty.density_ratio_p50, 0.0);
 }
@@ -316,7 +316,7 @@ TEST(CompareColors, IdenticalImagesAndLayouts) {
   const Mesh mesh = atlas::testing::grid_disk(8, 0.9, 64);
   const std::vector<std::uint8_t> texels = pattern_image<std::uint8_t>(64, 64, 4, 1.0);
   const std::vector<ImageView<std::uint8_t>> images = {view_of(texels, 64, 64, 4)};
-  const ColorFidelity c = compare_colors(mesh, atlas_of(mesh), images, atlas_of(mesh), images, 20000, 1);
+  const ColorFidelity c = compare_colors(mesh, layout_of(mesh), images, layout_of(mesh), images, 20000, 1);
   EXPECT_EQ(c.samples, 20000);
   EXPECT_DOUBLE_EQ(c.psnr_db, kMaxPsnrDb);
   EXPECT_DOUBLE_EQ(c.share_off_32, 0.0);
@@ -324,7 +324,7 @@ TEST(CompareColors, IdenticalImagesAndLayouts) {
   // A whole-page shift wraps onto the same texels.
   const RowMatrixX2d shifted = (mesh.corner_uv.array() + 1.0).matrix();
   const ColorFidelity w =
-      compare_colors(mesh, atlas_of(mesh), images, {&shifted, &mesh.face_page, &mesh.pages}, images, 20000, 1);
+      compare_colors(mesh, layout_of(mesh), images, {&shifted, &mesh.face_page, &mesh.pages}, images, 20000, 1);
   EXPECT_GT(w.psnr_db, 90.0);
   EXPECT_DOUBLE_EQ(w.share_off_32, 0.0);
 }
@@ -337,11 +337,11 @@ TEST(CompareColors, ConstantOffsetGivesKnownPsnr) {
   for (auto& v : far) v = static_cast<std::uint8_t>(v + 40);
   const std::vector<ImageView<std::uint8_t>> old_images = {view_of(a, 64, 64, 3)};
   const ColorFidelity c =
-      compare_colors(mesh, atlas_of(mesh), old_images, atlas_of(mesh), {view_of(b, 64, 64, 3)}, 20000, 5);
+      compare_colors(mesh, layout_of(mesh), old_images, layout_of(mesh), {view_of(b, 64, 64, 3)}, 20000, 5);
   EXPECT_NEAR(c.psnr_db, 20 * std::log10(255.0 / 16), 0.1);
   EXPECT_DOUBLE_EQ(c.share_off_32, 0.0);
   const ColorFidelity f =
-      compare_colors(mesh, atlas_of(mesh), old_images, atlas_of(mesh), {view_of(far, 64, 64, 3)}, 20000, 5);
+      compare_colors(mesh, layout_of(mesh), old_images, layout_of(mesh), {view_of(far, 64, 64, 3)}, 20000, 5);
   EXPECT_NEAR(f.psnr_db, 20 * std::log10(255.0 / 40), 0.1);
   EXPECT_DOUBLE_EQ(f.share_off_32, 1.0);
 
@@ -349,13 +349,13 @@ TEST(CompareColors, ConstantOffsetGivesKnownPsnr) {
   const std::vector<float> fa = pattern_image<float>(64, 64, 3, 1.0 / 255);
   std::vector<float> fb = fa;
   for (auto& v : fb) v += 16.0f / 255;
-  const ColorFidelity g = compare_colors<float>(mesh, atlas_of(mesh), {view_of(fa, 64, 64, 3)}, atlas_of(mesh),
+  const ColorFidelity g = compare_colors<float>(mesh, layout_of(mesh), {view_of(fa, 64, 64, 3)}, layout_of(mesh),
                                                 {view_of(fb, 64, 64, 3)}, 20000, 5);
   EXPECT_NEAR(g.psnr_db, 20 * std::log10(255.0 / 16), 0.1);
 
   // Deterministic for a seed.
   const ColorFidelity again =
-      compare_colors(mesh, atlas_of(mesh), old_images, atlas_of(mesh), {view_of(b, 64, 64, 3)}, 20000, 5);
+      compare_colors(mesh, layout_of(mesh), old_images, layout_of(mesh), {view_of(b, 64, 64, 3)}, 20000, 5);
   EXPECT_EQ(again.psnr_db, c.psnr_db);
 }
 
@@ -367,7 +367,7 @@ TEST(CompareColors, SamplesUniformlyBy3DArea) {
   std::vector<std::uint8_t> half(64 * 64, 0), black(64 * 64, 0);
   for (int y = 0; y < 64; ++y)
     for (int x = 32; x < 64; ++x) half[y * 64 + x] = 255;
-  const ColorFidelity c = compare_colors<std::uint8_t>(mesh, atlas_of(mesh), {view_of(half, 64, 64, 1)}, atlas_of(mesh),
+  const ColorFidelity c = compare_colors<std::uint8_t>(mesh, layout_of(mesh), {view_of(half, 64, 64, 1)}, layout_of(mesh),
                                          {view_of(black, 64, 64, 1)}, 40000, 9);
   // Bilinear blends within half a texel of u = 0.5 and of the wrap at u = 0 / 1 (3D shares ~0.008, ~0.0001 and ~0.016).
   EXPECT_NEAR(c.share_off_32, 0.75, 0.03);
@@ -378,8 +378,8 @@ TEST(CompareColors, RejectsMissingImages) {
   const std::vector<std::uint8_t> texels(16 * 16 * 3, 0);
   const std::vector<ImageView<std::uint8_t>> none;
   const std::vector<ImageView<std::uint8_t>> small = {{texels.data(), 16, 16, 3, 100}};
-  EXPECT_THROW(compare_colors(mesh, atlas_of(mesh), none, atlas_of(mesh), none, 10, 0), InputError);
-  EXPECT_THROW(compare_colors(mesh, atlas_of(mesh), small, atlas_of(mesh), small, 10, 0), InputError);
+  EXPECT_THROW(compare_colors(mesh, layout_of(mesh), none, layout_of(mesh), none, 10, 0), InputError);
+  EXPECT_THROW(compare_colors(mesh, layout_of(mesh), small, layout_of(mesh), small, 10, 0), InputError);
 }
 
 TEST(CompareColors, SameResultOnAnyThreadCount) {
@@ -389,16 +389,16 @@ TEST(CompareColors, SameResultOnAnyThreadCount) {
   const RowMatrixX2d moved = (mesh.corner_uv.array() * 0.9 + 0.03).matrix();
   const std::vector<ImageView<std::uint8_t>> old_images = {view_of(a, 64, 64, 3)};
   const std::vector<ImageView<std::uint8_t>> new_images = {view_of(b, 64, 64, 3)};
-  const UvAtlas new_atlas{&moved, &mesh.face_page, &mesh.pages};
+  const UvLayout new_atlas{&moved, &mesh.face_page, &mesh.pages};
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
-  const ColorFidelity one = compare_colors(mesh, atlas_of(mesh), old_images, new_atlas, new_images, 30000, 11);
+  const ColorFidelity one = compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 11);
   omp_set_num_threads(3);
-  const ColorFidelity three = compare_colors(mesh, atlas_of(mesh), old_images, new_atlas, new_images, 30000, 11);
+  const ColorFidelity three = compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 11);
   omp_set_num_threads(threads);
   EXPECT_EQ(one.psnr_db, three.psnr_db);
   EXPECT_EQ(one.share_off_32, three.share_off_32);
   EXPECT_LT(one.psnr_db, 40.0);  // the images really differ
-  const ColorFidelity other_seed = compare_colors(mesh, atlas_of(mesh), old_images, new_atlas, new_images, 30000, 12);
+  const ColorFidelity other_seed = compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 12);
   EXPECT_NE(other_seed.psnr_db, one.psnr_db);
 }

@@ -85,13 +85,16 @@ Eigen::VectorXi int_values(const py::array_t<long long, py::array::c_style | py:
   return out;
 }
 
-struct Layout {
+// The arrays behind a UvLayout, copied out of numpy.
+struct LayoutArrays {
   RowMatrixX2d corner_uv;
   Eigen::VectorXi face_page;
+  std::vector<PageSize> pages;
+  UvLayout view() const { return {&corner_uv, &face_page, &pages}; }
 };
 
-Layout layout(const py::handle& uvs, const py::handle& face_page, Eigen::Index faces, const char* uv_name,
-              const char* page_name) {
+LayoutArrays layout_arrays(const py::handle& uvs, const py::handle& face_page, Eigen::Index faces,
+                           const char* uv_name, const char* page_name, std::vector<PageSize> pages = {}) {
   const auto uv = checked<double>(uvs, uv_name, {3, 2}, "(F, 3, 2)");
   const auto page = checked<long long>(face_page, page_name, {}, "(F,)");
   if (uv.shape(0) != faces || page.shape(0) != faces) {
@@ -100,14 +103,14 @@ Layout layout(const py::handle& uvs, const py::handle& face_page, Eigen::Index f
         << uv.shape(0) << " and " << page.shape(0);
     throw py::value_error(msg.str());
   }
-  return {to_matrix<RowMatrixX2d>(uv, 3 * faces, 2), int_values(page, page_name)};
+  return {to_matrix<RowMatrixX2d>(uv, 3 * faces, 2), int_values(page, page_name), std::move(pages)};
 }
 
 Mesh mesh_from(const py::handle& positions, const py::handle& triangles, const py::handle& uvs,
                const py::handle& face_page, const std::vector<PageSize>& pages) {
   const auto pos = checked<double>(positions, "positions", {3}, "(V, 3)");
   const auto tri = checked<long long>(triangles, "triangles", {3}, "(F, 3)");
-  const Layout l = layout(uvs, face_page, tri.shape(0), "uvs", "face_page");
+  const LayoutArrays l = layout_arrays(uvs, face_page, tri.shape(0), "uvs", "face_page");
   RowMatrixX3i t(tri.shape(0), 3);
   for (py::ssize_t f = 0; f < tri.shape(0); ++f)
     for (int k = 0; k < 3; ++k) {
@@ -336,15 +339,15 @@ py::array_t<T> image_array(Image<T>&& image) {
 }
 
 template <class T>
-py::list bake_typed(const Layout& old_l, const py::list& images, const Layout& new_l, const std::vector<PageSize>& out,
+py::list bake_typed(LayoutArrays& old_l, const py::list& images, const LayoutArrays& new_l,
                     const BakeOptions& options, const RunControl& control) {
   std::vector<py::array> keep;
   const auto views = image_views<T>(images, "images", keep);
+  for (const ImageView<T>& v : views) old_l.pages.push_back({v.width, v.height});
   std::vector<Image<T>> baked;
   {
     py::gil_scoped_release release;
-    baked = bake_map<T>({&old_l.corner_uv, &old_l.face_page}, views, {&new_l.corner_uv, &new_l.face_page}, out,
-                        options, control);
+    baked = bake_map<T>(old_l.view(), views, new_l.view(), options, control);
   }
   py::list result;
   for (auto& image : baked) result.append(image_array(std::move(image)));
@@ -355,14 +358,14 @@ py::list bake_py(const py::object& old_uvs, const py::object& old_face_page, con
                  const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
                  bool normal_map, int padding, const py::object& progress, const py::object& cancel) {
   const Eigen::Index faces = checked<double>(old_uvs, "old_uvs", {3, 2}, "(F, 3, 2)").shape(0);
-  const Layout old_l = layout(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
-  const Layout new_l = layout(new_uvs, new_face_page, faces, "new_uvs", "new_face_page");
-  const std::vector<PageSize> out = page_sizes(out_sizes, "out_sizes");
+  LayoutArrays old_l = layout_arrays(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
+  const LayoutArrays new_l =
+      layout_arrays(new_uvs, new_face_page, faces, "new_uvs", "new_face_page", page_sizes(out_sizes, "out_sizes"));
   if (padding < 0 || padding > 64) throw py::value_error("padding must be 0..64 texels");
   const BakeOptions options{normal_map, padding};
   const RunControl control = control_from(progress, cancel);
-  if (is_uint8_images(images, "images")) return bake_typed<std::uint8_t>(old_l, images, new_l, out, options, control);
-  return bake_typed<float>(old_l, images, new_l, out, options, control);
+  if (is_uint8_images(images, "images")) return bake_typed<std::uint8_t>(old_l, images, new_l, options, control);
+  return bake_typed<float>(old_l, images, new_l, options, control);
 }
 
 py::dict atlas_dict(const AtlasMeasures& m) {
@@ -382,10 +385,10 @@ py::dict measure_py(const py::object& positions, const py::object& triangles, co
                     const py::object& old_face_page, const py::object& old_sizes, const py::object& new_uvs,
                     const py::object& new_face_page, const py::object& new_sizes) {
   const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, page_sizes(old_sizes, "old_page_sizes"));
-  const Layout new_l = layout(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page");
-  const std::vector<PageSize> new_pages = page_sizes(new_sizes, "new_page_sizes");
-  const UvAtlas old_atlas = atlas_of(mesh);
-  const UvAtlas new_atlas{&new_l.corner_uv, &new_l.face_page, &new_pages};
+  const LayoutArrays new_l = layout_arrays(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page",
+                                           page_sizes(new_sizes, "new_page_sizes"));
+  const UvLayout old_atlas = layout_of(mesh);
+  const UvLayout new_atlas = new_l.view();
   AtlasMeasures before, after;
   MapMeasures map;
   {
@@ -422,23 +425,23 @@ std::vector<PageSize> image_sizes(const py::list& images, const char* name) {
 }
 
 template <class T>
-ColorFidelity compare_typed(const Mesh& mesh, const py::list& old_images, const UvAtlas& new_atlas,
+ColorFidelity compare_typed(const Mesh& mesh, const py::list& old_images, const UvLayout& new_atlas,
                             const py::list& new_images, int samples, unsigned seed) {
   std::vector<py::array> keep;
   const auto old_views = image_views<T>(old_images, "old_images", keep);
   const auto new_views = image_views<T>(new_images, "new_images", keep);
   py::gil_scoped_release release;
-  return compare_colors<T>(mesh, atlas_of(mesh), old_views, new_atlas, new_views, samples, seed);
+  return compare_colors<T>(mesh, layout_of(mesh), old_views, new_atlas, new_views, samples, seed);
 }
 
 py::dict compare_colors_py(const py::object& positions, const py::object& triangles, const py::object& old_uvs,
                            const py::object& old_face_page, const py::list& old_images, const py::object& new_uvs,
                            const py::object& new_face_page, const py::list& new_images, int samples, unsigned seed) {
   const std::vector<PageSize> old_pages = image_sizes(old_images, "old_images");
-  const std::vector<PageSize> new_pages = image_sizes(new_images, "new_images");
   const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, old_pages);
-  const Layout new_l = layout(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page");
-  const UvAtlas new_atlas{&new_l.corner_uv, &new_l.face_page, &new_pages};
+  const LayoutArrays new_l = layout_arrays(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page",
+                                           image_sizes(new_images, "new_images"));
+  const UvLayout new_atlas = new_l.view();
   const bool bytes = is_uint8_images(old_images, "old_images");
   if (bytes != is_uint8_images(new_images, "new_images")) throw py::value_error("old and new images must share a dtype");
   const ColorFidelity c = bytes ? compare_typed<std::uint8_t>(mesh, old_images, new_atlas, new_images, samples, seed)

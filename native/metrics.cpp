@@ -23,43 +23,8 @@ constexpr int kBandRows = 32;
 
 // ---- validation ------------------------------------------------------------
 
-void require_atlas(const Mesh& mesh, const UvAtlas& atlas, const char* what) {
-  std::ostringstream msg;
-  msg << what << ": ";
-  if (!atlas.corner_uv || !atlas.face_page || !atlas.pages) {
-    msg << "layout is missing an array";
-    throw InputError(msg.str());
-  }
-  const Eigen::Index faces = mesh.triangles.rows();
-  if (atlas.corner_uv->rows() != 3 * faces) {
-    msg << "uvs must hold " << 3 * faces << " rows, got " << atlas.corner_uv->rows();
-    throw InputError(msg.str());
-  }
-  if (atlas.face_page->size() != faces) {
-    msg << "face_page must hold " << faces << " pages, got " << atlas.face_page->size();
-    throw InputError(msg.str());
-  }
-  const std::vector<PageSize>& pages = *atlas.pages;
-  for (std::size_t p = 0; p < pages.size(); ++p)
-    if (pages[p].width <= 0 || pages[p].height <= 0) {
-      msg << "page " << p << " has non-positive size " << pages[p].width << "x" << pages[p].height;
-      throw InputError(msg.str());
-    }
-  for (Eigen::Index f = 0; f < faces; ++f) {
-    const int page = (*atlas.face_page)[f];
-    if (page < -1 || page >= static_cast<int>(pages.size())) {
-      msg << "triangle " << f << " uses page " << page << " but only " << pages.size() << " page(s) exist";
-      throw InputError(msg.str());
-    }
-    if (page >= 0 && !atlas.corner_uv->middleRows(3 * f, 3).allFinite()) {
-      msg << "triangle " << f << " has a non-finite uv";
-      throw InputError(msg.str());
-    }
-  }
-}
-
 template <class T>
-void require_images(const std::vector<ImageView<T>>& images, const UvAtlas& atlas, const char* what) {
+void require_images(const std::vector<ImageView<T>>& images, const UvLayout& atlas, const char* what) {
   int used = -1;
   for (Eigen::Index f = 0; f < atlas.face_page->size(); ++f) used = std::max(used, (*atlas.face_page)[f]);
   if (used >= static_cast<int>(images.size())) {
@@ -84,13 +49,8 @@ void require_images(const std::vector<ImageView<T>>& images, const UvAtlas& atla
 
 // ---- small helpers ---------------------------------------------------------
 
-Eigen::Vector2d texel_uv(const UvAtlas& atlas, int f, int k) {
-  const PageSize& page = (*atlas.pages)[(*atlas.face_page)[f]];
-  return {(*atlas.corner_uv)(3 * f + k, 0) * page.width, (*atlas.corner_uv)(3 * f + k, 1) * page.height};
-}
-
-double face_signed_area_uv(const UvAtlas& atlas, int f) {
-  return signed_area(texel_uv(atlas, f, 0), texel_uv(atlas, f, 1), texel_uv(atlas, f, 2));
+double face_signed_area_uv(const UvLayout& atlas, int f) {
+  return signed_area(atlas.uv_texels(f, 0), atlas.uv_texels(f, 1), atlas.uv_texels(f, 2));
 }
 
 // Area-weighted percentiles: for each fraction q, the smallest value whose
@@ -129,7 +89,7 @@ struct Coverage {
   long long overlap = 0;
 };
 
-Coverage rasterise_coverage(const Mesh& mesh, const UvAtlas& atlas) {
+Coverage rasterise_coverage(const Mesh& mesh, const UvLayout& atlas) {
   const int faces = mesh.face_count();
   const std::vector<PageSize>& pages = *atlas.pages;
   const Eigen::VectorXi& face_page = *atlas.face_page;
@@ -140,7 +100,7 @@ Coverage rasterise_coverage(const Mesh& mesh, const UvAtlas& atlas) {
   for (int f = 0; f < faces; ++f) {
     const int p = face_page[f];
     if (p < 0) continue;
-    if (!tri[f].setup(texel_uv(atlas, f, 0), texel_uv(atlas, f, 1), texel_uv(atlas, f, 2))) continue;
+    if (!tri[f].setup(atlas.uv_texels(f, 0), atlas.uv_texels(f, 1), atlas.uv_texels(f, 2))) continue;
     TexelTriangle& t = tri[f];
     t.row_begin = std::max(t.row_begin, 0);
     t.row_end = std::min(t.row_end, pages[p].height);
@@ -239,8 +199,8 @@ inline double texel_scale<std::uint8_t>() {
 
 // ---- public ------------------------------------------------------------------
 
-AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, const UvAtlas& atlas) {
-  require_atlas(mesh, atlas, "measure_atlas");
+AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, const UvLayout& atlas) {
+  require_layout(atlas, mesh.face_count(), "measure_atlas", Untextured::allowed);
   if (topology.corner_edge.size() != 3 * static_cast<std::size_t>(mesh.face_count()))
     throw InputError("measure_atlas: topology was built for a different mesh");
   AtlasMeasures m;
@@ -263,12 +223,12 @@ AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, cons
   for (int f = 0; f < faces; ++f) {
     const int chart = graph.face_chart[f];
     if (chart < 0) continue;
-    const int winding = uv_winding(texel_uv(atlas, f, 0), texel_uv(atlas, f, 1), texel_uv(atlas, f, 2));
+    const int winding = uv_winding(atlas.uv_texels(f, 0), atlas.uv_texels(f, 1), atlas.uv_texels(f, 2));
     if (winding != 0 && (winding < 0) != graph.charts[chart].mirrored()) ++flipped;
   }
   m.flipped_faces = flipped;
 
-  for (const PageSize& p : *atlas.pages) m.page_texels += static_cast<long long>(p.width) * p.height;
+  m.page_texels = page_texels(*atlas.pages);
   const Coverage coverage = rasterise_coverage(mesh, atlas);
   m.covered_texels = coverage.covered;
   m.overlap_texels = coverage.overlap;
@@ -276,9 +236,9 @@ AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, cons
   return m;
 }
 
-MapMeasures measure_map(const Mesh& mesh, const UvAtlas& old_atlas, const UvAtlas& new_atlas) {
-  require_atlas(mesh, old_atlas, "measure_map (old)");
-  require_atlas(mesh, new_atlas, "measure_map (new)");
+MapMeasures measure_map(const Mesh& mesh, const UvLayout& old_atlas, const UvLayout& new_atlas) {
+  require_layout(old_atlas, mesh.face_count(), "measure_map (old)", Untextured::allowed);
+  require_layout(new_atlas, mesh.face_count(), "measure_map (new)", Untextured::allowed);
   const int faces = mesh.face_count();
 
   // Per face: density ratio and 3D area (weight 0: skipped); per corner: angle error.
@@ -292,8 +252,8 @@ MapMeasures measure_map(const Mesh& mesh, const UvAtlas& old_atlas, const UvAtla
     if (!(area > 0) || !(old_uv > 0)) continue;
     const double new_uv = std::abs(face_signed_area_uv(new_atlas, f));
     ratio[f] = {new_uv / old_uv, area};
-    const Eigen::Vector2d o[3] = {texel_uv(old_atlas, f, 0), texel_uv(old_atlas, f, 1), texel_uv(old_atlas, f, 2)};
-    const Eigen::Vector2d n[3] = {texel_uv(new_atlas, f, 0), texel_uv(new_atlas, f, 1), texel_uv(new_atlas, f, 2)};
+    const Eigen::Vector2d o[3] = {old_atlas.uv_texels(f, 0), old_atlas.uv_texels(f, 1), old_atlas.uv_texels(f, 2)};
+    const Eigen::Vector2d n[3] = {new_atlas.uv_texels(f, 0), new_atlas.uv_texels(f, 1), new_atlas.uv_texels(f, 2)};
     for (int k = 0; k < 3; ++k) {
       const int k1 = (k + 1) % 3, k2 = (k + 2) % 3;
       const double error = std::abs(corner_angle(n[k], n[k1], n[k2]) - corner_angle(o[k], o[k1], o[k2]));
@@ -326,11 +286,11 @@ MapMeasures measure_map(const Mesh& mesh, const UvAtlas& old_atlas, const UvAtla
 }
 
 template <class T>
-ColorFidelity compare_colors(const Mesh& mesh, const UvAtlas& old_atlas, const std::vector<ImageView<T>>& old_images,
-                             const UvAtlas& new_atlas, const std::vector<ImageView<T>>& new_images, int samples,
+ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const std::vector<ImageView<T>>& old_images,
+                             const UvLayout& new_atlas, const std::vector<ImageView<T>>& new_images, int samples,
                              unsigned seed) {
-  require_atlas(mesh, old_atlas, "compare_colors (old)");
-  require_atlas(mesh, new_atlas, "compare_colors (new)");
+  require_layout(old_atlas, mesh.face_count(), "compare_colors (old)", Untextured::allowed);
+  require_layout(new_atlas, mesh.face_count(), "compare_colors (new)", Untextured::allowed);
   require_images(old_images, old_atlas, "old");
   require_images(new_images, new_atlas, "new");
   ColorFidelity result;
@@ -376,7 +336,7 @@ ColorFidelity compare_colors(const Mesh& mesh, const UvAtlas& old_atlas, const s
       j = std::min(j, face.size() - 1);
       const int f = face[j];
       const double w0 = 1 - s, w1 = s * (1 - t), w2 = s * t;  // uniform barycentrics
-      auto at = [&](const UvAtlas& atlas, const ImageView<T>& image) {
+      auto at = [&](const UvLayout& atlas, const ImageView<T>& image) {
         const RowMatrixX2d& uv = *atlas.corner_uv;
         const Eigen::Vector2d p = w0 * uv.row(3 * f).transpose() + w1 * uv.row(3 * f + 1).transpose() +
                                   w2 * uv.row(3 * f + 2).transpose();
@@ -417,10 +377,10 @@ ColorFidelity compare_colors(const Mesh& mesh, const UvAtlas& old_atlas, const s
   return result;
 }
 
-template ColorFidelity compare_colors<std::uint8_t>(const Mesh&, const UvAtlas&,
-                                                    const std::vector<ImageView<std::uint8_t>>&, const UvAtlas&,
+template ColorFidelity compare_colors<std::uint8_t>(const Mesh&, const UvLayout&,
+                                                    const std::vector<ImageView<std::uint8_t>>&, const UvLayout&,
                                                     const std::vector<ImageView<std::uint8_t>>&, int, unsigned);
-template ColorFidelity compare_colors<float>(const Mesh&, const UvAtlas&, const std::vector<ImageView<float>>&,
-                                             const UvAtlas&, const std::vector<ImageView<float>>&, int, unsigned);
+template ColorFidelity compare_colors<float>(const Mesh&, const UvLayout&, const std::vector<ImageView<float>>&,
+                                             const UvLayout&, const std::vector<ImageView<float>>&, int, unsigned);
 
 }  // namespace atlas

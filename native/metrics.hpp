@@ -8,19 +8,9 @@
 #include "bake/bake.hpp"
 #include "core/mesh.hpp"
 #include "core/topology.hpp"
+#include "core/uv_layout.hpp"
 
 namespace atlas {
-
-// One parameterization of a mesh: borrowed arrays, shaped like Mesh's
-// (corner_uv 3F x 2 in page units, face_page F with -1 = untextured, page sizes).
-struct UvAtlas {
-  const RowMatrixX2d* corner_uv = nullptr;
-  const Eigen::VectorXi* face_page = nullptr;
-  const std::vector<PageSize>* pages = nullptr;
-};
-
-// The mesh's own layout.
-inline UvAtlas atlas_of(const Mesh& mesh) { return {&mesh.corner_uv, &mesh.face_page, &mesh.pages}; }
 
 // One layout on its own.
 struct AtlasMeasures {
@@ -40,7 +30,7 @@ struct AtlasMeasures {
 // (UVs outside [0,1]) are clipped, not wrapped; zero-area triangles claim nothing.
 // Throws InputError when the atlas does not match the mesh (shapes, pages,
 // non-finite UVs).
-AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, const UvAtlas& atlas);
+AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, const UvLayout& atlas);
 
 // The map old UV -> new UV. Texel density of a face = UV area in texels per 3D
 // area. Faces untextured in either layout, or with zero 3D area or zero old UV
@@ -52,7 +42,7 @@ struct MapMeasures {
   double angle_error_p50 = 0, angle_error_p90 = 0, angle_error_p99 = 0;  // degrees, per corner, in texel space
 };
 
-MapMeasures measure_map(const Mesh& mesh, const UvAtlas& old_atlas, const UvAtlas& new_atlas);
+MapMeasures measure_map(const Mesh& mesh, const UvLayout& old_atlas, const UvLayout& new_atlas);
 
 // Colour fidelity of a re-bake. psnr_db is capped at kMaxPsnrDb (identical colours).
 constexpr double kMaxPsnrDb = 99.0;
@@ -70,8 +60,8 @@ struct ColorFidelity {
 // they are; a non-finite difference counts as 1. Throws InputError when a used
 // page has no image or an image view is inconsistent.
 template <class T>
-ColorFidelity compare_colors(const Mesh& mesh, const UvAtlas& old_atlas, const std::vector<ImageView<T>>& old_images,
-                             const UvAtlas& new_atlas, const std::vector<ImageView<T>>& new_images, int samples,
+ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const std::vector<ImageView<T>>& old_images,
+                             const UvLayout& new_atlas, const std::vector<ImageView<T>>& new_images, int samples,
                              unsigned seed);
 
 }  // namespace atlas

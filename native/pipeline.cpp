@@ -13,6 +13,7 @@
 #include "charts/chart_graph.hpp"
 #include "charts/cut_mesh.hpp"
 #include "core/topology.hpp"
+#include "core/uv_layout.hpp"
 #include "flatten/flatten_chart.hpp"
 #include "flatten/reference_triangles.hpp"
 
@@ -101,13 +102,6 @@ void enlarge_tiny_charts(std::vector<FlatChart>& charts) {
     const double across = extent.maxCoeff();
     if (across > 0 && across < 1) chart.corner_uv /= across;
   }
-}
-
-long long page_texels(const std::vector<PageSize>& pages, const std::vector<char>& used) {
-  long long total = 0;
-  for (size_t p = 0; p < pages.size(); ++p)
-    if (used.empty() || used[p]) total += static_cast<long long>(pages[p].width) * pages[p].height;
-  return total;
 }
 
 // Packs each face group on pages of its own and writes the placed UVs.

@@ -52,32 +52,18 @@ int require_old_pages(const std::vector<ImageView<T>>& pages) {
   return channels;
 }
 
-void require_new_pages(const std::vector<PageSize>& pages) {
-  if (pages.empty()) throw InputError("bake: no new page sizes given");
-  for (std::size_t p = 0; p < pages.size(); ++p)
-    if (pages[p].width <= 0 || pages[p].height <= 0) {
-      std::ostringstream msg;
-      msg << "bake: new page " << p << " has non-positive size " << pages[p].width << "x"
-          << pages[p].height;
-      throw InputError(msg.str());
-    }
-}
-
-void require_layout(const UvLayout& layout, const char* name, std::size_t page_count) {
+// The old images must be the old layout's pages, size for size.
+template <class T>
+void require_matching_pages(const std::vector<ImageView<T>>& images, const std::vector<PageSize>& pages) {
   std::ostringstream msg;
-  msg << "bake: " << name << " layout ";
-  if (!layout.corner_uv || !layout.face_page) throw InputError(msg.str() + "is missing its arrays");
-  const RowMatrixX2d& uv = *layout.corner_uv;
-  const Eigen::VectorXi& face_page = *layout.face_page;
-  if (uv.rows() != 3 * face_page.size()) {
-    msg << "has " << uv.rows() << " corner UVs for " << face_page.size() << " faces (expected 3 per face)";
+  if (images.size() != pages.size()) {
+    msg << "bake: " << images.size() << " old image(s) for " << pages.size() << " old page(s)";
     throw InputError(msg.str());
   }
-  if (!uv.allFinite()) throw InputError(msg.str() + "has a non-finite UV");
-  for (Eigen::Index f = 0; f < face_page.size(); ++f)
-    if (face_page[f] < 0 || static_cast<std::size_t>(face_page[f]) >= page_count) {
-      msg << "puts face " << f << " on page " << face_page[f] << " but only " << page_count
-          << " page(s) were given";
+  for (std::size_t p = 0; p < pages.size(); ++p)
+    if (images[p].width != pages[p].width || images[p].height != pages[p].height) {
+      msg << "bake: old page " << p << " is " << pages[p].width << "x" << pages[p].height << " but its image is "
+          << images[p].width << "x" << images[p].height;
       throw InputError(msg.str());
     }
 }
@@ -405,14 +391,14 @@ void rasterize(const BakeJob<T>& job, const BandFaces& bins, std::vector<Image<T
 
 template <class T>
 std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
-                               const UvLayout& new_layout, const std::vector<PageSize>& new_pages,
-                               const BakeOptions& options, const RunControl& control) {
+                               const UvLayout& new_layout, const BakeOptions& options, const RunControl& control) {
   const int channels = require_old_pages(old_pages);
-  require_new_pages(new_pages);
-  require_layout(old_layout, "old", old_pages.size());
-  require_layout(new_layout, "new", new_pages.size());
-  if (old_layout.face_page->size() != new_layout.face_page->size())
-    throw InputError("bake: old and new layouts have different face counts");
+  const Eigen::Index face_count = old_layout.face_page ? old_layout.face_page->size() : 0;
+  require_layout(old_layout, face_count, "bake: old layout", Untextured::refused);
+  require_matching_pages(old_pages, *old_layout.pages);
+  require_layout(new_layout, face_count, "bake: new layout", Untextured::refused);
+  const std::vector<PageSize>& new_pages = *new_layout.pages;
+  if (new_pages.empty()) throw InputError("bake: no new page sizes given");
   if (options.padding < 0) throw InputError("bake: padding must not be negative");
   if (options.normal_map && channels < 2) throw InputError("bake: a normal map needs at least 2 channels");
   control.throw_if_cancelled();
@@ -439,11 +425,11 @@ std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<Ima
   return baked;
 }
 
-template std::vector<Image<std::uint8_t>> bake_map<std::uint8_t>(
-    const UvLayout&, const std::vector<ImageView<std::uint8_t>>&, const UvLayout&,
-    const std::vector<PageSize>&, const BakeOptions&, const RunControl&);
+template std::vector<Image<std::uint8_t>> bake_map<std::uint8_t>(const UvLayout&,
+                                                                  const std::vector<ImageView<std::uint8_t>>&,
+                                                                  const UvLayout&, const BakeOptions&,
+                                                                  const RunControl&);
 template std::vector<Image<float>> bake_map<float>(const UvLayout&, const std::vector<ImageView<float>>&,
-                                                   const UvLayout&, const std::vector<PageSize>&,
-                                                   const BakeOptions&, const RunControl&);
+                                                   const UvLayout&, const BakeOptions&, const RunControl&);
 
 }  // namespace atlas

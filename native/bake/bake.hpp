@@ -8,6 +8,7 @@
 
 #include "core/mesh.hpp"
 #include "core/run_control.hpp"
+#include "core/uv_layout.hpp"
 
 namespace atlas {
 
@@ -34,15 +35,11 @@ struct BakeOptions {
   int padding = 4;          // texels around charts filled with edge colour before pull-push
 };
 
-struct UvLayout {
-  const RowMatrixX2d* corner_uv = nullptr;  // 3F x 2, page units
-  const Eigen::VectorXi* face_page = nullptr;
-};
-
-// Bakes one map (uint8_t or float texels). old_pages[p] is the image of old page p.
+// Bakes one map (uint8_t or float texels) onto the pages of new_layout.
+// old_pages[p] is the image of old page p, of the size old_layout gives it.
+// Every face must be textured in both layouts.
 template <class T>
 std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
-                               const UvLayout& new_layout, const std::vector<PageSize>& new_pages,
-                               const BakeOptions& options, const RunControl& control);
+                               const UvLayout& new_layout, const BakeOptions& options, const RunControl& control);
 
 }  // namespace atlas

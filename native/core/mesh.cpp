@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "core/geometry.hpp"
+#include "core/uv_layout.hpp"
 
 namespace atlas {
 
@@ -33,22 +34,10 @@ void require_finite(const Matrix& m, const char* name) {
       }
 }
 
-void require_shapes(const RowMatrixX3d& positions, const RowMatrixX3i& triangles,
-                    const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page) {
+void require_counts(const RowMatrixX3d& positions, const RowMatrixX3i& triangles, const std::vector<PageSize>& pages) {
   if (positions.rows() == 0) throw InputError("mesh has no vertices");
   if (triangles.rows() == 0) throw InputError("mesh has no triangles");
-  if (corner_uv.rows() != 3 * triangles.rows()) {
-    std::ostringstream msg;
-    msg << "uvs must hold 3 corners per triangle: expected " << 3 * triangles.rows()
-        << " rows, got " << corner_uv.rows();
-    throw InputError(msg.str());
-  }
-  if (face_page.size() != triangles.rows()) {
-    std::ostringstream msg;
-    msg << "face_page must hold one page per triangle: expected " << triangles.rows()
-        << ", got " << face_page.size();
-    throw InputError(msg.str());
-  }
+  if (pages.empty()) throw InputError("no texture page sizes given");
 }
 
 void require_indices(const RowMatrixX3i& triangles, Eigen::Index vertex_count) {
@@ -60,23 +49,6 @@ void require_indices(const RowMatrixX3i& triangles, Eigen::Index vertex_count) {
             << " out of range [0, " << vertex_count << ")";
         throw InputError(msg.str());
       }
-}
-
-void require_pages(const Eigen::VectorXi& face_page, const std::vector<PageSize>& pages) {
-  if (pages.empty()) throw InputError("no texture page sizes given");
-  for (size_t p = 0; p < pages.size(); ++p)
-    if (pages[p].width <= 0 || pages[p].height <= 0) {
-      std::ostringstream msg;
-      msg << "page " << p << " has non-positive size " << pages[p].width << "x" << pages[p].height;
-      throw InputError(msg.str());
-    }
-  for (Eigen::Index f = 0; f < face_page.size(); ++f)
-    if (face_page[f] < -1 || face_page[f] >= static_cast<int>(pages.size())) {
-      std::ostringstream msg;
-      msg << "triangle " << f << " uses page " << face_page[f] << " but only " << pages.size()
-          << " page(s) were given";
-      throw InputError(msg.str());
-    }
 }
 
 // Maps every input vertex to the first vertex with bit-identical coordinates.
@@ -110,11 +82,11 @@ std::vector<int> weld_exact(const RowMatrixX3d& positions, RowMatrixX3d& welded)
 Mesh make_mesh(const RowMatrixX3d& positions, const RowMatrixX3i& triangles,
                const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page,
                const std::vector<PageSize>& pages) {
-  require_shapes(positions, triangles, corner_uv, face_page);
+  require_counts(positions, triangles, pages);
   require_finite(positions, "positions");
-  require_finite(corner_uv, "uvs");
+  require_finite(corner_uv, "uvs");  // untextured faces too: their UVs pass through
+  require_layout({&corner_uv, &face_page, &pages}, triangles.rows(), "", Untextured::allowed);
   require_indices(triangles, positions.rows());
-  require_pages(face_page, pages);
 
   Mesh mesh;
   const std::vector<int> remap = weld_exact(positions, mesh.positions);
