@@ -7,23 +7,25 @@
 namespace atlas {
 namespace {
 
-std::string describe(const char* problem, int where) {
+SolveStatus describe(const char* problem, int where) {
   std::ostringstream msg;
   msg << "chart is not a topological disk: " << problem << " " << where;
-  return msg.str();
+  return solve_failed(SolveFailure::not_disk, msg.str());
 }
+
+SolveStatus not_disk(const char* why) { return solve_failed(SolveFailure::not_disk, why); }
 
 // Pairs every corner with the corner that starts the opposite half-edge
 // (-1 on the boundary) and counts the undirected edges. Returns "" or the
 // reason: an edge used by more than two faces, or twice in the same direction.
-std::string pair_half_edges(const RowMatrixX3i& triangles, std::vector<int>& opposite, int& edge_count) {
+SolveStatus pair_half_edges(const RowMatrixX3i& triangles, std::vector<int>& opposite, int& edge_count) {
   const int corner_count = static_cast<int>(3 * triangles.rows());
   const auto keyed = corners_by_edge(corner_count, [&](int c) { return corner_vertex(triangles, c); });
   opposite.assign(corner_count, -1);
   edge_count = 0;
-  std::string problem;
+  SolveStatus problem;
   for_each_edge_run(keyed, [&](int first, int count) {
-    if (!problem.empty()) return;
+    if (!problem.ok()) return;
     ++edge_count;
     if (count > 2) problem = describe("edge shared by more than two faces at corner", keyed[first].second);
     if (count != 2) return;
@@ -67,14 +69,14 @@ int reachable_face_count(const std::vector<int>& opposite, int face_count) {
 
 }  // namespace
 
-std::string disk_boundary_loop(const RowMatrixX3i& triangles, int vertex_count,
+SolveStatus disk_boundary_loop(const RowMatrixX3i& triangles, int vertex_count,
                                std::vector<int>& boundary_corners) {
   const int face_count = static_cast<int>(triangles.rows());
-  if (face_count == 0) return "chart has no faces";
+  if (face_count == 0) return not_disk("chart has no faces");
   for (int f = 0; f < face_count; ++f)
     for (int k = 0; k < 3; ++k)
       if (triangles(f, k) < 0 || triangles(f, k) >= vertex_count)
-        return describe("vertex index out of range in face", f);
+        return solve_failed(SolveFailure::bad_input, "vertex index out of range in face " + std::to_string(f));
   for (int f = 0; f < face_count; ++f)
     if (triangles(f, 0) == triangles(f, 1) || triangles(f, 1) == triangles(f, 2) ||
         triangles(f, 2) == triangles(f, 0))
@@ -82,8 +84,8 @@ std::string disk_boundary_loop(const RowMatrixX3i& triangles, int vertex_count,
 
   std::vector<int> opposite;
   int edge_count = 0;
-  const std::string pairing = pair_half_edges(triangles, opposite, edge_count);
-  if (!pairing.empty()) return pairing;
+  const SolveStatus pairing = pair_half_edges(triangles, opposite, edge_count);
+  if (!pairing.ok()) return pairing;
 
   // One corner per vertex, and the boundary corner leaving each vertex: a
   // vertex with two is where two pieces of boundary touch (a bow tie).
@@ -104,7 +106,7 @@ std::string disk_boundary_loop(const RowMatrixX3i& triangles, int vertex_count,
     const int start = boundary_corner[v] >= 0 ? boundary_corner[v] : any_corner[v];
     if (fan_size(opposite, start) != vertex_corner_count[v]) return describe("non-manifold vertex", v);
   }
-  if (boundary_edge_count == 0) return "chart is not a topological disk: it has no boundary";
+  if (boundary_edge_count == 0) return not_disk("chart is not a topological disk: it has no boundary");
 
   // Follow the boundary edges head to tail; if the walk closes before using
   // them all, there is more than one loop (a disk with holes).
@@ -116,12 +118,12 @@ std::string disk_boundary_loop(const RowMatrixX3i& triangles, int vertex_count,
     c = boundary_corner[corner_vertex(triangles, next_corner(c))];
   } while (c != start && c >= 0 && static_cast<int>(boundary_corners.size()) < boundary_edge_count);
   if (c != start || static_cast<int>(boundary_corners.size()) != boundary_edge_count)
-    return "chart is not a topological disk: it has more than one boundary loop";
+    return not_disk("chart is not a topological disk: it has more than one boundary loop");
   if (reachable_face_count(opposite, face_count) != face_count)
-    return "chart is not a topological disk: faces are not connected";
+    return not_disk("chart is not a topological disk: faces are not connected");
   if (vertex_count - edge_count + face_count != 1)
     return describe("Euler characteristic is not 1 but", vertex_count - edge_count + face_count);
-  return "";
+  return {};
 }
 
 }  // namespace atlas

@@ -356,7 +356,7 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
   if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
   const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
   stats.scaffolded += solution.scaffolded;
-  if (!solution.failure.empty() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
+  if (!solution.status.ok() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
   if (const auto crossing = boundary_crossing(local.triangles, solution.uv))
     return {std::nullopt, &FlattenStats::overlapped,
             smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second])};

@@ -304,7 +304,7 @@ int flipped_faces(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x)
   return count;
 }
 
-std::string input_problem(const ChartProblem& problem) {
+SolveStatus input_problem(const ChartProblem& problem) {
   std::ostringstream msg;
   const Eigen::Index face_count = problem.triangles.rows();
   if (problem.reference_uv.rows() != 3 * face_count)
@@ -312,7 +312,9 @@ std::string input_problem(const ChartProblem& problem) {
         << problem.reference_uv.rows();
   else if (problem.mirrored.size() != face_count)
     msg << "mirrored must hold one entry per face: expected " << face_count << ", got " << problem.mirrored.size();
-  return msg.str();
+  else
+    return {};
+  return solve_failed(SolveFailure::bad_input, msg.str());
 }
 
 // Armijo backtracking, E(x + t d) <= E(x) + kArmijo t dE/dt, halving t from
@@ -335,11 +337,11 @@ double backtracking_line_search(const std::vector<ProxyFace>& faces, const std::
 // search. Each face's Jacobian is evaluated once: the assembly, the slope, the
 // largest step and every trial read J and dJ, not the positions, so little
 // besides the factorization grows with the chart (the benchmark reports the
-// ratio). Returns "" or why the solve broke down; moved is false when no step
-// was taken (no descent direction or no acceptable step: converged at double
-// precision), else x and energy hold the new iterate.
+// ratio). status says whether the solve broke down; moved is false when no
+// step was taken (no descent direction or no acceptable step: converged at
+// double precision), else x and energy hold the new iterate.
 struct SlimStep {
-  std::string failure;
+  SolveStatus status;
   bool moved = false;
 };
 
@@ -349,18 +351,18 @@ SlimStep slim_step(const std::vector<ProxyFace>& faces, const SlimOptions& optio
   // The line search kept J + t dJ flip-free; x itself is checked against
   // round-off before anything is built on it.
   if (std::any_of(jacobians.begin(), jacobians.end(), [](const Eigen::Matrix2d& J) { return !(J.determinant() > 0); }))
-    return {"SLIM: a step flipped a face in round-off"};
+    return {solve_failed(SolveFailure::round_off, "SLIM: a step flipped a face in round-off")};
   if (!factorize_proxy(faces, jacobians, x, options.proximal_weight, system))
-    return {"SLIM: proxy system is not positive definite"};
+    return {solve_failed(SolveFailure::system, "SLIM: proxy system is not positive definite")};
   system.solution = system.solver.solve(system.rhs);
   const Eigen::VectorXd direction = system.solution - x;
-  if (!direction.allFinite()) return {"SLIM: proxy solve produced non-finite values"};
+  if (!direction.allFinite()) return {solve_failed(SolveFailure::system, "SLIM: proxy solve produced non-finite values")};
   const SearchLine line = search_line(faces, jacobians, direction);
   if (!(line.slope < 0)) return {};
   const double step = backtracking_line_search(faces, jacobians, line, energy);
   if (step == 0) return {};
   x += step * direction;
-  return {"", true};
+  return {{}, true};
 }
 
 // Whether the boundary loop (the dof of each loop vertex, in order) crosses itself at x.
@@ -375,9 +377,9 @@ bool loop_crosses(const std::vector<int>& loop_dofs, const Eigen::VectorXd& x) {
 // Minimizes E from x (flip-free, in solver numbering, with E(x) = energy),
 // keeping x flip-free.
 // With a loop given, a step after which the boundary crosses itself is undone
-// and crossed is set: the caller goes on with a scaffold. Returns "" or why it
-// stopped early; x is the last accepted iterate either way.
-std::string minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int>& loop_dofs,
+// and crossed is set: the caller goes on with a scaffold. Returns why it
+// stopped early, if it did; x is the last accepted iterate either way.
+SolveStatus minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int>& loop_dofs,
                             const SlimOptions& options, const RunControl& control, Eigen::VectorXd& x,
                             double energy, ChartSolution& solution, bool& crossed) {
   ProxySystem system;
@@ -392,16 +394,16 @@ std::string minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int
     const SlimStep step = slim_step(faces, options, system, x, energy);
     solution.iteration_seconds += seconds_since(start);
     solution.factorize_seconds += system.factorize_seconds - factorized_before;
-    if (!step.failure.empty() || !step.moved) return step.failure;
+    if (!step.status.ok() || !step.moved) return step.status;
     if (!loop_dofs.empty() && loop_crosses(loop_dofs, x)) {
       x.swap(previous);
       crossed = true;
-      return "";
+      return {};
     }
     ++solution.iterations;
-    if ((energy_before - energy) / energy_before < options.relative_tolerance) return "";
+    if ((energy_before - energy) / energy_before < options.relative_tolerance) return {};
   }
-  return "";
+  return {};
 }
 
 // The chart and its scaffold as one problem. Scaffold triangles take their
@@ -431,7 +433,7 @@ void reset_scaffold_faces(const RowMatrixX3i& all, const RowMatrixX2d& points, d
 // SCAF (Jiang et al. 2017): SLIM iterations on the chart plus a scaffold of
 // the free space around it, so the boundary never crosses itself. uv (chart
 // vertices, flip-free, boundary not crossing) is updated in place.
-std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
+SolveStatus minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
                                    const std::vector<ProxyFace>& chart_faces, const std::vector<int>& chart_order,
                                    const std::vector<int>& loop, const SlimOptions& options,
                                    const RunControl& control, RowMatrixX2d& uv, ChartSolution& solution) {
@@ -449,7 +451,8 @@ std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
     // A rebuild that finds no ear (round-off, where the boundary nearly
     // touches itself) keeps the old scaffold: the line search kept it valid.
     const bool remesh = iteration % kRemeshEvery == 0 && triangulate_scaffold(uv, loop, kScaffoldMargin, scaffold);
-    if (iteration == 0 && !remesh) return "SCAF: no scaffold around the starting boundary";
+    if (iteration == 0 && !remesh)
+      return solve_failed(SolveFailure::scaffold, "SCAF: no scaffold around the starting boundary");
     if (remesh) {
       points << uv, scaffold.box_corners;
       all.resize(triangles.rows() + scaffold.triangles.rows(), 3);
@@ -468,16 +471,16 @@ std::string minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
     double energy = total_energy(faces, x);
     // A system that breaks down (scaffold slivers) ends the solve; uv, the
     // last accepted iterate, is valid all the same.
-    if (!slim_step(faces, options, *system, x, energy).moved) return "";
+    if (!slim_step(faces, options, *system, x, energy).moved) return {};
     points = from_solver(x, order);
     uv = points.topRows(n);
     ++solution.iterations;
     const double energy_after = chart_energy();
     const double decrease = (energy_before - energy_after) / energy_before;
     energy_before = energy_after;
-    if (decrease >= 0 && decrease < kScaffoldToleranceFactor * options.relative_tolerance) return "";
+    if (decrease >= 0 && decrease < kScaffoldToleranceFactor * options.relative_tolerance) return {};
   }
-  return "";
+  return {};
 }
 
 }  // namespace
@@ -489,19 +492,17 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
   ChartSolution solution;
   solution.uv = RowMatrixX2d::Zero(vertex_count, 2);
   std::vector<int> boundary_corners;
-  solution.failure = input_problem(problem);
-  if (solution.failure.empty())
-    solution.failure = disk_boundary_loop(problem.triangles, vertex_count, boundary_corners);
-  if (!solution.failure.empty()) return solution;
+  solution.status = input_problem(problem);
+  if (solution.status.ok()) solution.status = disk_boundary_loop(problem.triangles, vertex_count, boundary_corners);
+  if (!solution.status.ok()) return solution;
 
   const ReferenceTriangles reference = repaired_reference_triangles(problem.triangles, problem.positions,
                                                                     problem.reference_uv, problem.mirrored);
   solution.folded_references = reference.folded;
   solution.repaired_references = reference.repaired;
   RowMatrixX2d initial;
-  solution.failure =
-      mean_value_embedding(problem.triangles, reference.corners, boundary_corners, vertex_count, initial);
-  if (!solution.failure.empty()) return solution;
+  solution.status = mean_value_embedding(problem.triangles, reference.corners, boundary_corners, vertex_count, initial);
+  if (!solution.status.ok()) return solution;
 
   const std::vector<int> order = fill_reducing_order(problem.triangles, vertex_count);
   std::vector<ProxyFace> faces = proxy_faces(problem.triangles, reference.corners, order);
@@ -517,19 +518,19 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
     if (options.scaffold_on_crossing)
       for (int v : loop) loop_dofs.push_back(2 * order[v]);
     bool crossed = false;
-    solution.failure = minimize_energy(faces, loop_dofs, options, control, x, initial_energy, solution, crossed);
+    solution.status = minimize_energy(faces, loop_dofs, options, control, x, initial_energy, solution, crossed);
     if (crossed) {
       solution.scaffolded = true;
       RowMatrixX2d uv = from_solver(x, order);
-      solution.failure = minimize_with_scaffold(problem.triangles, reference.corners, faces, order, loop, options,
-                                                control, uv, solution);
+      solution.status = minimize_with_scaffold(problem.triangles, reference.corners, faces, order, loop, options,
+                                               control, uv, solution);
       x = to_solver(uv, order);
     }
     solution.energy_final = total_energy(faces, x) / reference_area;
   } else {
     std::ostringstream msg;
     msg << "initial embedding is not flip-free (" << flipped_faces(faces, x) << " faces)";
-    solution.failure = msg.str();
+    solution.status = solve_failed(SolveFailure::embedding, msg.str());
   }
   solution.flipped = flipped_faces(faces, x);
   solution.uv = from_solver(x, order);

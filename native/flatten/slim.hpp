@@ -6,6 +6,7 @@
 
 #include "core/mesh.hpp"
 #include "core/run_control.hpp"
+#include "flatten/solve_status.hpp"
 
 namespace atlas {
 
@@ -46,12 +47,12 @@ struct ChartSolution {
   int flipped = 0;             // faces with non-positive signed area in uv
   int folded_references = 0;   // references folded over inside their original chart (mirror image used)
   int repaired_references = 0; // degenerate references replaced by a well-shaped triangle
-  std::string failure;         // empty on success; otherwise why the result is unusable
+  SolveStatus status;          // not ok: why the result is unusable
 };
 
 // Solves one chart. Never throws on bad geometry: problems are reported in
-// ChartSolution::failure. Throws Cancelled if control is cancelled.
-// uv and the energies are always finite: when failure is set, uv is the last
+// ChartSolution::status. Throws Cancelled if control is cancelled.
+// uv and the energies are always finite: when the status is not ok, uv is the last
 // flip-free iterate, or the initial map (flipped > 0) if that already folds, or
 // zeros if the chart is not a disk; energies stay 0 until a flip-free map exists.
 // Thread-safe; meant to be called concurrently, one chart per thread.

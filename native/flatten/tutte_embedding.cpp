@@ -55,7 +55,7 @@ double total_reference_area(const RowMatrixX2d& reference) {
 
 }  // namespace
 
-std::string mean_value_embedding(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
+SolveStatus mean_value_embedding(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
                                  const std::vector<int>& boundary_corners, int vertex_count,
                                  RowMatrixX2d& uv) {
   uv.setZero(vertex_count, 2);
@@ -91,16 +91,16 @@ std::string mean_value_embedding(const RowMatrixX3i& triangles, const RowMatrixX
     Eigen::SparseMatrix<double> laplacian(unknown_count, unknown_count);
     laplacian.setFromTriplets(entries.begin(), entries.end());
     const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>> solver(laplacian);
-    if (solver.info() != Eigen::Success) return "mean-value embedding: Laplacian factorization failed";
+    if (solver.info() != Eigen::Success) return solve_failed(SolveFailure::embedding, "mean-value embedding: Laplacian factorization failed");
     const Eigen::MatrixX2d interior = solver.solve(rhs);
     for (int v = 0; v < vertex_count; ++v)
       if (unknown[v] >= 0) uv.row(v) = interior.row(unknown[v]);
   }
 
   const double area = total_area(triangles, uv);
-  if (!(area > 0) || !uv.allFinite()) return "mean-value embedding: degenerate result";
+  if (!(area > 0) || !uv.allFinite()) return solve_failed(SolveFailure::embedding, "mean-value embedding: degenerate result");
   uv *= std::sqrt(total_reference_area(reference) / area);
-  return "";
+  return {};
 }
 
 }  // namespace atlas

@@ -1,10 +1,10 @@
 // Flip-free initial map of a disk chart (thesis 3.3, 5.4): Tutte's barycentric
 // embedding with mean-value weights and the boundary on a circle.
 #pragma once
-#include <string>
 #include <vector>
 
 #include "core/mesh.hpp"
+#include "flatten/solve_status.hpp"
 
 namespace atlas {
 
@@ -18,9 +18,9 @@ namespace atlas {
 //    symmetrized, w_ij = (mv_ij + mv_ji) / 2. Floater's theorem only needs
 //    positive weights for a flip-free map; symmetric ones make the system SPD;
 //  - then scaled so that its area equals the total reference area.
-// reference holds 3 positively oriented rows per face. Returns "" on success,
-// otherwise why the linear solve failed; uv (vertex_count x 2) is then unspecified.
-std::string mean_value_embedding(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
+// reference holds 3 positively oriented rows per face. Returns an ok status,
+// or SolveFailure::embedding and why; uv (vertex_count x 2) is then unspecified.
+SolveStatus mean_value_embedding(const RowMatrixX3i& triangles, const RowMatrixX2d& reference,
                                  const std::vector<int>& boundary_corners, int vertex_count,
                                  RowMatrixX2d& uv);
 
