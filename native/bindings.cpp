@@ -233,12 +233,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["aggregate_stops"] = stops_dict(r.aggregate_stops);
   d["charts_after"] = r.charts_after;
   d["charts_solved"] = r.charts_solved;
-  d["splits_not_disk"] = r.splits_not_disk;
-  d["splits_solver"] = r.splits_solver;
-  d["splits_overlap"] = r.splits_overlap;
-  d["splits_density"] = r.splits_density;
-  d["charts_scaffolded"] = r.charts_scaffolded;
-  d["overlap_halved"] = r.overlap_halved;
+  for (const FlattenCounter& c : kFlattenCounters) d[c.name] = r.flatten.*c.field;
   d["largest_chart_faces"] = r.largest_chart_faces;
   d["iteration_over_factorization"] = r.iteration_over_factorization;
   d["seam_before"] = r.seam_before;

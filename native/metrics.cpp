@@ -1,5 +1,7 @@
 #include "metrics.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -138,11 +140,15 @@ Coverage rasterise_coverage(const Mesh& mesh, const UvLayout& atlas) {
   int widest = 0;
   for (const PageSize& p : pages) widest = std::max(widest, p.width);
 
+  // Per texel: 0, 1, or 2 = "two or more" triangles claim its centre. One
+  // band buffer per thread, allocated here: a bad_alloc must not be thrown
+  // inside the OpenMP region, where it would terminate the process.
+  std::vector<std::vector<std::uint8_t>> band_counts(omp_get_max_threads());
+  for (auto& counts : band_counts) counts.resize(static_cast<std::size_t>(widest) * kBandRows);
   long long covered = 0, overlap = 0;
 #pragma omp parallel reduction(+ : covered, overlap)
   {
-    // Per texel: 0, 1, or 2 = "two or more" triangles claim its centre.
-    std::vector<std::uint8_t> counts(static_cast<std::size_t>(widest) * kBandRows);
+    std::vector<std::uint8_t>& counts = band_counts[omp_get_thread_num()];
 #pragma omp for schedule(dynamic, 4)
     for (int b = 0; b < bands; ++b) {
       if (offsets[b] == offsets[b + 1]) continue;

@@ -10,12 +10,9 @@
 #include <map>
 #include <numeric>
 
-#include "charts/chart_graph.hpp"
-#include "charts/cut_mesh.hpp"
+#include "core/parallel_for.hpp"
 #include "core/topology.hpp"
 #include "core/uv_layout.hpp"
-#include "flatten/flatten_chart.hpp"
-#include "flatten/reference_triangles.hpp"
 
 namespace atlas {
 namespace {
@@ -42,8 +39,6 @@ std::vector<std::vector<int>> faces_by_chart(const std::vector<int>& face_chart,
 }
 
 // One aggregated chart per task, largest first so the long ones start early.
-// Exceptions (Cancelled included) cannot leave an OpenMP region: the first is
-// kept and rethrown after the loop.
 std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                                    const Aggregation& aggregation, const SlimOptions& options,
                                    const RunControl& control, PipelineReport& report) {
@@ -59,33 +54,18 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
 
   std::vector<std::vector<FlatChart>> pieces(order.size());
   std::vector<FlattenStats> stats(order.size());
-  std::exception_ptr error;
   std::atomic<int> finished{0};
-  std::atomic<bool> failed{false};
-#pragma omp parallel for schedule(dynamic, 1)
-  for (int i = 0; i < static_cast<int>(order.size()); ++i) {
-    if (failed || control.cancelled()) continue;
-    try {
-      pieces[i] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[order[i]],
-                                          options, control, stats[i]);
-      ++finished;
-      if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / order.size());
-    } catch (...) {
-#pragma omp critical
-      if (!error) error = std::current_exception();
-      failed = true;  // the other workers skip what they have not started
-    }
-  }
-  if (error) std::rethrow_exception(error);
+  parallel_for(static_cast<int>(order.size()), 1, [&](int i) {
+    control.throw_if_cancelled();
+    pieces[i] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[order[i]], options,
+                                        control, stats[i]);
+    ++finished;
+    if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / order.size());
+  });
   control.throw_if_cancelled();
   std::vector<FlatChart> out;
   for (size_t i = 0; i < pieces.size(); ++i) {
-    report.splits_not_disk += stats[i].not_disk;
-    report.splits_solver += stats[i].solver_failed;
-    report.splits_overlap += stats[i].overlapped;
-    report.splits_density += stats[i].density_lost;
-    report.charts_scaffolded += stats[i].scaffolded;
-    report.overlap_halved += stats[i].overlap_halved;
+    report.flatten += stats[i];
     for (auto& c : pieces[i]) out.push_back(std::move(c));
   }
   return out;

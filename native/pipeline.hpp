@@ -5,10 +5,10 @@
 #include <string>
 #include <vector>
 
-#include "charts/aggregate.hpp"
+#include "charts/charts.hpp"
 #include "core/mesh.hpp"
 #include "core/run_control.hpp"
-#include "flatten/slim.hpp"
+#include "flatten/flatten.hpp"
 #include "pack/pack.hpp"
 
 namespace atlas {
@@ -30,12 +30,7 @@ struct PipelineReport {
   AggregationStops aggregate_stops;  // why the aggregation merged no further
   int charts_after = 0;        // in the output
   int charts_solved = 0;       // flattened by SLIM (the rest kept their original UVs)
-  int splits_not_disk = 0;     // charts split back, by reason (see FlattenStats)
-  int splits_solver = 0;
-  int splits_overlap = 0;
-  int splits_density = 0;
-  int charts_scaffolded = 0;   // solved again inside a scaffold after their boundary crossed (not splits)
-  int overlap_halved = 0;      // lone charts whose own UVs overlap (fold or cross), cut in two (see overlap.hpp)
+  FlattenStats flatten;        // charts split back by reason, scaffolded, halved (see kFlattenCounters)
   double seam_before = 0, seam_after = 0;  // seam length / sqrt(area)
   long long texels_before = 0, texels_after = 0;
   double packing_efficiency = 0;

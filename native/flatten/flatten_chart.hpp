@@ -42,13 +42,24 @@ struct FlattenStats {
   int density_lost = 0;        // over 2% of the surface kept less than half its texels
   int overlap_halved = 0;      // not a split of merged charts: lone charts whose own UVs overlap, cut in two
   int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
-
-  FlattenStats& operator+=(const FlattenStats& o) {
-    not_disk += o.not_disk, solver_failed += o.solver_failed, overlapped += o.overlapped;
-    density_lost += o.density_lost, overlap_halved += o.overlap_halved, scaffolded += o.scaffolded;
-    return *this;
-  }
 };
+
+// Every counter under the name the report gives it: a new counter is a field
+// above and a row here, and the sums, the bindings and the report follow.
+struct FlattenCounter {
+  const char* name;
+  int FlattenStats::*field;
+};
+inline constexpr FlattenCounter kFlattenCounters[] = {
+    {"splits_not_disk", &FlattenStats::not_disk},     {"splits_solver", &FlattenStats::solver_failed},
+    {"splits_overlap", &FlattenStats::overlapped},    {"splits_density", &FlattenStats::density_lost},
+    {"charts_scaffolded", &FlattenStats::scaffolded}, {"overlap_halved", &FlattenStats::overlap_halved},
+};
+
+inline FlattenStats& operator+=(FlattenStats& sum, const FlattenStats& more) {
+  for (const FlattenCounter& c : kFlattenCounters) sum.*c.field += more.*c.field;
+  return sum;
+}
 
 // Flattens one aggregated chart (its original charts `members`), splitting on
 // overlap or solver failure until every piece is valid.

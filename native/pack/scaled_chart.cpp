@@ -1,5 +1,6 @@
 #include "pack/scaled_chart.hpp"
 
+#include "core/parallel_for.hpp"
 #include "pack/chart_raster.hpp"
 #include "pack/coarse_mask.hpp"
 
@@ -42,10 +43,10 @@ std::vector<ScaledChart> scale_charts(const std::vector<const RowMatrixX2d*>& ch
   control.throw_if_cancelled();
   std::vector<ScaledChart> charts(chart_uv.size());
   const int n = static_cast<int>(chart_uv.size());
-  // Exceptions must not leave an OpenMP region: cancelled workers just skip.
-#pragma omp parallel for schedule(dynamic, 16)
-  for (int c = 0; c < n; ++c)
-    if (!control.cancelled()) charts[c] = scale_chart(*chart_uv[c], scale, padding, cell);
+  parallel_for(n, 16, [&](int c) {
+    control.throw_if_cancelled();
+    charts[c] = scale_chart(*chart_uv[c], scale, padding, cell);
+  });
   control.throw_if_cancelled();
   return charts;
 }
