@@ -13,8 +13,8 @@ namespace atlas {
 enum class Weighting { UV, Surface };
 
 struct AggregateOptions {
-  // w_3D by default: on the three shared scans it left fewer charts and
-  // shorter seams than w_UV (Meshroom 202 vs 215 charts, Smithsonian 940 vs 971).
+  // w_3D by default: on the shared scans it leaves fewer charts and shorter
+  // seams than w_UV (bench/README.md, "Measurements behind the defaults").
   Weighting weighting = Weighting::Surface;
   int target_charts = 0;            // stop at this many charts; 0: no target
   // A collapse is made only while the smaller chart covers less than this

@@ -15,7 +15,7 @@ namespace atlas {
 // A union whose boundary wraps past a full turn of reference angle somewhere
 // is allowed: SCAF (slim.cpp) keeps its flattening from crossing itself, and
 // the density check splits it if that costs detail. Refusing it up front left
-// a quarter more charts on the Smithsonian scan.
+// markedly more charts on the shared scans (bench/README.md).
 enum class MergeRefusal { None, NonManifold, NotDisk };
 
 struct MergeCheck {

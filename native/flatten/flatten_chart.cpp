@@ -266,8 +266,8 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& 
 
 // Share of a chart's surface allowed to end with less than half its texel
 // density. The target is 1% of the whole surface; each chart may lose 2%,
-// because the loss concentrates in few charts: the three scans end at
-// 0.16-0.58%, and the Smithsonian scan with 417 charts instead of 470 at 1%.
+// because the loss concentrates in few charts, so the whole stays well under
+// 1% while fewer charts are split (bench/README.md).
 constexpr double kDensityLossPerChart = 0.02;
 
 // The original chart that lost the most texel density, when faces covering

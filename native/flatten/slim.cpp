@@ -417,8 +417,8 @@ constexpr double kScaffoldMargin = 1.0;
 // in between the old scaffold stays valid (the line search keeps it
 // flip-free), and the ordering and symbolic analysis are reused.
 constexpr int kRemeshEvery = 8;
-// SCAF's steps are short, so it stops at 0.3 of SLIM's relative tolerance
-// (a tenth: 3 charts fewer on the Smithsonian scan, 25% slower).
+// SCAF's steps are short, so it stops at 0.3 of SLIM's relative tolerance;
+// a tenth bought few charts for much more time (bench/README.md).
 constexpr double kScaffoldToleranceFactor = 0.3;
 
 // Rewrites the scaffold faces (those after the chart's, in `faces`) with their
