@@ -8,14 +8,14 @@
 namespace atlas {
 
 DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-                           int cluster_count, std::vector<char> kept_seams)
+                           int cluster_count, std::vector<char> self_seam)
     : mesh_(mesh),
       topology_(topology),
       face_cluster_(std::move(face_cluster)),
       faces_(cluster_count),
       euler_(cluster_count, 0),
       manifold_(cluster_count, 0),
-      seam_(std::move(kept_seams)),
+      self_seam_(std::move(self_seam)),
       edge_stamp_(topology.edge_count(), 0),
       vertex_stamp_(mesh.vertex_count(), 0) {
   for (int f = 0; f < mesh.face_count(); ++f)
@@ -36,7 +36,7 @@ int DiskClusters::euler_of(int c) {
   for (int f : faces_[c])
     for (int k = 0; k < 3; ++k) {
       const int e = topology_.corner_edge[3 * f + k], v = mesh_.triangles(f, k);
-      if (seam_[e]) ++edges;
+      if (self_seam_[e]) ++edges;
       else if (edge_stamp_[e] != stamp_) edge_stamp_[e] = stamp_, ++edges;
       if (vertex_stamp_[v] != stamp_) vertex_stamp_[v] = stamp_, vertices += fan_count(v, c, c);
     }
@@ -50,7 +50,7 @@ bool DiskClusters::manifold_inside(int c) {
   for (int f : faces_[c])
     for (int k = 0; k < 3; ++k) {
       const int c0 = 3 * f + k, e = topology_.corner_edge[c0];
-      if (seam_[e]) continue;
+      if (self_seam_[e]) continue;
       int inside = 0;
       for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
         const int ci = topology_.edge_corners[i];
@@ -112,7 +112,7 @@ MergeCheck DiskClusters::check_merge(int a, int b) {
           // Never merge across a non-manifold edge or a winding flip.
           if (topology_.edge_valence(e) != 2 || mesh_.triangles(ci / 3, ci % 3) == v)
             return {MergeRefusal::NonManifold};
-          if (seam_[e]) continue;
+          if (self_seam_[e]) continue;
           ++shared_edges;
         }
       }

@@ -27,10 +27,10 @@ struct MergeCheck {
 class DiskClusters {
  public:
   // face_cluster[f] in [0, cluster_count) or -1 for faces that take no part.
-  // kept_seams (per edge, see self_seams) are edges where an original chart
+  // self_seam (per edge, see self_seams) marks edges where an original chart
   // meets itself at a UV seam: they stay boundary on both sides for good.
   DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-               int cluster_count, std::vector<char> kept_seams);
+               int cluster_count, std::vector<char> self_seam);
 
   // Euler characteristic chi = V - E + F of the union of a and b, counting a
   // vertex once per fan of faces around it (pinches are split), when the shared
@@ -53,7 +53,7 @@ class DiskClusters {
   int fan_count(int v, int a, int b) const;
   bool in(int f, int a, int b) const { return face_cluster_[f] == a || face_cluster_[f] == b; }
   // Faces of a cluster are joined across e: manifold and not a seam the cluster keeps.
-  bool joins(int e) const { return topology_.edge_valence(e) == 2 && !seam_[e]; }
+  bool joins(int e) const { return topology_.edge_valence(e) == 2 && !self_seam_[e]; }
 
   const Mesh& mesh_;
   const MeshTopology& topology_;
@@ -61,7 +61,7 @@ class DiskClusters {
   std::vector<std::vector<int>> faces_;
   std::vector<int> euler_;
   std::vector<char> manifold_;
-  std::vector<char> seam_;  // kept_seams
+  std::vector<char> self_seam_;  // per edge, see the constructor
   // Visit stamps, so each check touches only the smaller cluster's faces.
   std::vector<unsigned> edge_stamp_, vertex_stamp_;
   unsigned stamp_ = 0;

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# The C++ tests and the module's pytest suite again, built with AddressSanitizer
+# and UndefinedBehaviorSanitizer (build-asan/, Eigen's assertions on). Any
+# report fails the run. Called by scripts/test.sh after the Release suites.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DATLAS_SANITIZE=ON \
+      -DPython_EXECUTABLE="$PWD/.venv/bin/python" >/dev/null
+cmake --build build-asan -j"$(nproc)"
+# Python itself is not instrumented and frees little at exit: leaks are not checked.
+export ASAN_OPTIONS=detect_leaks=0:abort_on_error=1
+export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+ctest --test-dir build-asan --output-on-failure -j"$(nproc)"
+LD_PRELOAD="$(g++ -print-file-name=libasan.so)" ATLAS_BUILD_DIR="$PWD/build-asan" \
+  .venv/bin/python -m pytest python_tests/test_native.py -q -p no:cacheprovider
