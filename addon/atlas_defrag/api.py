@@ -59,7 +59,7 @@ def compute(read: read_bpy.ReadResult, settings: Settings, progress=None, cancel
     try:
         return job.run(read.job, settings.options, progress=progress, cancel=cancel, native=native)
     except MemoryError as exc:
-        raise DefragError("Out of memory: try a smaller output size or maximum page size") from exc
+        raise DefragError("Out of memory: try a smaller page size or maximum page size") from exc
 
 
 def _set_mode(obj, mode: str) -> None:

@@ -427,14 +427,34 @@ def main_multi(argv) -> int:
         print("atlas_defrag: error: no input models", file=sys.stderr)
         return 2
     os.makedirs(args.out_dir, exist_ok=True)
-    blender = _blender_exe(args.blender)
-    passthrough = []
+    command = [_blender_exe(args.blender), "--background", "--factory-startup", "--python-exit-code", "1",
+               "--python", os.path.abspath(__file__), "--"]
+    passthrough = _passthrough(args)
+    jobs = _output_names(files, args.out_dir, args.format)
+    failed = 0
+    with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+        for f, out, status, err in pool.map(lambda job: _run_one_blender(command, passthrough, *job), jobs):
+            print(f"atlas_defrag: {status}: {f} -> {out}" + (f"\n  {err}" if err else ""),
+                  file=sys.stderr if status == "failed" else sys.stdout)
+            failed += status == "failed"
+    print(f"atlas_defrag: {len(jobs) - failed} done, {failed} failed")
+    return 1 if failed else 0
+
+
+def _passthrough(args) -> list:
+    """The single-model arguments that repeat the options given here."""
+    out = []
     for opt in [o.name for o in _schema().SCHEMA] + ["uv_map", "texture"]:
         value = getattr(args, opt)
         if value is not None:
-            passthrough += ["--" + opt.replace("_", "-"), str(value)]
+            out += ["--" + opt.replace("_", "-"), str(value)]
     if args.keep_source_uv:
-        passthrough.append("--keep-source-uv")
+        out.append("--keep-source-uv")
+    return out
+
+
+def _output_names(files, out_dir: str, fmt: str) -> list:
+    """(input, output, report) per file; equal stems get _2, _3, ..."""
     stems = {}
     jobs = []
     for f in files:
@@ -442,29 +462,20 @@ def main_multi(argv) -> int:
         stems[stem] = stems.get(stem, 0) + 1
         if stems[stem] > 1:
             stem = f"{stem}_{stems[stem]}"
-        out = os.path.join(args.out_dir, f"{stem}.{args.format}")
-        jobs.append((f, out, os.path.join(args.out_dir, f"{stem}.report.json")))
+        jobs.append((f, os.path.join(out_dir, f"{stem}.{fmt}"), os.path.join(out_dir, f"{stem}.report.json")))
+    return jobs
 
-    def work(job):
-        f, out, rep = job
-        if os.path.exists(out):
-            return f, out, "skipped", ""
-        cmd = [blender, "--background", "--factory-startup", "--python-exit-code", "1",
-               "--python", os.path.abspath(__file__), "--", f, out, "--report", rep] + passthrough
-        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        if proc.returncode == 0:
-            return f, out, "ok", ""
-        err = [ln for ln in proc.stderr.splitlines() if "atlas_defrag: error" in ln]
-        return f, out, "failed", (err[-1] if err else proc.stderr.strip()[-500:])
 
-    failed = 0
-    with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        for f, out, status, err in pool.map(work, jobs):
-            print(f"atlas_defrag: {status}: {f} -> {out}" + (f"\n  {err}" if err else ""),
-                  file=sys.stderr if status == "failed" else sys.stdout)
-            failed += status == "failed"
-    print(f"atlas_defrag: {len(jobs) - failed} done, {failed} failed")
-    return 1 if failed else 0
+def _run_one_blender(command, passthrough, f, out, rep):
+    """(input, output, status, error line): one Blender process for one model."""
+    if os.path.exists(out):
+        return f, out, "skipped", ""
+    proc = subprocess.run(command + [f, out, "--report", rep] + passthrough,
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    if proc.returncode == 0:
+        return f, out, "ok", ""
+    err = [ln for ln in proc.stderr.splitlines() if "atlas_defrag: error" in ln]
+    return f, out, "failed", (err[-1] if err else proc.stderr.strip()[-500:])
 
 
 def main(argv=None) -> int:
