@@ -5,7 +5,7 @@
 For every model, in one run and one after another (never two jobs at once):
   * Atlas Defrag through the Blender batch entry (build/addon/atlas_defrag/batch.py):
     wall time including Blender's start, import and export; output in the input's format;
-  * Atlas Defrag through the numpy path (tools/scan_io + _native, as tools/defrag_scan.py);
+  * Atlas Defrag through the numpy path (tools/scan_io + atlas_defrag.job, as tools/defrag_scan.py);
   * Smart UV Project + Cycles EMIT bake in Blender (bench/blender_route.py).
 Each job is a child process: wall time, peak resident memory (wait4), and the CPU
 time other processes took meanwhile. Every route's new UVs and baked colour are
@@ -697,9 +697,8 @@ def write_results(results: list, mach: dict, args, path: Path, started: float) -
         "Atlas Defrag's times include baking every map.")
     add("- Faces of each route are matched to the input's by their 3D corners, so both routes are measured on "
         "the input's own triangles (all scans here are triangles already).")
-    add("- Numpy path: `from atlas_defrag import _native` runs the package's `__init__`, which imports `bpy`; "
-        "in `.venv` that is Blender 4.5 as a module, several seconds of *python start + imports* that "
-        "`tools/defrag_scan.py` pays too.")
+    add("- Numpy path: `tools/scan_io` reads the scan and the add-on's bpy-free job (`atlas_defrag.job.run`, "
+        "as `tools/defrag_scan.py`) lays it out and bakes; decoding the images counts in *load*.")
     add("- The large scan is synthetic (`bench/make_large_scan.py`): the real-model targets are not judged on "
         "it, only its time and memory.")
     add("- The large scan is one smooth closed blob, the easy case for Smart UV Project (few, large islands); "

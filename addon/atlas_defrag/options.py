@@ -22,7 +22,8 @@ class Choice(NamedTuple):
 
 
 class Option(NamedTuple):
-    """One option; ``low`` and ``high`` are inclusive, None means unbounded."""
+    """One option. Numbers have a ``low`` bound; ``high`` None means none.
+    Both are inclusive."""
 
     name: str  # keyword of job.Options and of the native module
     kind: type  # int, float or str (one of choices)
@@ -110,7 +111,8 @@ def _within(option: Option, number) -> bool:
 def validate(values: dict) -> dict:
     """Every option checked, and the one rule between two of them."""
     out = {name: check(BY_NAME[name], value) for name, value in values.items()}
-    if out.get("fixed_page_size", 0) > out.get("max_page_size", BY_NAME["max_page_size"].default):
-        raise ValueError(f"fixed_page_size {out['fixed_page_size']} is larger than "
-                         f"max_page_size {out['max_page_size']}")
+    fixed = out.get("fixed_page_size", 0)
+    largest = out.get("max_page_size", BY_NAME["max_page_size"].default)
+    if fixed > largest:
+        raise ValueError(f"fixed_page_size {fixed} is larger than max_page_size {largest}")
     return out
