@@ -104,10 +104,7 @@ def parse_args(argv):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("input", type=Path)
     parser.add_argument("output", type=Path)
-    for o in options.SCHEMA:
-        parser.add_argument("--" + o.name.replace("_", "-"), default=o.default,
-                            type=str if o.choices else o.kind,
-                            help=f"{o.help} ({options.range_text(o)})")
+    options.add_arguments(parser)
     return parser.parse_args(argv)
 
 

@@ -23,8 +23,7 @@ def table() -> str:
     for o in options.SCHEMA:
         values = options.range_text(o) + (f" {o.unit}" if o.unit else "")
         what = o.help + (f"; 0: {o.automatic}" if o.automatic else "")
-        flag = "--" + o.name.replace("_", "-")
-        rows.append(f"| `{o.name}` | {values} | `{o.default!r}` | {what} | {o.label} | `{flag}` |")
+        rows.append(f"| `{o.name}` | {values} | `{o.default!r}` | {what} | {o.label} | `{options.flag(o)}` |")
     return "\n".join(rows)
 
 

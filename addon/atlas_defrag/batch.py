@@ -43,8 +43,9 @@ class BatchError(Exception):
 
 # --------------------------------------------------------------------------- arguments
 def _schema():
-    """The option schema (options.py), also when this file runs by path
-    outside Blender, where the package (which needs bpy to run) is not loaded."""
+    """The option schema (options.py). Run by path, the many-models form
+    loads the file alone: it needs the standard library only (the package
+    would import numpy)."""
     if __package__:
         return importlib.import_module(__package__ + ".options")
     name = "atlas_defrag_options"
@@ -56,30 +57,9 @@ def _schema():
     return sys.modules[name]
 
 
-def _flag(option) -> str:
-    return "--" + option.name.replace("_", "-")
-
-
-def _option_type(schema, option):
-    """argparse type: the schema's check, its message on bad values (exit code 2)."""
-    def parse(text):
-        try:
-            return schema.check(option, text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from exc
-    parse.__name__ = option.name
-    return parse
-
-
 def _add_options(p: argparse.ArgumentParser) -> None:
-    schema = _schema()
     g = p.add_argument_group("defragmentation options")
-    for o in schema.SCHEMA:
-        zero = f"; 0: {o.automatic}" if o.automatic else ""
-        g.add_argument(_flag(o), type=_option_type(schema, o), default=o.default,
-                       metavar=o.name.upper() if not o.choices else None,
-                       choices=[c.value for c in o.choices] or None,
-                       help=f"{o.help} ({schema.range_text(o)}, default {o.default!r}{zero})")
+    _schema().add_arguments(g)
     g.add_argument("--uv-map", default=None, help="UV map to defragment (default: the active one)")
     g.add_argument("--texture", default=None,
                    help="image to use for meshes without an image texture (e.g. PLY)")

@@ -12,6 +12,7 @@ No bpy and no numpy: batch.py loads this file by path outside Blender.
 
 from __future__ import annotations
 
+import argparse
 from typing import NamedTuple, Optional, Tuple
 
 
@@ -116,3 +117,28 @@ def validate(values: dict) -> dict:
     if fixed > largest:
         raise ValueError(f"fixed_page_size {fixed} is larger than max_page_size {largest}")
     return out
+
+
+def flag(option: Option) -> str:
+    return "--" + option.name.replace("_", "-")
+
+
+def add_arguments(group) -> None:
+    """Every option as a command-line flag of an argparse parser or group
+    (the batch entry, tools/defrag_scan.py); bad values exit with code 2."""
+    for o in SCHEMA:
+        zero = f"; 0: {o.automatic}" if o.automatic else ""
+        group.add_argument(flag(o), type=_argument_type(o), default=o.default,
+                           metavar=None if o.choices else o.name.upper(),
+                           choices=[c.value for c in o.choices] or None,
+                           help=f"{o.help} ({range_text(o)}, default {o.default!r}{zero})")
+
+
+def _argument_type(option: Option):
+    def parse(text):
+        try:
+            return check(option, text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from exc
+    parse.__name__ = option.name  # argparse names the type in some messages
+    return parse
