@@ -5,7 +5,7 @@
 For every model, in one run and one after another (never two jobs at once):
   * Atlas Defrag through the Blender batch entry (build/addon/atlas_defrag/batch.py):
     wall time including Blender's start, import and export; output in the input's format;
-  * Atlas Defrag through the numpy path (tools/scan_io + _native, as tools/defrag_scan.py);
+  * Atlas Defrag through the numpy path (tools/scan_io + atlas_defrag.job, as tools/defrag_scan.py);
   * Smart UV Project + Cycles EMIT bake in Blender (bench/blender_route.py).
 Each job is a child process: wall time, peak resident memory (wait4), and the CPU
 time other processes took meanwhile. Every route's new UVs and baked colour are
@@ -132,28 +132,25 @@ def worker_numpy(inp: Path, out_dir: Path) -> int:
     """Runs inside its own process so its peak memory is its own."""
     import scan_io
     import defrag_scan
-    from atlas_defrag import _native
+    from atlas_defrag import _native, job
 
     out_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     scan = scan_io.load(inp)
+    job_input = defrag_scan.job_input(scan)  # decodes the images
     t_load = time.perf_counter() - t0
-    result = _native.defragment(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
-                                options={"padding": 4}, progress=defrag_scan.progress_line)
-    t1 = time.perf_counter()
-    maps = defrag_scan.bake_maps(scan, result)
-    t_bake = time.perf_counter() - t1
+    result = job.run(job_input, job.Options(padding=4), progress=defrag_scan.progress_line, native=_native)
+    maps = defrag_scan.page_maps(result)
     t2 = time.perf_counter()
-    defrag_scan.write_obj(out_dir / f"{inp.stem}_defrag.obj", scan, result["uvs"], result["face_page"], maps)
+    defrag_scan.write_obj(out_dir / f"{inp.stem}_defrag.obj", scan, result.uvs, result.face_page, maps)
     t_write = time.perf_counter() - t2
     total = time.perf_counter() - t0
-    np.savez(out_dir / "arrays.npz", uvs=result["uvs"], face_page=result["face_page"],
-             page_sizes=result["page_sizes"])
-    seconds = {"load": t_load, **{k: v for k, v in result["report"]["seconds"].items() if k != "total"},
-               "bake": t_bake, "write": t_write, "total": total,
+    np.savez(out_dir / "arrays.npz", uvs=result.uvs, face_page=result.face_page, page_sizes=result.page_sizes)
+    seconds = {"load": t_load, **{k: v for k, v in result.report["seconds"].items() if k != "total"},
+               "write": t_write, "total": total,
                "bench_io": time.perf_counter() - t0 - total}  # the arrays above: the benchmark's, not the job's
     colour = [str(out_dir / f"{inp.stem}_defrag_page{p}_base_color.png") for p in range(len(maps))]
-    report = {k: v for k, v in result["report"].items() if k != "seconds"}
+    report = {k: v for k, v in result.report.items() if k != "seconds"}
     (out_dir / "worker.json").write_text(json.dumps({"seconds": seconds, "colour_pages": colour,
                                                      "report": report}, indent=2, default=float))
     print(file=sys.stderr)
@@ -700,9 +697,8 @@ def write_results(results: list, mach: dict, args, path: Path, started: float) -
         "Atlas Defrag's times include baking every map.")
     add("- Faces of each route are matched to the input's by their 3D corners, so both routes are measured on "
         "the input's own triangles (all scans here are triangles already).")
-    add("- Numpy path: `from atlas_defrag import _native` runs the package's `__init__`, which imports `bpy`; "
-        "in `.venv` that is Blender 4.5 as a module, several seconds of *python start + imports* that "
-        "`tools/defrag_scan.py` pays too.")
+    add("- Numpy path: `tools/scan_io` reads the scan and the add-on's bpy-free job (`atlas_defrag.job.run`, "
+        "as `tools/defrag_scan.py`) lays it out and bakes; decoding the images counts in *load*.")
     add("- The large scan is synthetic (`bench/make_large_scan.py`): the real-model targets are not judged on "
         "it, only its time and memory.")
     add("- The large scan is one smooth closed blob, the easy case for Smart UV Project (few, large islands); "
@@ -820,7 +816,7 @@ def worker_bake_4096(inp: Path, out_json: Path) -> int:
 
     scan = scan_io.load(inp)
     result = _native.defragment(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
-                                options={"output_size": 4096})
+                                options={"fixed_page_size": 4096})
     images = [np.ascontiguousarray(scan_io.load_image(page["base_color"])[:, :, :3]) for page in scan.maps]
     best = float("inf")
     for _ in range(3):  # the fastest of three: the first also pays page faults on the input image

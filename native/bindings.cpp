@@ -155,7 +155,7 @@ PipelineOptions pipeline_options(const py::object& obj) {
     else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = value.cast<double>();
     else if (key == "max_chart_faces") o.aggregate.max_chart_faces = value.cast<int>();
     else if (key == "padding") o.pack.padding = value.cast<int>();
-    else if (key == "output_size") o.pack.fixed_page_size = value.cast<int>();
+    else if (key == "fixed_page_size") o.pack.fixed_page_size = value.cast<int>();
     else if (key == "max_page_size") o.pack.max_page_size = value.cast<int>();
     else if (key == "density_scale") o.pack.density_scale = value.cast<double>();
     else if (key == "texel_budget") o.pack.texel_budget = value.cast<long long>();
@@ -163,11 +163,13 @@ PipelineOptions pipeline_options(const py::object& obj) {
     else throw py::value_error("unknown option '" + key + "'");
   }
   if (o.pack.padding < 0 || o.pack.padding > 64) throw py::value_error("padding must be 0..64 texels");
-  if (o.pack.max_page_size < 64 || o.pack.max_page_size > 32768)
-    throw py::value_error("max_page_size must be 64..32768 texels");
-  if (o.pack.fixed_page_size < 0 || o.pack.fixed_page_size > o.pack.max_page_size)
-    throw py::value_error("output_size must be 0 (automatic) or at most max_page_size");
-  if (!(o.pack.density_scale > 0 && o.pack.density_scale <= 16)) throw py::value_error("density_scale must be in (0, 16]");
+  // The ranges of addon/atlas_defrag/options.py (python_tests/test_options.py checks both agree).
+  if (o.pack.max_page_size < 64 || o.pack.max_page_size > 16384)
+    throw py::value_error("max_page_size must be 64..16384 texels");
+  if (o.pack.fixed_page_size != 0 && (o.pack.fixed_page_size < 64 || o.pack.fixed_page_size > o.pack.max_page_size))
+    throw py::value_error("fixed_page_size must be 0 (automatic) or 64..max_page_size texels");
+  if (!(o.pack.density_scale >= 0.01 && o.pack.density_scale <= 16))
+    throw py::value_error("density_scale must be 0.01..16");
   if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");

@@ -9,12 +9,12 @@ import numpy as np
 CLI = Path(__file__).resolve().parent.parent / "tools" / "defrag_scan.py"
 
 
-def test_cli_output_loads_back_flip_free_with_the_colours_kept(native, scans, scan_path, tmp_path):
+def test_cli_output_loads_back_flip_free_with_the_colours_kept(native, scans, scan_path, tool_env, tmp_path):
     import scan_io
 
     source = scan_path("tetra")
     run = subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path)],
-                         capture_output=True, text=True, timeout=300)
+                         capture_output=True, text=True, timeout=300, env=tool_env)
     assert run.returncode == 0, run.stderr
     assert "159 -> " in run.stdout and "PSNR" in run.stdout
 

@@ -25,9 +25,8 @@ def test_glb_seam_vertices_are_welded(native, scans):
 
 
 @pytest.fixture(scope="module")
-def tetra_result(native, scans):
-    scan = scans("tetra")
-    return scan, native.defragment(*args(scan))
+def tetra_result(defragmented):
+    return defragmented("tetra")
 
 
 def test_defragment_reduces_charts_and_seams(tetra_result):
@@ -52,9 +51,8 @@ def test_new_atlas_has_no_flips_and_no_shared_texels(native, tetra_result):
 
 # The Meshroom scan's input has 507 flipped faces: charts whose UVs fold over,
 # and 48 small closed components each mapped as one chart. None may stay flipped.
-def test_fold_overs_in_the_input_end_unfolded(native, scans):
-    scan = scans("meshroom")
-    result = native.defragment(*args(scan))
+def test_fold_overs_in_the_input_end_unfolded(native, defragmented):
+    scan, result = defragmented("meshroom")
     m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
     assert m["old"]["flipped_faces"] > 400
     assert m["new"]["flipped_faces"] == 0
@@ -94,9 +92,8 @@ def crossing_charts(graph, uvs, face_page, page_sizes):
 
 # The Smithsonian scan has an original chart that meets itself at a UV seam and
 # whose own UVs overlap there: it must not be kept as it was.
-def test_no_output_chart_crosses_itself_on_the_smithsonian_scan(native, scans):
-    scan = scans("smithsonian")
-    result = native.defragment(*args(scan))
+def test_no_output_chart_crosses_itself_on_the_smithsonian_scan(native, defragmented):
+    scan, result = defragmented("smithsonian")
     out = (scan.positions, scan.triangles, result["uvs"], result["face_page"], result["page_sizes"])
     assert crossing_charts(native.chart_graph(*out), *out[2:]) == []
     stops = result["report"]["aggregate_stops"]

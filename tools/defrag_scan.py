@@ -1,30 +1,29 @@
 """Defragments a scan's atlas without Blender and prints what changed.
 
-    .venv/bin/python tools/defrag_scan.py IN.obj|IN.glb OUT_DIR [--padding 4] [--target-charts N]
+    PYTHONPATH=build/addon .venv/bin/python tools/defrag_scan.py IN.obj|IN.glb OUT_DIR [options]
 
-Writes OUT_DIR/<name>.obj + .mtl + one PNG per page and map, and prints charts,
-seam length, texels, PSNR and seconds per stage. The Blender add-on does the
-same through bpy; this entry exists for machines and pipelines without it.
+Runs the add-on's job (atlas_defrag.job.run, the same layout and bake as in
+Blender), writes OUT_DIR/<name>.obj + .mtl + one PNG per page and map, and
+prints charts, seam length, texels, PSNR and seconds per stage. The options
+are those of the add-on (--help lists them). This entry exists for machines
+and pipelines without Blender.
 """
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-BUILD = Path(os.environ.get("ATLAS_BUILD_DIR", REPO / "build"))  # as python_tests/conftest.py
-# The module alone, not the add-on package: its __init__ would import bpy.
-sys.path.insert(0, str(BUILD / "addon" / "atlas_defrag"))
-sys.path.insert(0, str(REPO / "tools"))
+import scan_io  # beside this file
 
-import _native  # noqa: E402
-import png_files  # noqa: E402
-import scan_io  # noqa: E402
+try:  # the add-on's bpy-free modules, from the build (scripts/demo.sh sets PYTHONPATH)
+    from atlas_defrag import _native, job, options, png_files
+except ImportError as exc:
+    sys.exit(f"defrag_scan: {exc}: build the module (cmake --build build) and put its folder "
+             "on the path: PYTHONPATH=build/addon")
 
 
 def progress_line(stage: str, fraction: float) -> None:
@@ -68,57 +67,76 @@ def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: li
             write_rows(obj, "f %d/%d %d/%d %d/%d\n", rows)
 
 
-def bake_maps(scan, result) -> list[dict]:
-    """Bakes every map role the scan has, page by page of the new layout."""
-    out_pages = [dict() for _ in result["page_sizes"]]
-    roles = sorted({role for page in scan.maps for role in page})
-    for role in roles:
-        if any(role not in page for page in scan.maps):
-            continue  # a role missing on some page cannot be baked consistently
-        images = [scan_io.load_image(page[role]) for page in scan.maps]
-        channels = min(im.shape[2] for im in images)
-        images = [np.ascontiguousarray(im[:, :, :channels]) for im in images]
-        baked = _native.bake(scan.uvs, scan.face_page, images, result["uvs"], result["face_page"],
-                             result["page_sizes"], normal_map=role == "normal", progress=progress_line)
-        for page, image in enumerate(baked):
-            out_pages[page][role] = image
-    return out_pages
+def job_input(scan) -> job.JobInput:
+    """The scan as the add-on's job takes it: one image map per page and role;
+    pages with the same roles form one material group, as read_bpy groups them."""
+    images, pages, groups = {}, [], {}
+    for p, roles in enumerate(scan.maps):
+        maps = []
+        for role in sorted(roles, key=job.role_sort_key):
+            name = f"page{p}_{role}"
+            images[name] = job.ImageData(name, scan_io.load_image(roles[role]),
+                                         colorspace="sRGB" if role == "base_color" else "Non-Color")
+            maps.append(job.ImageMap(role, name, normal_map=role == "normal"))
+        pages.append(job.SourcePage(maps, groups.setdefault(tuple(m.role for m in maps), len(groups))))
+    mesh = job.MeshData(scan.positions, scan.triangles, scan.uvs, scan.face_page)
+    return job.JobInput(mesh, pages, images)
 
 
-def main(argv=None) -> int:
+def page_maps(result: job.JobResult) -> list[dict]:
+    """Per new page: {role: pixels}."""
+    maps = [dict() for _ in result.page_sizes]
+    for image in result.images:
+        maps[image.page][image.role] = image.pixels
+    return maps
+
+
+def colours(inp: job.JobInput, result: job.JobResult):
+    """(old, new): the base colour of every source and new page, RGB."""
+    def rgb(pixels):
+        return np.ascontiguousarray(pixels[:, :, :3])
+    old = [rgb(inp.images[page.map_for("base_color").image].pixels) for page in inp.pages]
+    new = [rgb(result.image_for(q, "base_color").pixels) for q in range(len(result.page_sizes))]
+    return old, new
+
+
+def parse_args(argv):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("input", type=Path)
     parser.add_argument("output", type=Path)
-    parser.add_argument("--padding", type=int, default=4)
-    parser.add_argument("--target-charts", type=int, default=0)
-    parser.add_argument("--weighting", choices=["uv", "3d"], default="3d")
-    args = parser.parse_args(argv)
+    options.add_arguments(parser)
+    return parser.parse_args(argv)
 
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
     t0 = time.perf_counter()
     scan = scan_io.load(args.input)
+    inp = job_input(scan)
     t_load = time.perf_counter() - t0
-    options = {"padding": args.padding, "target_charts": args.target_charts, "weighting": args.weighting}
-    result = _native.defragment(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
-                                options=options, progress=progress_line)
-    t1 = time.perf_counter()
-    new_maps = bake_maps(scan, result)
-    t_bake = time.perf_counter() - t1
+    chosen = job.Options(**{o.name: getattr(args, o.name) for o in options.SCHEMA})
+    try:
+        result = job.run(inp, chosen, progress=progress_line, native=_native)
+    except job.DefragError as exc:
+        print(f"defrag_scan: error: {exc}", file=sys.stderr)
+        return 1
     if sys.stderr.isatty():
         print(file=sys.stderr)
-
     m = _native.measure(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
-                        result["uvs"], result["face_page"], result["page_sizes"])
-    old_colour = [scan_io.load_image(page["base_color"]) for page in scan.maps]
-    old_colour = [np.ascontiguousarray(im[:, :, :3]) for im in old_colour]
-    new_colour = [np.ascontiguousarray(page["base_color"][:, :, :3]) for page in new_maps]
+                        result.uvs, result.face_page, result.page_sizes)
+    old_colour, new_colour = colours(inp, result)
     fidelity = _native.compare_colors(scan.positions, scan.triangles, scan.uvs, scan.face_page, old_colour,
-                                      result["uvs"], result["face_page"], new_colour)
-
+                                      result.uvs, result.face_page, new_colour)
     args.output.mkdir(parents=True, exist_ok=True)
-    write_obj(args.output / f"{args.input.stem}_defrag.obj", scan, result["uvs"], result["face_page"], new_maps)
-
-    r = result["report"]
+    write_obj(args.output / f"{args.input.stem}_defrag.obj", scan, result.uvs, result.face_page,
+              page_maps(result))
     print(f"{args.input.name}: {len(scan.triangles)} faces")
+    print_report(result.report, m, fidelity, t_load)
+    print(f"  written to    {args.output}")
+    return 0
+
+
+def print_report(r: dict, m: dict, fidelity: dict, t_load: float) -> None:
     print(f"  charts        {r['charts_before']} -> {r['charts_after']} (aggregated {r['charts_aggregated']}, "
           f"split back: {r['splits_overlap']} overlap, {r['splits_density']} density, {r['splits_solver']} solver, "
           f"{r['splits_not_disk']} topology)")
@@ -133,10 +151,8 @@ def main(argv=None) -> int:
           f"texels shared by two triangles {m['old']['overlap_texels']} -> {m['new']['overlap_texels']}")
     print(f"  density loss  {m['map']['density_loss_area_share']:.2%} of the area below half its texel density")
     print(f"  colour        PSNR {fidelity['psnr_db']:.1f} dB, {fidelity['share_off_32']:.2%} of points off by > 32/255")
-    stages = ", ".join(f"{k} {v:.2f}" for k, v in r["seconds"].items())
-    print(f"  seconds       load {t_load:.2f}, {stages}, bake {t_bake:.2f}")
-    print(f"  written to    {args.output}")
-    return 0
+    stages = ", ".join(f"{k} {v:.2f}" for k, v in r["seconds"].items() if k != "total")
+    print(f"  seconds       load {t_load:.2f}, {stages}")
 
 
 if __name__ == "__main__":

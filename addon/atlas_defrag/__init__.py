@@ -22,40 +22,49 @@ bl_info = {
     "support": "COMMUNITY",
 }
 
-if "bpy" in locals():  # script reload
-    import importlib
+import importlib
 
-    for _name in ("job", "compat", "read_bpy", "write_bpy", "api", "operators"):
-        if _name in locals():
-            importlib.reload(locals()[_name])
+if "job" in locals():  # script reload: reload the submodules already loaded
+    for _name in ("options", "job", "png_files", "compat", "read_bpy", "write_bpy", "api", "operators"):
+        if _name in globals():
+            importlib.reload(globals()[_name])
 
-import bpy  # noqa: E402,F401
-
-from . import api, compat, job, operators, read_bpy, write_bpy  # noqa: E402,F401
+from . import job, options  # noqa: E402,F401  (no bpy: tools use them without Blender)
 from .job import DefragCancelled, DefragError  # noqa: E402,F401
 
 __all__ = ["defragment", "DefragError", "DefragCancelled", "register", "unregister"]
+
+# Loaded on first use, so that importing the package needs no bpy.
+_BPY_MODULES = ("compat", "read_bpy", "write_bpy", "api", "operators")
+
+
+def __getattr__(name):
+    if name in _BPY_MODULES:
+        return importlib.import_module("." + name, __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def defragment(obj, **options) -> dict:
     """Defragments the texture atlas of mesh object ``obj`` and returns the report.
 
-    Keyword options: uv_map (default: the active UV map), target_charts
-    (0 = automatic), weighting ('uv' or '3d'), padding (texels), output_size
-    (0 = automatic: keeps the texel budget), max_page_size, density_scale,
-    storage ('PACK' or 'SAVE'), image_dir (with 'SAVE'), duplicate_materials,
-    progress (callable(stage, fraction)), cancel (a _native.CancelToken).
+    Keyword options: those of options.SCHEMA (README, *Options*), and uv_map
+    (default: the active UV map), storage ('PACK' or 'SAVE'), image_dir (with
+    'SAVE'), duplicate_materials, progress (callable(stage, fraction)), cancel
+    (a _native.CancelToken).
 
     The report has charts_before/after, seam_before/after, seconds, the new
     UV map, images and materials, and warnings. Raises DefragError with the
     reason (then nothing was changed).
     """
+    from . import api
     return api.defragment(obj, **options)
 
 
 def register():
+    from . import operators
     operators.register()
 
 
 def unregister():
+    from . import operators
     operators.unregister()

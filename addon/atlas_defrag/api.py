@@ -10,6 +10,7 @@ from typing import Optional
 import bpy
 
 from . import compat, job, read_bpy, write_bpy
+from .options import BY_NAME
 from .job import DefragCancelled, DefragError  # noqa: F401  (re-exported)
 
 STORAGE = ("PACK", "SAVE")
@@ -25,10 +26,7 @@ class Settings:
 
     @classmethod
     def from_kwargs(cls, **kw) -> "Settings":
-        opts = {}
-        for name in job.Options.__dataclass_fields__:
-            if name in kw:
-                opts[name] = kw.pop(name)
+        opts = {name: kw.pop(name) for name in BY_NAME if name in kw}
         storage = str(kw.pop("storage", "PACK")).upper()
         s = cls(uv_map=kw.pop("uv_map", None) or None, options=job.Options(**opts),
                 storage=storage, image_dir=kw.pop("image_dir", None),
@@ -61,7 +59,7 @@ def compute(read: read_bpy.ReadResult, settings: Settings, progress=None, cancel
     try:
         return job.run(read.job, settings.options, progress=progress, cancel=cancel, native=native)
     except MemoryError as exc:
-        raise DefragError("Out of memory: try a smaller output size or maximum page size") from exc
+        raise DefragError("Out of memory: try a smaller page size or maximum page size") from exc
 
 
 def _set_mode(obj, mode: str) -> None:
@@ -96,11 +94,9 @@ def finish(obj, read: read_bpy.ReadResult, result: job.JobResult, settings: Sett
 def defragment(obj, progress=None, cancel=None, **options) -> dict:
     """Defragments obj's texture atlas synchronously; returns the report dict.
 
-    Options: uv_map (default: active), target_charts (0 = automatic),
-    weighting ('uv' | '3d'), padding, output_size (0 = automatic),
-    max_page_size, density_scale, storage ('PACK' | 'SAVE'), image_dir,
-    duplicate_materials. Raises DefragError (a subclass of Exception) with
-    the reason; on any error nothing is changed.
+    Options: those of options.SCHEMA, and uv_map (default: active), storage
+    ('PACK' | 'SAVE'), image_dir, duplicate_materials. Raises DefragError (a
+    subclass of Exception) with the reason; on any error nothing is changed.
     """
     settings = Settings.from_kwargs(**options)
     t0 = time.perf_counter()

@@ -22,6 +22,8 @@ same with the single-model form and --skip-existing.
 from __future__ import annotations
 
 import argparse
+import importlib
+import importlib.util
 import json
 import os
 import shutil
@@ -40,15 +42,24 @@ class BatchError(Exception):
 
 
 # --------------------------------------------------------------------------- arguments
+def _schema():
+    """The option schema (options.py). Run by path, the many-models form
+    loads the file alone: it needs the standard library only (the package
+    would import numpy)."""
+    if __package__:
+        return importlib.import_module(__package__ + ".options")
+    name = "atlas_defrag_options"
+    if name not in sys.modules:
+        path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "options.py")
+        spec = importlib.util.spec_from_file_location(name, path)
+        sys.modules[name] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(sys.modules[name])
+    return sys.modules[name]
+
+
 def _add_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("defragmentation options")
-    g.add_argument("--target-charts", type=int, default=0, help="charts to aim for (0 = automatic)")
-    g.add_argument("--weighting", choices=("uv", "3d"), default="3d")
-    g.add_argument("--padding", type=int, default=4, help="texels around charts")
-    g.add_argument("--output-size", type=int, default=0,
-                   help="square output page side (0 = automatic: keeps the texel budget)")
-    g.add_argument("--max-page-size", type=int, default=8192)
-    g.add_argument("--density-scale", type=float, default=1.0)
+    _schema().add_arguments(g)
     g.add_argument("--uv-map", default=None, help="UV map to defragment (default: the active one)")
     g.add_argument("--texture", default=None,
                    help="image to use for meshes without an image texture (e.g. PLY)")
@@ -90,13 +101,11 @@ def _script_argv(argv=None):
 def _package():
     """The add-on package, whether this file was imported or run by path."""
     if __package__:
-        import importlib
         return importlib.import_module(__package__)
     here = os.path.dirname(os.path.abspath(__file__))
     parent, name = os.path.split(here)
     if parent not in sys.path:
         sys.path.insert(0, parent)
-    import importlib
     return importlib.import_module(name)
 
 
@@ -228,76 +237,99 @@ def export_model(path: str, objects) -> None:
 
 def run_one(args) -> dict:
     """Imports args.input, defragments every textured mesh, exports args.output."""
-    import bpy
     pkg = _package()
     t0 = time.perf_counter()
-    src = os.path.abspath(args.input)
-    dst = os.path.abspath(args.output)
+    src, dst = os.path.abspath(args.input), os.path.abspath(args.output)
+    objects = _import_input(src, dst)
+    t_import = time.perf_counter() - t0
+    meshes = [o for o in objects if o.type == "MESH"]
+    texture = args.texture or (_ply_texture(src) if src.lower().endswith(".ply") else None)
+    if texture:
+        _give_missing_textures(pkg, meshes, os.path.abspath(texture))
+    out_dir = os.path.dirname(dst) or "."
+    os.makedirs(out_dir, exist_ok=True)
+    tmp = tempfile.mkdtemp(prefix=".atlas_defrag_", dir=out_dir)
+    report = {"input": src, "output": dst, "objects": [], "warnings": []}
+    try:
+        _defragment_meshes(pkg, args, meshes, tmp, report)
+        t_export = time.perf_counter()
+        _export_and_move(objects, tmp, dst)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    report["seconds"] = {"import": t_import, "export": time.perf_counter() - t_export,
+                         "total": time.perf_counter() - t0}
+    report["status"] = "ok"
+    return report
+
+
+def _import_input(src: str, dst: str):
+    """The objects of src, in an empty scene; refuses what cannot be written."""
+    import bpy
     if not os.path.isfile(src):
         raise BatchError(f"input not found: {src}")
     out_ext = os.path.splitext(dst)[1].lower()
     if out_ext not in OUTPUT_EXTS:
         raise BatchError(f"unsupported output format '{out_ext}' (use {', '.join(OUTPUT_EXTS)})")
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    objects = import_model(src)
-    t_import = time.perf_counter() - t0
-    meshes = [o for o in objects if o.type == "MESH"]
-    texture = args.texture or (_ply_texture(src) if src.lower().endswith(".ply") else None)
-    if texture:
-        for o in meshes:
-            if not _has_image_texture(pkg, o) and len(o.data.uv_layers):
-                _give_texture(o, os.path.abspath(texture))
+    return import_model(src)
 
+
+def _give_missing_textures(pkg, meshes, texture: str) -> None:
+    for o in meshes:
+        if not _has_image_texture(pkg, o) and len(o.data.uv_layers):
+            _give_texture(o, texture)
+
+
+def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict) -> None:
+    """Each mesh once (linked duplicates share it); its report into report['objects']."""
+    done_meshes = set()
+    errors = []
+    shared = _shared_materials(meshes)
+    options = {o.name: getattr(args, o.name) for o in _schema().SCHEMA}
+    for o in meshes:
+        if o.data.name in done_meshes:
+            continue
+        try:
+            r = pkg.defragment(o, uv_map=args.uv_map, storage="SAVE", image_dir=image_dir,
+                               duplicate_materials=any(s.material and s.material.name in shared
+                                                       for s in o.material_slots),
+                               **options)
+        except pkg.DefragError as exc:
+            errors.append(f"{o.name}: {exc}")
+            continue
+        done_meshes.add(o.data.name)
+        if not args.keep_source_uv:
+            _drop_source_uv(o, r["source_uv_map"], r)
+        report["objects"].append(pkg.api.plain(r))
+    if not report["objects"]:
+        raise BatchError("nothing to defragment: " + "; ".join(errors or ["no mesh"]))
+    report["warnings"].extend(errors)
+
+
+def _shared_materials(meshes) -> set:
+    """Materials used by several objects: they are duplicated, so each object gets its own."""
+    users = {}
+    for o in meshes:
+        for s in o.material_slots:
+            if s.material:
+                users[s.material.name] = users.get(s.material.name, 0) + 1
+    return {name for name, count in users.items() if count > 1}
+
+
+def _export_and_move(objects, tmp: str, dst: str) -> None:
+    """Exports into tmp, then moves the files beside dst: images next to an
+    OBJ (a glTF carries them), the model file last, so that an existing OUT
+    always means a finished run."""
     out_dir = os.path.dirname(dst) or "."
-    os.makedirs(out_dir, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".atlas_defrag_", dir=out_dir)
-    report = {"input": src, "output": dst, "objects": [], "warnings": []}
-    try:
-        done_meshes = set()
-        errors = []
-        # Materials used by several objects are duplicated, so each object gets its own.
-        mat_users = {}
-        for o in meshes:
-            for s in o.material_slots:
-                if s.material:
-                    mat_users[s.material.name] = mat_users.get(s.material.name, 0) + 1
-        for o in meshes:
-            if o.data.name in done_meshes:
-                continue
-            shared = any(s.material and mat_users.get(s.material.name, 0) > 1 for s in o.material_slots)
-            try:
-                r = pkg.defragment(
-                    o, uv_map=args.uv_map, target_charts=args.target_charts, weighting=args.weighting,
-                    padding=args.padding, output_size=args.output_size, max_page_size=args.max_page_size,
-                    density_scale=args.density_scale, storage="SAVE", image_dir=tmp,
-                    duplicate_materials=shared)
-            except pkg.DefragError as exc:
-                errors.append(f"{o.name}: {exc}")
-                continue
-            done_meshes.add(o.data.name)
-            if not args.keep_source_uv:
-                _drop_source_uv(o, r["source_uv_map"], r)
-            report["objects"].append(pkg.api.plain(r))
-        if not report["objects"]:
-            raise BatchError("nothing to defragment: " + "; ".join(errors or ["no mesh"]))
-        report["warnings"].extend(errors)
-        t_export = time.perf_counter()
-        tmp_out = os.path.join(tmp, os.path.basename(dst))
-        export_model(tmp_out, objects)
-        # Images next to an OBJ; a glTF carries them. The model file moves last,
-        # so that an existing OUT always means a finished run.
-        for name in sorted(os.listdir(tmp)):
-            if name == os.path.basename(dst):
-                continue
-            if out_ext == ".obj" or name.lower().endswith(".bin"):
-                os.replace(os.path.join(tmp, name), os.path.join(out_dir, name))
-        os.replace(tmp_out, dst)
-        report["seconds"] = {"import": t_import, "export": time.perf_counter() - t_export,
-                             "total": time.perf_counter() - t0}
-        report["status"] = "ok"
-        return report
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    tmp_out = os.path.join(tmp, os.path.basename(dst))
+    export_model(tmp_out, objects)
+    is_obj = dst.lower().endswith(".obj")
+    for name in sorted(os.listdir(tmp)):
+        if name == os.path.basename(dst):
+            continue
+        if is_obj or name.lower().endswith(".bin"):
+            os.replace(os.path.join(tmp, name), os.path.join(out_dir, name))
+    os.replace(tmp_out, dst)
 
 
 def _write_report(path, report):
@@ -375,15 +407,34 @@ def main_multi(argv) -> int:
         print("atlas_defrag: error: no input models", file=sys.stderr)
         return 2
     os.makedirs(args.out_dir, exist_ok=True)
-    blender = _blender_exe(args.blender)
-    passthrough = []
-    for opt in ("target_charts", "weighting", "padding", "output_size", "max_page_size",
-                "density_scale", "uv_map", "texture"):
+    command = [_blender_exe(args.blender), "--background", "--factory-startup", "--python-exit-code", "1",
+               "--python", os.path.abspath(__file__), "--"]
+    passthrough = _passthrough(args)
+    jobs = _output_names(files, args.out_dir, args.format)
+    failed = 0
+    with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+        for f, out, status, err in pool.map(lambda job: _run_one_blender(command, passthrough, *job), jobs):
+            print(f"atlas_defrag: {status}: {f} -> {out}" + (f"\n  {err}" if err else ""),
+                  file=sys.stderr if status == "failed" else sys.stdout)
+            failed += status == "failed"
+    print(f"atlas_defrag: {len(jobs) - failed} done, {failed} failed")
+    return 1 if failed else 0
+
+
+def _passthrough(args) -> list:
+    """The single-model arguments that repeat the options given here."""
+    out = []
+    for opt in [o.name for o in _schema().SCHEMA] + ["uv_map", "texture"]:
         value = getattr(args, opt)
         if value is not None:
-            passthrough += ["--" + opt.replace("_", "-"), str(value)]
+            out += ["--" + opt.replace("_", "-"), str(value)]
     if args.keep_source_uv:
-        passthrough.append("--keep-source-uv")
+        out.append("--keep-source-uv")
+    return out
+
+
+def _output_names(files, out_dir: str, fmt: str) -> list:
+    """(input, output, report) per file; equal stems get _2, _3, ..."""
     stems = {}
     jobs = []
     for f in files:
@@ -391,29 +442,20 @@ def main_multi(argv) -> int:
         stems[stem] = stems.get(stem, 0) + 1
         if stems[stem] > 1:
             stem = f"{stem}_{stems[stem]}"
-        out = os.path.join(args.out_dir, f"{stem}.{args.format}")
-        jobs.append((f, out, os.path.join(args.out_dir, f"{stem}.report.json")))
+        jobs.append((f, os.path.join(out_dir, f"{stem}.{fmt}"), os.path.join(out_dir, f"{stem}.report.json")))
+    return jobs
 
-    def work(job):
-        f, out, rep = job
-        if os.path.exists(out):
-            return f, out, "skipped", ""
-        cmd = [blender, "--background", "--factory-startup", "--python-exit-code", "1",
-               "--python", os.path.abspath(__file__), "--", f, out, "--report", rep] + passthrough
-        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        if proc.returncode == 0:
-            return f, out, "ok", ""
-        err = [ln for ln in proc.stderr.splitlines() if "atlas_defrag: error" in ln]
-        return f, out, "failed", (err[-1] if err else proc.stderr.strip()[-500:])
 
-    failed = 0
-    with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        for f, out, status, err in pool.map(work, jobs):
-            print(f"atlas_defrag: {status}: {f} -> {out}" + (f"\n  {err}" if err else ""),
-                  file=sys.stderr if status == "failed" else sys.stdout)
-            failed += status == "failed"
-    print(f"atlas_defrag: {len(jobs) - failed} done, {failed} failed")
-    return 1 if failed else 0
+def _run_one_blender(command, passthrough, f, out, rep):
+    """(input, output, status, error line): one Blender process for one model."""
+    if os.path.exists(out):
+        return f, out, "skipped", ""
+    proc = subprocess.run(command + [f, out, "--report", rep] + passthrough,
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    if proc.returncode == 0:
+        return f, out, "ok", ""
+    err = [ln for ln in proc.stderr.splitlines() if "atlas_defrag: error" in ln]
+    return f, out, "failed", (err[-1] if err else proc.stderr.strip()[-500:])
 
 
 def main(argv=None) -> int:

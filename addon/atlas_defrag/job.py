@@ -22,6 +22,8 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from . import options as schema
+
 
 class DefragError(Exception):
     """A problem the user can act on; the message says what and where."""
@@ -99,40 +101,25 @@ class JobInput:
     images: Dict[str, ImageData]
 
 
-@dataclass
 class Options:
-    target_charts: int = 0  # 0 = automatic
-    weighting: str = "3d"  # 'uv' or '3d'
-    padding: int = 4
-    output_size: int = 0  # 0 = automatic (keeps the texel budget)
-    max_page_size: int = 8192
-    density_scale: float = 1.0
+    """The user options of options.SCHEMA as attributes, defaults from there."""
+
+    def __init__(self, **values):
+        unknown = sorted(set(values) - set(schema.BY_NAME))
+        if unknown:
+            raise TypeError("unknown option(s): " + ", ".join(unknown))
+        for o in schema.SCHEMA:
+            setattr(self, o.name, values.get(o.name, o.default))
 
     def validate(self) -> None:
-        w = str(self.weighting).lower()
-        if w not in ("uv", "3d"):
-            raise DefragError(f"weighting must be 'uv' or '3d', not {self.weighting!r}")
-        self.weighting = w
-        for name, low in (("target_charts", 0), ("padding", 0), ("output_size", 0), ("max_page_size", 16)):
-            value = getattr(self, name)
-            if int(value) != value or value < low:
-                raise DefragError(f"{name} must be an integer >= {low}, not {value!r}")
-            setattr(self, name, int(value))
-        if not (self.density_scale > 0):
-            raise DefragError(f"density_scale must be positive, not {self.density_scale!r}")
-        if self.output_size and self.output_size > self.max_page_size:
-            raise DefragError(
-                f"output_size {self.output_size} is larger than max_page_size {self.max_page_size}")
+        try:
+            self.__dict__.update(schema.validate(self.native()))
+        except ValueError as exc:
+            raise DefragError(str(exc)) from exc
 
     def native(self) -> dict:
-        return {
-            "target_charts": self.target_charts,
-            "weighting": self.weighting,
-            "padding": self.padding,
-            "output_size": self.output_size,
-            "max_page_size": self.max_page_size,
-            "density_scale": float(self.density_scale),
-        }
+        """The keyword options of _native.defragment (the same names)."""
+        return {o.name: getattr(self, o.name) for o in schema.SCHEMA}
 
 
 @dataclass
@@ -216,39 +203,29 @@ def check_input(job: JobInput) -> None:
                 raise DefragError(f"page {p} refers to unknown image {im.image!r}")
 
 
-def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
-        native=None) -> JobResult:
-    """Defragments the atlas and bakes every image map to the new layout.
+class _NativeCalls:
+    """Calls into the native module: its errors as DefragError or
+    DefragCancelled, its progress mapped onto a share of the caller's bar."""
 
-    ``native`` is the ``_native`` module (imported from this package when None).
-    Raises DefragError (bad input, with the core's message), DefragCancelled,
-    or MemoryError. Never touches anything outside the returned result.
-    """
-    if native is None:
-        from . import _native as native  # noqa: PLW0621
-    options.validate()
-    check_input(job)
-    mesh = job.mesh
-    t_start = time.perf_counter()
+    def __init__(self, native, progress: Progress, cancel):
+        self.native = native
+        self.progress = progress
+        self.cancel = cancel
 
-    n_groups = 1 + max(p.group for p in job.pages)
-    page_group = np.array([p.group for p in job.pages], dtype=np.int32)
-    face_group = np.full(len(mesh.triangles), n_groups, dtype=np.int32)  # untextured: own group
-    textured = mesh.face_page >= 0
-    face_group[textured] = page_group[mesh.face_page[textured]]
-    src_sizes = page_sizes_of(job)
+    def __call__(self, fn, *args, **kwargs):
+        try:
+            return fn(*args, cancel=self.cancel, **kwargs)
+        except self.native.Cancelled as exc:
+            raise DefragCancelled("cancelled") from exc
+        except ValueError as exc:
+            raise DefragError(str(exc)) from exc
 
-    # Share of the progress bar: layout first, then every bake call alike.
-    bake_calls = [(g, role) for g in range(n_groups)
-                  for role in _group_roles(job, g)]
-    layout_share = 0.5 if bake_calls else 1.0
-    bake_share = (1.0 - layout_share) / max(1, len(bake_calls))
-
-    def sub_progress(offset: float, share: float, stages: Sequence[str] = ()):
+    def share(self, offset: float, share: float, stages: Sequence[str] = ()):
         """Maps a call's (stage, fraction) onto [offset, offset + share]; a
         call with several stages reports each from 0 to 1, in this order."""
-        if progress is None:
+        if self.progress is None:
             return None
+        progress = self.progress
         last = [0.0]
 
         def report(stage: str, fraction: float) -> None:
@@ -261,59 +238,63 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
             progress(stage, offset + share * last[0])
         return report
 
-    def call(fn, *args, **kwargs):
-        try:
-            return fn(*args, **kwargs)
-        except native.Cancelled as exc:
-            raise DefragCancelled("cancelled") from exc
-        except ValueError as exc:
-            raise DefragError(str(exc)) from exc
 
-    res = call(
-        native.defragment,
-        np.ascontiguousarray(mesh.positions, dtype=np.float64),
-        np.ascontiguousarray(mesh.triangles, dtype=np.int32),
-        np.ascontiguousarray(mesh.uvs, dtype=np.float64),
-        np.ascontiguousarray(mesh.face_page, dtype=np.int32),
-        src_sizes,
-        face_group=face_group,
-        options=options.native(),
-        progress=sub_progress(0.0, layout_share, LAYOUT_STAGES),
-        cancel=cancel,
-    )
-    new_uvs = np.asarray(res["uvs"], dtype=np.float64)
-    new_face_page = np.asarray(res["face_page"], dtype=np.int32)
-    new_sizes = np.asarray(res["page_sizes"], dtype=np.int32).reshape(-1, 2)
-    report = dict(res.get("report", {}))
+@dataclass
+class _Layout:
+    """The new layout, and what run() knows about the job around it."""
+
+    job: JobInput
+    face_group: np.ndarray  # (F,) int32 material group; untextured faces have their own
+    src_sizes: np.ndarray  # (P, 2) int32 reference size of each source page
+    uvs: np.ndarray  # (F, 3, 2) float64, the new UVs
+    face_page: np.ndarray  # (F,) int32 new page
+    page_sizes: np.ndarray  # (Q, 2) int32
+    report: dict
+
+
+def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
+        native=None) -> JobResult:
+    """Defragments the atlas and bakes every image map to the new layout.
+
+    ``native`` is the ``_native`` module (imported from this package when None).
+    Raises DefragError (bad input, with the core's message), DefragCancelled,
+    or MemoryError. Never touches anything outside the returned result.
+    """
+    if native is None:
+        from . import _native as native  # noqa: PLW0621
+    options.validate()
+    check_input(job)
+    calls = _NativeCalls(native, progress, cancel)
+    t_start = time.perf_counter()
+    # Share of the progress bar: layout first, then every bake call alike.
+    bake_calls = [(g, role) for g in range(_group_count(job)) for role in _group_roles(job, g)]
+    layout_share = 0.5 if bake_calls else 1.0
+    bake_share = (1.0 - layout_share) / max(1, len(bake_calls))
+
+    layout = _new_layout(job, options, calls, calls.share(0.0, layout_share, LAYOUT_STAGES))
+    page_group = _new_page_groups(layout)
     t_layout = time.perf_counter()
-
-    # Group of every new page (the core never mixes groups on a page).
-    new_group = np.full(len(new_sizes), -1, dtype=np.int32)
-    tex_new = new_face_page >= 0
-    new_group[new_face_page[tex_new]] = face_group[tex_new]
-    bad = tex_new & (new_group[np.maximum(new_face_page, 0)] != face_group)
-    if np.any(bad) or np.any(tex_new != textured):
-        raise DefragError("internal error: the new layout mixes material groups or texture state")
-
     images: List[OutputImage] = []
     for i, (g, role) in enumerate(bake_calls):
-        images.extend(_bake_group_role(
-            job, g, role, face_group, src_sizes, new_uvs, new_face_page, new_sizes, options,
-            sub_progress(layout_share + i * bake_share, bake_share), cancel, call, native))
+        images.extend(_bake_group_role(layout, g, role, options.padding, calls,
+                                       calls.share(layout_share + i * bake_share, bake_share)))
     t_end = time.perf_counter()
 
+    report = layout.report
     seconds = dict(report.get("seconds", {}) or {})
     seconds.setdefault("layout", t_layout - t_start)
     seconds["bake"] = t_end - t_layout
     seconds["total"] = t_end - t_start
-    report["seconds"] = seconds
-    report["pages_before"] = int(len(job.pages))
-    report["pages_after"] = int(len(new_sizes))
-    report["images_written"] = len(images)
+    report.update(seconds=seconds, pages_before=int(len(job.pages)),
+                  pages_after=int(len(layout.page_sizes)), images_written=len(images))
     if progress is not None:
         progress("done", 1.0)
-    return JobResult(uvs=new_uvs, face_page=new_face_page, page_sizes=new_sizes,
-                     page_group=new_group, images=images, report=report)
+    return JobResult(uvs=layout.uvs, face_page=layout.face_page, page_sizes=layout.page_sizes,
+                     page_group=page_group, images=images, report=report)
+
+
+def _group_count(job: JobInput) -> int:
+    return 1 + max(p.group for p in job.pages)
 
 
 def _group_roles(job: JobInput, group: int) -> Tuple[str, ...]:
@@ -323,58 +304,93 @@ def _group_roles(job: JobInput, group: int) -> Tuple[str, ...]:
     return ()
 
 
-def _bake_group_role(job, group, role, face_group, src_sizes, new_uvs, new_face_page, new_sizes,
-                     options, progress, cancel, call, native) -> List[OutputImage]:
+def _new_layout(job: JobInput, options: Options, calls: _NativeCalls, progress) -> _Layout:
+    """_native.defragment on the job, faces kept apart by material group."""
     mesh = job.mesh
-    faces = np.nonzero(face_group == group)[0]
+    page_group = np.array([p.group for p in job.pages], dtype=np.int32)
+    face_group = np.full(len(mesh.triangles), _group_count(job), dtype=np.int32)
+    textured = mesh.face_page >= 0
+    face_group[textured] = page_group[mesh.face_page[textured]]
+    src_sizes = page_sizes_of(job)
+    res = calls(
+        calls.native.defragment,
+        np.ascontiguousarray(mesh.positions, dtype=np.float64),
+        np.ascontiguousarray(mesh.triangles, dtype=np.int32),
+        np.ascontiguousarray(mesh.uvs, dtype=np.float64),
+        np.ascontiguousarray(mesh.face_page, dtype=np.int32),
+        src_sizes,
+        face_group=face_group,
+        options=options.native(),
+        progress=progress,
+    )
+    return _Layout(job=job, face_group=face_group, src_sizes=src_sizes,
+                   uvs=np.asarray(res["uvs"], dtype=np.float64),
+                   face_page=np.asarray(res["face_page"], dtype=np.int32),
+                   page_sizes=np.asarray(res["page_sizes"], dtype=np.int32).reshape(-1, 2),
+                   report=dict(res.get("report", {})))
+
+
+def _new_page_groups(layout: _Layout) -> np.ndarray:
+    """(Q,) group of every new page; raises if the core mixed groups on a page."""
+    new_group = np.full(len(layout.page_sizes), -1, dtype=np.int32)
+    tex_new = layout.face_page >= 0
+    new_group[layout.face_page[tex_new]] = layout.face_group[tex_new]
+    bad = tex_new & (new_group[np.maximum(layout.face_page, 0)] != layout.face_group)
+    if np.any(bad) or np.any(tex_new != (layout.job.mesh.face_page >= 0)):
+        raise DefragError("internal error: the new layout mixes material groups or texture state")
+    return new_group
+
+
+def _bake_group_role(layout: _Layout, group: int, role: str, padding: int, calls: _NativeCalls,
+                     progress) -> List[OutputImage]:
+    """_native.bake of one role of one material group onto its new pages."""
+    job, mesh = layout.job, layout.job.mesh
+    faces = np.nonzero(layout.face_group == group)[0]
     if not len(faces):
         return []
     old_pages = np.unique(mesh.face_page[faces])
-    new_pages = np.unique(new_face_page[faces])
-    old_local = np.full(len(job.pages), -1, dtype=np.int32)
-    old_local[old_pages] = np.arange(len(old_pages), dtype=np.int32)
-    new_local = np.full(len(new_sizes), -1, dtype=np.int32)
-    new_local[new_pages] = np.arange(len(new_pages), dtype=np.int32)
-
+    new_pages = np.unique(layout.face_page[faces])
     maps = [job.pages[p].map_for(role) for p in old_pages]
     sources = [job.images[m.image] for m in maps]
-    normal_map = any(m.normal_map for m in maps)
     channels = max(s.pixels.shape[2] for s in sources)
     dtype = np.float32 if any(s.pixels.dtype != np.uint8 for s in sources) else np.uint8
     pixels = [_as_bake_pixels(s.pixels.astype(dtype, copy=False), channels) for s in sources]
-
-    # Output resolution: the new page scaled like the largest source of this
-    # role relative to its page's reference size.
-    ratio = np.ones(2)
-    ratio_set = False
-    for p, s in zip(old_pages, sources):
-        r = np.array(s.size, dtype=np.float64) / np.maximum(src_sizes[p], 1)
-        ratio = r if not ratio_set else np.maximum(ratio, r)
-        ratio_set = True
-    out_sizes = np.maximum(1, np.rint(new_sizes[new_pages] * ratio[None, :])).astype(np.int32)
-
-    baked = call(
-        native.bake,
+    baked = calls(
+        calls.native.bake,
         np.ascontiguousarray(mesh.uvs[faces], dtype=np.float64),
-        old_local[mesh.face_page[faces]],
+        _local_index(old_pages, len(job.pages))[mesh.face_page[faces]],
         pixels,
-        np.ascontiguousarray(new_uvs[faces], dtype=np.float64),
-        new_local[new_face_page[faces]],
-        out_sizes,
-        normal_map=normal_map,
-        padding=options.padding,
+        np.ascontiguousarray(layout.uvs[faces], dtype=np.float64),
+        _local_index(new_pages, len(layout.page_sizes))[layout.face_page[faces]],
+        _output_sizes(layout, old_pages, new_pages, sources),
+        normal_map=any(m.normal_map for m in maps),
+        padding=padding,
         progress=progress,
-        cancel=cancel,
     )
     del pixels
     # The first source of the role names the output and gives its format.
     first = sources[0]
-    out = []
-    for q_local, arr in enumerate(baked):
-        out.append(OutputImage(page=int(new_pages[q_local]), role=role, source=maps[0].image,
-                               pixels=np.asarray(arr), colorspace=first.colorspace,
-                               is_float=first.is_float, alpha_mode=first.alpha_mode))
-    return out
+    return [OutputImage(page=int(new_pages[q_local]), role=role, source=maps[0].image,
+                        pixels=np.asarray(arr), colorspace=first.colorspace,
+                        is_float=first.is_float, alpha_mode=first.alpha_mode)
+            for q_local, arr in enumerate(baked)]
+
+
+def _local_index(pages: np.ndarray, count: int) -> np.ndarray:
+    """(count,) int32: the position of each page in pages, -1 if absent."""
+    local = np.full(count, -1, dtype=np.int32)
+    local[pages] = np.arange(len(pages), dtype=np.int32)
+    return local
+
+
+def _output_sizes(layout: _Layout, old_pages, new_pages, sources) -> np.ndarray:
+    """(len(new_pages), 2) int32: the new pages scaled like the largest source
+    of this role relative to its page's reference size."""
+    ratio = np.ones(2)
+    for k, (p, s) in enumerate(zip(old_pages, sources)):
+        r = np.array(s.size, dtype=np.float64) / np.maximum(layout.src_sizes[p], 1)
+        ratio = r if k == 0 else np.maximum(ratio, r)
+    return np.maximum(1, np.rint(layout.page_sizes[new_pages] * ratio[None, :])).astype(np.int32)
 
 
 def loop_uvs(tri_loops: np.ndarray, uvs: np.ndarray, n_loops: int,

@@ -5,10 +5,11 @@ import threading
 import time
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from . import api, compat, job
 from .job import DefragCancelled, DefragError
+from .options import SCHEMA
 
 # Events that may pass through while the worker runs (view navigation only).
 _NAVIGATION = {
@@ -59,7 +60,41 @@ def _native_token():
     return _native.CancelToken()
 
 
-class UV_OT_defragment_atlas(bpy.types.Operator):
+def _option_property(option):
+    """The property of one option; with an Automatic toggle, its manual value."""
+    common = {"name": option.label, "description": option.help}
+    if option.choices:
+        return EnumProperty(items=[(c.value.upper(), c.label, c.help) for c in option.choices],
+                            default=option.default.upper(), **common)
+    if option.low is not None:
+        common["min"] = option.low
+    if option.high is not None:
+        common["max"] = option.high
+    if option.unit == "texels":
+        common["subtype"] = "PIXEL"
+    make = IntProperty if option.kind is int else FloatProperty
+    return make(default=option.manual_default if option.automatic else option.default, **common)
+
+
+def _automatic_name(option) -> str:
+    return "automatic_" + option.name
+
+
+def _option_properties() -> dict:
+    props = {}
+    for o in SCHEMA:
+        if o.automatic:
+            props[_automatic_name(o)] = BoolProperty(name="Automatic", default=True,
+                                                     description=f"Automatic: {o.automatic}")
+        props[o.name] = _option_property(o)
+    return props
+
+
+# The options' properties as a mixin: bpy collects the annotations of base classes too.
+_OptionProperties = type("_OptionProperties", (), {"__annotations__": _option_properties()})
+
+
+class UV_OT_defragment_atlas(_OptionProperties, bpy.types.Operator):
     """Merge the UV charts of the active mesh into fewer, larger ones and bake
     new textures for them (the old UV map and images are kept)"""
 
@@ -69,22 +104,6 @@ class UV_OT_defragment_atlas(bpy.types.Operator):
 
     uv_map: StringProperty(name="UV Map", description="UV map to defragment (empty: the active one)",
                            options={"SKIP_SAVE"})
-    automatic_charts: BoolProperty(name="Automatic Chart Count", default=True,
-                                   description="Let the solver choose how many charts to keep")
-    target_charts: IntProperty(name="Target Charts", default=50, min=1, soft_max=10000,
-                               description="Number of charts to aim for")
-    weighting: EnumProperty(
-        name="Weighting", default="3D",
-        items=(("UV", "UV", "Merge by seam length measured in the texture"),
-               ("3D", "3D", "Merge by seam length measured on the surface")))
-    padding: IntProperty(name="Padding", default=4, min=0, max=64, subtype="PIXEL",
-                         description="Empty texels kept around every chart")
-    automatic_size: BoolProperty(name="Automatic Size", default=True,
-                                 description="Keep the texel density and budget of the source images")
-    output_size: IntProperty(name="Output Size", default=4096, min=64, max=16384, subtype="PIXEL",
-                             description="Side of the square output pages")
-    max_page_size: IntProperty(name="Maximum Page Size", default=8192, min=256, max=16384,
-                               subtype="PIXEL", description="Largest output page side")
     storage: EnumProperty(
         name="Images", default="PACK",
         items=(("PACK", "Pack in .blend", "Pack the new images into the .blend file"),
@@ -99,14 +118,17 @@ class UV_OT_defragment_atlas(bpy.types.Operator):
         # Permissive on purpose: execute() explains what is missing.
         return context.scene is not None
 
+    def _option_value(self, option):
+        if option.automatic and getattr(self, _automatic_name(option)):
+            return 0
+        value = getattr(self, option.name)
+        return value.lower() if option.choices else value
+
     def _settings(self) -> api.Settings:
         return api.Settings.from_kwargs(
-            uv_map=self.uv_map or None,
-            target_charts=0 if self.automatic_charts else self.target_charts,
-            weighting=self.weighting.lower(), padding=self.padding,
-            output_size=0 if self.automatic_size else self.output_size,
-            max_page_size=self.max_page_size, storage=self.storage,
-            duplicate_materials=self.duplicate_materials)
+            uv_map=self.uv_map or None, storage=self.storage,
+            duplicate_materials=self.duplicate_materials,
+            **{o.name: self._option_value(o) for o in SCHEMA})
 
     def invoke(self, context, event):
         obj = context.active_object
@@ -126,21 +148,20 @@ class UV_OT_defragment_atlas(bpy.types.Operator):
         obj = context.active_object
         if obj is not None and obj.type == "MESH":
             layout.prop_search(self, "uv_map", obj.data, "uv_layers")
-        col = layout.column(heading="Charts")
-        col.prop(self, "automatic_charts", text="Automatic")
-        sub = col.column()
-        sub.enabled = not self.automatic_charts
-        sub.prop(self, "target_charts")
-        layout.prop(self, "weighting", expand=True)
-        layout.prop(self, "padding")
-        col = layout.column(heading="Output Size")
-        col.prop(self, "automatic_size", text="Automatic")
-        sub = col.column()
-        sub.enabled = not self.automatic_size
-        sub.prop(self, "output_size", text="Size")
-        layout.prop(self, "max_page_size")
+        for option in SCHEMA:
+            self._draw_option(layout, option)
         layout.prop(self, "storage")
         layout.prop(self, "duplicate_materials")
+
+    def _draw_option(self, layout, option):
+        if not option.automatic:
+            layout.prop(self, option.name, expand=bool(option.choices))
+            return
+        col = layout.column(heading=option.label)
+        col.prop(self, _automatic_name(option), text="Automatic")
+        sub = col.column()
+        sub.enabled = not getattr(self, _automatic_name(option))
+        sub.prop(self, option.name)
 
     # -- synchronous path (background, scripts, redo) ------------------------
     def execute(self, context):

@@ -311,40 +311,73 @@ def read(obj, uv_map: Optional[str] = None) -> ReadResult:
         bpy.data.meshes.remove(copy)
 
 
+@dataclass
+class _Geometry:
+    """The loop triangles of a mesh and their UVs on the source map."""
+
+    positions: np.ndarray  # (V, 3) float64
+    triangles: np.ndarray  # (F, 3) int32 vertex per corner
+    tri_loops: np.ndarray  # (F, 3) int32 loop per corner
+    tri_polygons: np.ndarray  # (F,) int32
+    tri_material: np.ndarray  # (F,) int32 material index
+    uvs: np.ndarray  # (F, 3, 2) float64
+    n_loops: int
+
+
 def _read(obj, me, uv_name: str) -> ReadResult:
-    layer = me.uv_layers[uv_name]
     render_uv = _render_uv_name(me)
     active_uv = me.uv_layers.active.name if me.uv_layers.active else uv_name
     warnings: List[str] = []
+    geo = _read_geometry(obj, me, me.uv_layers[uv_name])
+    materials = _analyse_slots(obj, uv_name, render_uv, warnings)
+    n_slots = len(obj.material_slots)
+    pages = _source_pages(materials, _used_slots(geo.tri_material, n_slots))
+    slot_of_face, face_page = _face_pages(materials, geo.tri_material, n_slots)
+    if not pages or not np.any(face_page >= 0):
+        why = ("; " + "; ".join(warnings)) if warnings else ""
+        raise DefragError(
+            f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "
+            f"its Principled BSDF through UV map '{uv_name}'{why}")
+    job = JobInput(
+        mesh=MeshData(positions=geo.positions, triangles=geo.triangles, uvs=geo.uvs,
+                      face_page=face_page.astype(np.int32)),
+        pages=pages, images=_read_images(pages))
+    return ReadResult(
+        job=job, object_name=obj.name, mesh_name=obj.data.name, uv_map=uv_name, active_uv=active_uv,
+        render_uv=render_uv, n_loops=geo.n_loops, tri_loops=geo.tri_loops,
+        tri_polygons=geo.tri_polygons, slot_of_face=slot_of_face.astype(np.int32),
+        materials=list(materials.values()), signature=mesh_signature(obj, me), warnings=warnings)
 
-    # Geometry.
+
+def _read_geometry(obj, me, layer) -> _Geometry:
     compat.calc_loop_triangles(me)
     n_tris = len(me.loop_triangles)
     if n_tris == 0:
         raise DefragError(f"Mesh '{obj.data.name}' has no faces")
     positions = np.empty(len(me.vertices) * 3, dtype=np.float32)
     me.vertices.foreach_get("co", positions)
-    tri_verts = np.empty(n_tris * 3, dtype=np.int32)
-    me.loop_triangles.foreach_get("vertices", tri_verts)
-    tri_loops = np.empty(n_tris * 3, dtype=np.int32)
-    me.loop_triangles.foreach_get("loops", tri_loops)
-    tri_polys = np.empty(n_tris, dtype=np.int32)
-    me.loop_triangles.foreach_get("polygon_index", tri_polys)
-    tri_mat = np.empty(n_tris, dtype=np.int32)
-    me.loop_triangles.foreach_get("material_index", tri_mat)
+    tri = {}
+    for attr in ("vertices", "loops"):
+        tri[attr] = np.empty(n_tris * 3, dtype=np.int32)
+        me.loop_triangles.foreach_get(attr, tri[attr])
+    for attr in ("polygon_index", "material_index"):
+        tri[attr] = np.empty(n_tris, dtype=np.int32)
+        me.loop_triangles.foreach_get(attr, tri[attr])
     n_loops = len(me.loops)
     loop_uv = np.empty(n_loops * 2, dtype=np.float32)
     layer.data.foreach_get("uv", loop_uv)
-    tri_loops = tri_loops.reshape(n_tris, 3)
-    uvs = loop_uv.reshape(n_loops, 2)[tri_loops].astype(np.float64)
+    tri_loops = tri["loops"].reshape(n_tris, 3)
+    return _Geometry(positions=positions.reshape(-1, 3).astype(np.float64),
+                     triangles=tri["vertices"].reshape(n_tris, 3), tri_loops=tri_loops,
+                     tri_polygons=tri["polygon_index"], tri_material=tri["material_index"],
+                     uvs=loop_uv.reshape(n_loops, 2)[tri_loops].astype(np.float64), n_loops=n_loops)
 
-    # Materials -> pages and groups.
-    n_slots = len(obj.material_slots)
+
+def _analyse_slots(obj, uv_name: str, render_uv: str, warnings: List[str]) -> Dict[str, MaterialInfo]:
+    """Every material in obj's slots, analysed once, with the slots holding it."""
     materials: Dict[str, MaterialInfo] = {}
-    slot_material: List[Optional[str]] = []
     for i, slot in enumerate(obj.material_slots):
         mat = slot.material
-        slot_material.append(mat.name if mat else None)
         if mat is None:
             continue
         if mat.name in materials:
@@ -353,64 +386,76 @@ def _read(obj, me, uv_name: str) -> ReadResult:
         maps, pins, pin_uv, pin_n = analyse_material(mat, uv_name, render_uv, warnings)
         materials[mat.name] = MaterialInfo(name=mat.name, slots=[i], maps=maps, pin_images=pins,
                                            pin_uv_nodes=pin_uv, pin_normal_nodes=pin_n)
+    return materials
 
+
+def _used_slots(tri_material: np.ndarray, n_slots: int) -> set:
+    """Slots that faces actually use (out-of-range indices use the last slot)."""
+    if not n_slots:
+        return set()
+    return set(np.unique(np.clip(tri_material, 0, n_slots - 1)).tolist())
+
+
+def _source_pages(materials: Dict[str, MaterialInfo], used_slots: set) -> List[SourcePage]:
+    """One page per distinct set of image maps; sets info.page. Pages whose
+    roles, colour spaces and buffer types agree form one group."""
     import bpy  # only for bpy.data.images lookups
 
-    images: Dict[str, ImageData] = {}
     pages: List[SourcePage] = []
     page_index: Dict[tuple, int] = {}
     group_index: Dict[tuple, int] = {}
-    # Only materials that faces actually use count.
-    if n_slots:
-        used_slots = set(np.unique(np.clip(tri_mat, 0, n_slots - 1)).tolist())
-    else:
-        used_slots = set()
     for info in materials.values():
         if not info.maps or not used_slots.intersection(info.slots):
             continue
-        # One image per role: a second, different image in the same role (e.g.
-        # two base colours mixed) becomes a role of its own.
-        role_image: Dict[str, str] = {}
-        for nm in info.maps:
-            role, k = nm.role, 1
-            while role in role_image and role_image[role] != nm.image:
-                k += 1
-                role = f"{nm.role}#{k}"
-            nm.role = role
-            role_image[role] = nm.image
-        by_role = {nm.role: nm for nm in info.maps}
-        page_key = tuple(sorted(((nm.role, nm.image, bool(nm.normal_nodes)) for nm in by_role.values()),
-                                key=lambda t: role_sort_key(t[0])))
+        page_key = _page_key(info)
         if page_key not in page_index:
-            gkey = []
-            for role, image_name, _ in page_key:
-                img = bpy.data.images[image_name]
-                gkey.append((role, img.colorspace_settings.name, bool(img.is_float)))
-            gkey = tuple(gkey)
-            if gkey not in group_index:
-                group_index[gkey] = len(group_index)
+            gkey = tuple((role, bpy.data.images[image_name].colorspace_settings.name,
+                          bool(bpy.data.images[image_name].is_float))
+                         for role, image_name, _ in page_key)
+            group_index.setdefault(gkey, len(group_index))
             page_index[page_key] = len(pages)
             pages.append(SourcePage(
                 maps=[ImageMap(role=r, image=n, normal_map=t) for r, n, t in page_key],
                 group=group_index[gkey]))
         info.page = page_index[page_key]
+    return pages
 
-    slot_page = np.full(max(n_slots, 1), -1, dtype=np.int32)
+
+def _page_key(info: MaterialInfo) -> tuple:
+    """(role, image, normal map) of each map, in role order. One image per
+    role: a second, different image in the same role (e.g. two base colours
+    mixed) becomes a role of its own ('base_color#2'); renames nm.role."""
+    role_image: Dict[str, str] = {}
+    for nm in info.maps:
+        role, k = nm.role, 1
+        while role in role_image and role_image[role] != nm.image:
+            k += 1
+            role = f"{nm.role}#{k}"
+        nm.role = role
+        role_image[role] = nm.image
+    by_role = {nm.role: nm for nm in info.maps}
+    return tuple(sorted(((nm.role, nm.image, bool(nm.normal_nodes)) for nm in by_role.values()),
+                        key=lambda t: role_sort_key(t[0])))
+
+
+def _face_pages(materials: Dict[str, MaterialInfo], tri_material: np.ndarray, n_slots: int):
+    """(slot of each face, source page of each face), -1 where there is none."""
+    n_tris = len(tri_material)
+    if not n_slots:
+        none = np.full(n_tris, -1, dtype=np.int32)
+        return none, none.copy()
+    slot_page = np.full(n_slots, -1, dtype=np.int32)
     for info in materials.values():
         for s in info.slots:
             slot_page[s] = info.page
-    if n_slots:
-        slot_of_face = np.clip(tri_mat, 0, n_slots - 1)
-        face_page = slot_page[slot_of_face]
-    else:
-        slot_of_face = np.full(n_tris, -1, dtype=np.int32)
-        face_page = np.full(n_tris, -1, dtype=np.int32)
-    if not pages or not np.any(face_page >= 0):
-        why = ("; " + "; ".join(warnings)) if warnings else ""
-        raise DefragError(
-            f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "
-            f"its Principled BSDF through UV map '{uv_name}'{why}")
+    slot_of_face = np.clip(tri_material, 0, n_slots - 1)
+    return slot_of_face, slot_page[slot_of_face]
 
+
+def _read_images(pages: List[SourcePage]) -> Dict[str, ImageData]:
+    import bpy
+
+    images: Dict[str, ImageData] = {}
     for page in pages:
         for m in page.maps:
             if m.image in images:
@@ -419,14 +464,4 @@ def _read(obj, me, uv_name: str) -> ReadResult:
             images[m.image] = ImageData(
                 name=img.name, pixels=read_pixels(img), colorspace=img.colorspace_settings.name,
                 is_float=bool(img.is_float), alpha_mode=img.alpha_mode)
-
-    job = JobInput(
-        mesh=MeshData(positions=positions.reshape(-1, 3).astype(np.float64),
-                      triangles=tri_verts.reshape(n_tris, 3), uvs=uvs,
-                      face_page=face_page.astype(np.int32)),
-        pages=pages, images=images)
-    return ReadResult(
-        job=job, object_name=obj.name, mesh_name=obj.data.name, uv_map=uv_name, active_uv=active_uv,
-        render_uv=render_uv, n_loops=n_loops, tri_loops=tri_loops, tri_polygons=tri_polys,
-        slot_of_face=slot_of_face.astype(np.int32), materials=list(materials.values()),
-        signature=mesh_signature(obj, me), warnings=warnings)
+    return images

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import re
+from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Tuple
 
 import bpy
@@ -238,21 +239,40 @@ def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
         raise
 
 
-def _write(obj, read, result, storage, image_dir, duplicate_materials, journal) -> dict:
-    me = obj.data
-    warnings: List[str] = []
-    n_tris = len(read.tri_loops)
-    if result.uvs.shape != (n_tris, 3, 2) or result.face_page.shape != (n_tris,):
-        raise DefragError("internal error: the result does not match the mesh")
+@dataclass
+class _Target:
+    """What every step of one write shares."""
 
-    # 1. Images, one per (new page, role).
+    obj: object
+    read: ReadResult
+    result: JobResult
+    journal: _Journal
+    warnings: List[str] = field(default_factory=list)
+
+
+def _write(obj, read, result, storage, image_dir, duplicate_materials, journal) -> dict:
+    if result.uvs.shape != (len(read.tri_loops), 3, 2) or result.face_page.shape != (len(read.tri_loops),):
+        raise DefragError("internal error: the result does not match the mesh")
+    target = _Target(obj, read, result, journal)
+    page_role_image, created_images = _write_images(target, storage, image_dir)
+    new_uv = _write_uv_map(target)
+    created_materials, rewired = _rewire_materials(target, new_uv, page_role_image, duplicate_materials)
+    obj.data.update()
+    return {"uv_map": new_uv, "images": created_images, "materials": created_materials,
+            "rewired_materials": rewired, "warnings": target.warnings}
+
+
+def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
+    """One image per (new page, role): ({(page, role): image}, names created).
+    8-bit images saved to files are encoded together (png_files)."""
+    result, journal = target.result, target.journal
     group_pages: Dict[int, List[int]] = {}
     for q, g in enumerate(result.page_group.tolist()):
         group_pages.setdefault(g, []).append(q)
     taken: set = set()
     page_role_image: Dict[Tuple[int, str], object] = {}
-    created_images = []
-    png_files_due = []  # (out, name, path): 8-bit images saved to files, encoded together
+    created_images: List[str] = []
+    png_files_due = []  # (out, name, path)
 
     def created(out, img):
         img_name = img.name
@@ -274,15 +294,19 @@ def _write(obj, read, result, storage, image_dir, duplicate_materials, journal) 
     png_files.write_pngs((path, _rgba(out.pixels)) for out, _, path in png_files_due)
     for out, name, path in png_files_due:
         created(out, _load_saved_png(out, name, path))
+    return page_role_image, created_images
 
-    # 2. The UV map.
+
+def _write_uv_map(target: _Target) -> str:
+    """The new UV map, made active and render-active; returns its name."""
+    me, read = target.obj.data, target.read
     old_uv = me.uv_layers[read.uv_map]
     fallback = np.empty(read.n_loops * 2, dtype=np.float32)
     old_uv.data.foreach_get("uv", fallback)
-    per_loop, conflicts = loop_uvs(read.tri_loops, result.uvs, read.n_loops, fallback)
+    per_loop, conflicts = loop_uvs(read.tri_loops, target.result.uvs, read.n_loops, fallback)
     if conflicts:
-        warnings.append(f"{conflicts} polygon corners were split between charts: "
-                        "their polygons keep one of the UVs (triangulate n-gons first to avoid this)")
+        target.warnings.append(f"{conflicts} polygon corners were split between charts: "
+                               "their polygons keep one of the UVs (triangulate n-gons first to avoid this)")
     active_name = me.uv_layers.active.name if me.uv_layers.active else None
     render_name = read.render_uv
     layer = me.uv_layers.new(name=read.uv_map + SUFFIX, do_init=False)
@@ -298,19 +322,21 @@ def _write(obj, read, result, storage, image_dir, duplicate_materials, journal) 
             m.uv_layers.active = m.uv_layers[active_name]
         if render_name in m.uv_layers:
             m.uv_layers[render_name].active_render = True
-    journal.add(undo_uv)
+    target.journal.add(undo_uv)
     layer = me.uv_layers[new_uv]  # adding a layer may move the others
     layer.data.foreach_set("uv", per_loop.astype(np.float32).reshape(-1))
     me.uv_layers.active = layer
     layer.active_render = True
+    return new_uv
 
-    # 3. Materials: one material per (source material, new page).
-    tri_slot = read.slot_of_face
-    poly_count = len(me.polygons)
-    first_tri = np.full(poly_count, -1, dtype=np.int64)
-    first_tri[read.tri_polygons[::-1]] = np.arange(n_tris - 1, -1, -1)
-    poly_page = np.where(first_tri >= 0, result.face_page[np.maximum(first_tri, 0)], -1)
-    old_mat_index = np.empty(poly_count, dtype=np.int32)
+
+def _rewire_materials(target: _Target, new_uv: str, page_role_image, duplicate_materials: bool):
+    """One material per (source material, new page): the page with most faces
+    keeps the slot, the others get new slots. Returns (created, rewired) names."""
+    obj, read, result, journal = target.obj, target.read, target.result, target.journal
+    me = obj.data
+    poly_page = _polygon_pages(me, read, result)
+    old_mat_index = np.empty(len(me.polygons), dtype=np.int32)
     me.polygons.foreach_get("material_index", old_mat_index)
     new_mat_index = old_mat_index.copy()
     clipped_index = np.clip(old_mat_index, 0, max(0, len(obj.material_slots) - 1))
@@ -318,30 +344,13 @@ def _write(obj, read, result, storage, image_dir, duplicate_materials, journal) 
     rewired: List[str] = []
     shared_with_others: List[str] = []
     for info in read.materials:
-        if info.page < 0:
-            continue
-        faces = np.isin(tri_slot, info.slots)
-        pages = [int(q) for q in np.unique(result.face_page[faces]) if q >= 0]
+        pages = _pages_by_use(info, read, result)
         if not pages:
             continue
-        # The page with most faces keeps the slot; others get new slots.
-        counts = [int(np.count_nonzero(result.face_page[faces] == q)) for q in pages]
-        pages = [q for _, q in sorted(zip(counts, pages), key=lambda t: -t[0])]
         base = bpy.data.materials[info.name]
         if not duplicate_materials and base.users > len(info.slots):
             shared_with_others.append(base.name)
-        mats = []
-        for k, q in enumerate(pages):  # copies first, from the untouched material
-            if k == 0 and not duplicate_materials:
-                mats.append(base)
-                continue
-            mat = base.copy()
-            mat.name = base.name + SUFFIX + ("" if k == 0 else f"_{k + 1}")
-            mname = mat.name
-            journal.add(lambda n=mname: bpy.data.materials.remove(bpy.data.materials[n])
-                        if n in bpy.data.materials else None)
-            created_materials.append(mat.name)
-            mats.append(mat)
+        mats = _materials_for(base, len(pages), duplicate_materials, journal, created_materials)
         for k, (q, mat) in enumerate(zip(pages, mats)):
             images = {nm.role: page_role_image[(q, nm.role)] for nm in info.maps}
             _rewire_material(mat, info, new_uv, images, read, journal)
@@ -353,16 +362,49 @@ def _write(obj, read, result, storage, image_dir, duplicate_materials, journal) 
             else:
                 me.materials.append(mat)
                 journal.add(lambda m=me: m.materials.pop(index=len(m.materials) - 1))
-                slot = len(me.materials) - 1
                 polys = np.isin(clipped_index, info.slots) & (poly_page == q)
-                new_mat_index[polys] = slot
+                new_mat_index[polys] = len(me.materials) - 1
     if not np.array_equal(new_mat_index, old_mat_index):
         me.polygons.foreach_set("material_index", new_mat_index)
         journal.add(lambda m=me, a=old_mat_index: m.polygons.foreach_set("material_index", a))
     if shared_with_others:
-        warnings.append("Material(s) also used by other objects were rewired: "
-                        + ", ".join(sorted(set(shared_with_others)))
-                        + " (use the duplicate-materials option to keep them)")
-    me.update()
-    return {"uv_map": new_uv, "images": created_images, "materials": created_materials,
-            "rewired_materials": rewired, "warnings": warnings}
+        target.warnings.append("Material(s) also used by other objects were rewired: "
+                               + ", ".join(sorted(set(shared_with_others)))
+                               + " (use the duplicate-materials option to keep them)")
+    return created_materials, rewired
+
+
+def _polygon_pages(me, read: ReadResult, result: JobResult) -> np.ndarray:
+    """(polygons,) the new page of each polygon's first triangle, -1 if none."""
+    n_tris = len(read.tri_loops)
+    first_tri = np.full(len(me.polygons), -1, dtype=np.int64)
+    first_tri[read.tri_polygons[::-1]] = np.arange(n_tris - 1, -1, -1)
+    return np.where(first_tri >= 0, result.face_page[np.maximum(first_tri, 0)], -1)
+
+
+def _pages_by_use(info, read: ReadResult, result: JobResult) -> List[int]:
+    """The new pages of a material's faces, the most used first."""
+    if info.page < 0:
+        return []
+    faces = np.isin(read.slot_of_face, info.slots)
+    pages = [int(q) for q in np.unique(result.face_page[faces]) if q >= 0]
+    counts = [int(np.count_nonzero(result.face_page[faces] == q)) for q in pages]
+    return [q for _, q in sorted(zip(counts, pages), key=lambda t: -t[0])]
+
+
+def _materials_for(base, count: int, duplicate: bool, journal: _Journal, created: List[str]):
+    """count materials: base itself first unless duplicating, then copies of
+    it (made before any is rewired, from the untouched material)."""
+    mats = []
+    for k in range(count):
+        if k == 0 and not duplicate:
+            mats.append(base)
+            continue
+        mat = base.copy()
+        mat.name = base.name + SUFFIX + ("" if k == 0 else f"_{k + 1}")
+        mname = mat.name
+        journal.add(lambda n=mname: bpy.data.materials.remove(bpy.data.materials[n])
+                    if n in bpy.data.materials else None)
+        created.append(mat.name)
+        mats.append(mat)
+    return mats

@@ -16,6 +16,8 @@ import traceback
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
+from blhelp import MissingModel  # noqa: E402
+
 
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
@@ -44,6 +46,8 @@ def main():
         import bl_scenarios as scenarios
         res["value"] = scenarios.SCENARIOS[args.scenario](pkg)
         res["ok"] = True
+    except MissingModel as exc:
+        res["skipped"] = str(exc)
     except BaseException:
         res["ok"] = False
         res["error"] = traceback.format_exc()

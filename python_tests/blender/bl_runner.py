@@ -30,12 +30,15 @@ def main():
     if not hasattr(bpy.types, "UV_OT_defragment_atlas"):
         atlas_defrag.register()
     import bl_scenarios as scenarios
+    from blhelp import MissingModel
     results = {"blender": bpy.app.version_string, "package": atlas_defrag.__file__, "results": {}}
     for name in args.scenarios:
         t = time.perf_counter()
         try:
             value = scenarios.SCENARIOS[name](atlas_defrag)
             results["results"][name] = {"ok": True, "value": value}
+        except MissingModel as exc:
+            results["results"][name] = {"ok": False, "skipped": str(exc)}
         except BaseException:
             results["results"][name] = {"ok": False, "error": traceback.format_exc()}
         results["results"][name]["seconds"] = time.perf_counter() - t

@@ -34,8 +34,22 @@ MODELS = {
 ASSIMP = Path("/usr/share/assimp/models")
 
 
+try:  # under pytest a missing scan skips the test; inside Blender, bl_runner reports the skip
+    from pytest import skip as _skip
+    _SkipBase = _skip.Exception
+except ImportError:
+    _SkipBase = Exception
+
+
+class MissingModel(_SkipBase):
+    """A shared scan is not there."""
+
+
 def model_path(key: str) -> str:
-    return str(models_dir() / MODELS[key])
+    path = models_dir() / MODELS[key]
+    if not path.is_file():
+        raise MissingModel(f"real scan {path} is missing (the shared models; set ATLAS_MODELS_DIR)")
+    return str(path)
 
 
 # --------------------------------------------------------------------------- scenes

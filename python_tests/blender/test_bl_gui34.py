@@ -10,6 +10,7 @@ import subprocess
 
 import pytest
 
+import blhelp as H
 from blenv import ADDON_PARENT, BLENDER, HERE, require_blender, require_native
 
 
@@ -17,6 +18,7 @@ from blenv import ADDON_PARENT, BLENDER, HERE, require_blender, require_native
 def gui_result(tmp_path_factory):
     require_native()
     require_blender()
+    H.model_path("tetra")  # skips when the scan is missing
     if shutil.which("xvfb-run") is None:
         pytest.skip("xvfb-run is not installed (apt-get install xvfb xauth)")
     out = tmp_path_factory.mktemp("gui") / "result.json"

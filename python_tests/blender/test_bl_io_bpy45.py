@@ -151,6 +151,25 @@ def test_operator_registered_in_menus(pkg):
         assert pkg.operators.menu_func in funcs, menu
 
 
+def test_operator_properties_follow_the_schema(pkg):
+    props = bpy.ops.uv.defragment_atlas.get_rna_type().properties
+    for o in pkg.options.SCHEMA:
+        p = props[o.name]
+        assert p.name == o.label and p.description == o.help, o.name
+        if o.choices:
+            assert [i.identifier for i in p.enum_items] == [c.value.upper() for c in o.choices]
+            assert p.default == o.default.upper()
+            continue
+        assert p.hard_min == pytest.approx(o.low, rel=1e-6), o.name
+        if o.high is not None:
+            assert p.hard_max == pytest.approx(o.high, rel=1e-6), o.name
+        if o.automatic:
+            assert props["automatic_" + o.name].default is True
+            assert p.default == o.manual_default
+        else:
+            assert p.default == pytest.approx(o.default)
+
+
 def test_read_gltf_wrap_emulation_and_transforms(pkg):
     """glTF mirrored-repeat emulation (maths between UV map and image) is a
     plain UV lookup; a texture transform (Mapping) is not, and says so."""

@@ -74,6 +74,8 @@ def test_manifest_validates_with_blender_tool(addon_zip):
 
 
 def _check(res, user_dir):
+    if "skipped" in res:  # the scenario run with the installed add-on needs a missing scan
+        pytest.skip(res["skipped"])
     assert res.get("ok"), res.get("error")
     assert res["operator"]
     assert res["package"].startswith(str(user_dir)), res["package"]

@@ -1,0 +1,144 @@
+# SPDX-License-Identifier: MIT
+"""The user options, listed once: every other place is generated from SCHEMA.
+
+From this table come the operator's properties and dialog (operators.py), the
+batch entry's arguments (batch.py), the validated values passed to the native
+module (job.Options) and the option table of the README (tools/options_doc.py).
+The native module checks the same ranges (python_tests/test_options.py).
+Adding an option is one entry here, plus its use in the native core.
+
+No bpy and no numpy: batch.py loads this file by path outside Blender.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import NamedTuple, Optional, Tuple
+
+
+class Choice(NamedTuple):
+    value: str  # as the native module takes it
+    label: str
+    help: str
+
+
+class Option(NamedTuple):
+    """One option. Numbers have a ``low`` bound; ``high`` None means none.
+    Both are inclusive."""
+
+    name: str  # keyword of job.Options and of the native module
+    kind: type  # int, float or str (one of choices)
+    default: object
+    label: str  # dialog label
+    help: str
+    low: Optional[float] = None
+    high: Optional[float] = None
+    choices: Tuple[Choice, ...] = ()
+    # Set when 0 is allowed outside [low, high] and means "automatic": says
+    # what automatic does. The dialog shows an Automatic toggle instead.
+    automatic: str = ""
+    manual_default: object = None  # the dialog's value when Automatic is off
+    unit: str = ""  # 'texels' or ''
+
+
+SCHEMA: Tuple[Option, ...] = (
+    Option("target_charts", int, 0, "Target Charts", "Number of charts to aim for",
+           low=1, automatic="no target: charts merge while the disk, curvature and size rules allow",
+           manual_default=50),
+    Option("weighting", str, "3d", "Weighting", "Seam length that decides which charts merge first",
+           choices=(Choice("uv", "UV", "Merge by seam length measured in the texture"),
+                    Choice("3d", "3D", "Merge by seam length measured on the surface"))),
+    Option("padding", int, 4, "Padding", "Empty texels kept around every chart", low=0, high=64,
+           unit="texels"),
+    Option("fixed_page_size", int, 0, "Page Size",
+           "Side of one square output page, charts scaled as large as fit (at most Maximum Page Size)",
+           low=64, high=16384, automatic="pages sized to keep the source texel budget",
+           manual_default=4096, unit="texels"),
+    Option("max_page_size", int, 8192, "Maximum Page Size", "Largest output page side",
+           low=64, high=16384, unit="texels"),
+    Option("density_scale", float, 1.0, "Density Scale",
+           "Output texel density relative to the source (ignored with a fixed page size)",
+           low=0.01, high=16.0),
+)
+
+BY_NAME = {o.name: o for o in SCHEMA}
+
+
+def range_text(option: Option) -> str:
+    """The allowed values in words, as error messages and docs say them."""
+    if option.choices:
+        return " or ".join(repr(c.value) for c in option.choices)
+    if option.high is None:
+        text = f">= {option.low}"
+    else:
+        text = f"{option.low}..{option.high}"
+    return f"0 (automatic) or {text}" if option.automatic else text
+
+
+def check(option: Option, value):
+    """value converted to the option's type; ValueError naming the option and
+    its range when it is outside."""
+    if option.choices:
+        text = str(value).lower()
+        if text not in {c.value for c in option.choices}:
+            raise ValueError(f"{option.name} must be {range_text(option)}, not {value!r}")
+        return text
+    number = _number(option, value)
+    if number is None:
+        kind = "an integer" if option.kind is int else "a number"
+        raise ValueError(f"{option.name} must be {kind} {range_text(option)}, not {value!r}")
+    if option.automatic and number == 0:
+        return number
+    if not _within(option, number):
+        raise ValueError(f"{option.name} must be {range_text(option)}, not {value!r}")
+    return number
+
+
+def _number(option: Option, value):
+    """value as the option's kind, or None (text that is no number, 2.5 for an int)."""
+    try:
+        number = option.kind(value)
+        exact = option.kind is float or float(value) == number
+    except (TypeError, ValueError):
+        return None
+    return number if exact else None
+
+
+def _within(option: Option, number) -> bool:
+    low_ok = option.low is None or number >= option.low
+    return low_ok and (option.high is None or number <= option.high)
+
+
+def validate(values: dict) -> dict:
+    """Every option checked, and the one rule between two of them."""
+    out = {name: check(BY_NAME[name], value) for name, value in values.items()}
+    fixed = out.get("fixed_page_size", 0)
+    largest = out.get("max_page_size", BY_NAME["max_page_size"].default)
+    if fixed > largest:
+        raise ValueError(f"fixed_page_size {fixed} is larger than max_page_size {largest}")
+    return out
+
+
+def flag(option: Option) -> str:
+    return "--" + option.name.replace("_", "-")
+
+
+def add_arguments(group) -> None:
+    """Every option as a command-line flag of an argparse parser or group
+    (the batch entry, tools/defrag_scan.py); bad values exit with code 2."""
+    for o in SCHEMA:
+        zero = f"; 0: {o.automatic}" if o.automatic else ""
+        group.add_argument(flag(o), type=_argument_type(o), default=o.default,
+                           metavar=None if o.choices else o.name.upper(),
+                           choices=[c.value for c in o.choices] or None,
+                           help=f"{o.help} ({range_text(o)}, default {o.default!r}{zero})")
+
+
+def _argument_type(option: Option):
+    def parse(text):
+        try:
+            return check(option, text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from exc
+    parse.__name__ = option.name  # argparse names the type in some messages
+    return parse

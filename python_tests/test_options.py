@@ -1,0 +1,100 @@
+"""The option schema (addon/atlas_defrag/options.py) against the places it
+feeds that run without Blender: the native module's own range checks, the
+batch entry's arguments and the README's table."""
+import numpy as np
+import pytest
+
+from atlas_defrag import batch, job, options
+
+
+def tiny():
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
+    triangles = np.array([[0, 1, 2], [1, 3, 2]], np.int32)
+    uvs = positions[triangles][:, :, :2] * 0.5
+    return positions, triangles, uvs, np.zeros(2, np.int32), np.array([[64, 64]], np.int32)
+
+
+def probes(option):
+    """Values on both sides of every bound, and 0 where it means automatic."""
+    if option.choices:
+        return [c.value for c in option.choices] + ["area"]
+    step = 1 if option.kind is int else option.low / 2
+    values = [option.low, option.low - step] + ([0, -step] if option.automatic else [])
+    if option.high is not None:
+        values += [option.high, option.high + step]
+    return list(dict.fromkeys(values))
+
+
+def with_room(name, value):
+    """The option alone, and max_page_size at its largest so that
+    fixed_page_size meets only its own bounds."""
+    values = {name: value}
+    if name == "fixed_page_size":
+        values["max_page_size"] = options.BY_NAME["max_page_size"].high
+    return values
+
+
+def native_accepts(native, values) -> bool:
+    # A cancelled token stops the run right after the options are read.
+    token = native.CancelToken()
+    token.cancel()
+    try:
+        native.defragment(*tiny(), options=values, cancel=token)
+    except native.Cancelled:
+        return True
+    except ValueError as exc:
+        assert next(iter(values)) in str(exc), exc  # the message names the option
+        return False
+    raise AssertionError("a cancelled run returned")
+
+
+def python_accepts(values) -> bool:
+    try:
+        job.Options(**values).validate()
+    except job.DefragError as exc:
+        assert next(iter(values)) in str(exc), exc
+        return False
+    return True
+
+
+CASES = [(o.name, v) for o in options.SCHEMA for v in probes(o)]
+
+
+@pytest.mark.parametrize("name, value", CASES, ids=[f"{n}={v}" for n, v in CASES])
+def test_native_module_checks_the_same_ranges(native, name, value):
+    values = with_room(name, value)
+    assert native_accepts(native, values) == python_accepts(values)
+
+
+def test_the_probes_reach_both_sides_of_every_bound():
+    for o in options.SCHEMA:
+        verdicts = {python_accepts(with_room(o.name, v)) for v in probes(o)}
+        assert verdicts == {True, False}, o.name
+
+
+def test_a_fixed_page_larger_than_the_largest_page_is_refused_on_both_sides(native):
+    values = {"fixed_page_size": 4096, "max_page_size": 2048}
+    assert not native_accepts(native, values) and not python_accepts(values)
+
+
+def test_every_option_reaches_the_native_module(native):
+    """The native module knows every name (it refuses unknown ones)."""
+    assert native_accepts(native, job.Options().native())
+
+
+def test_batch_arguments_follow_the_schema(capsys):
+    parser = batch.single_parser()
+    args = parser.parse_args(["in.obj", "out.glb"])
+    assert {o.name: getattr(args, o.name) for o in options.SCHEMA} == job.Options().native()
+    args = parser.parse_args(["in.obj", "out.glb", "--fixed-page-size", "1024", "--weighting", "uv"])
+    assert (args.fixed_page_size, args.weighting) == (1024, "uv")
+    with pytest.raises(SystemExit) as exc:
+        parser.parse_args(["in.obj", "out.glb", "--padding", "65"])
+    assert exc.value.code == 2 and "padding must be 0..64" in capsys.readouterr().err
+
+
+def test_readme_option_table_is_current():
+    import options_doc
+
+    text = options_doc.README.read_text()
+    assert options_doc.update(text) == text, "run tools/options_doc.py"
