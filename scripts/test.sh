@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Builds everything and runs every test: GoogleTest through ctest, then pytest
-# (the module on the real scans, and the add-on in Blender 3.4 and bpy 4.5).
+# (the module on the real scans, and the add-on in Blender 3.4 and bpy 4.5),
+# then the C++ tests and the module's suite again under ASan + UBSan.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 ctest --test-dir build --output-on-failure -j"$(nproc)"
 .venv/bin/python -m pytest python_tests -q
+bash scripts/test_sanitized.sh

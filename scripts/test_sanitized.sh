@@ -11,5 +11,8 @@ cmake --build build-asan -j"$(nproc)"
 export ASAN_OPTIONS=detect_leaks=0:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 ctest --test-dir build-asan --output-on-failure -j"$(nproc)"
-LD_PRELOAD="$(g++ -print-file-name=libasan.so)" ATLAS_BUILD_DIR="$PWD/build-asan" \
-  .venv/bin/python -m pytest python_tests/test_native.py -q -p no:cacheprovider
+# Python is not linked against libstdc++: preloaded with ASan's runtime, its
+# __cxa_throw is there for ASan to intercept when the module throws.
+LD_PRELOAD="$(g++ -print-file-name=libasan.so) $(g++ -print-file-name=libstdc++.so)" \
+  ATLAS_BUILD_DIR="$PWD/build-asan" PYTHONPATH="$PWD/build-asan/addon" \
+  .venv/bin/python -m pytest python_tests/test_native.py python_tests/test_options.py -q -p no:cacheprovider
