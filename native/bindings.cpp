@@ -157,6 +157,17 @@ PipelineOptions pipeline_options(const py::object& obj) {
     else if (key == "density_scale") o.pack.density_scale = value.cast<double>();
     else if (key == "texel_budget") o.pack.texel_budget = value.cast<long long>();
     else if (key == "max_iterations") o.slim.max_iterations = value.cast<int>();
+    else if (key == "max_pages") o.pack.max_pages = value.cast<int>();
+    else if (key == "square_pages") o.pack.square_pages = value.cast<bool>();
+    else if (key == "texels_at_most_input") o.texels_at_most_input = value.cast<bool>();
+    else if (key == "texels_per_unit") o.texels_per_unit = value.cast<double>();
+    else if (key == "page_sides") {
+      const std::string v = value.cast<std::string>();
+      if (v == "tight") o.pack.page_sides = PageSides::Tight;
+      else if (v == "multiple_of_4") o.pack.page_sides = PageSides::MultipleOf4;
+      else if (v == "power_of_two") o.pack.page_sides = PageSides::PowerOfTwo;
+      else throw py::value_error("page_sides must be 'tight', 'multiple_of_4' or 'power_of_two', got '" + v + "'");
+    }
     else throw py::value_error("unknown option '" + key + "'");
   }
   if (o.pack.padding < 0 || o.pack.padding > 64) throw py::value_error("padding must be 0..64 texels");
@@ -165,6 +176,9 @@ PipelineOptions pipeline_options(const py::object& obj) {
   if (o.pack.fixed_page_size < 0 || o.pack.fixed_page_size > o.pack.max_page_size)
     throw py::value_error("output_size must be 0 (automatic) or at most max_page_size");
   if (!(o.pack.density_scale > 0 && o.pack.density_scale <= 16)) throw py::value_error("density_scale must be in (0, 16]");
+  if (o.pack.max_pages < 0 || o.pack.max_pages > 4096) throw py::value_error("max_pages must be 0..4096 (0: as many as the input uses)");
+  if (!(o.texels_per_unit >= 0 && o.texels_per_unit <= 1e9))
+    throw py::value_error("texels_per_unit must be in [0, 1e9] (0: density_scale applies)");
   if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");
@@ -244,6 +258,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["texels_after"] = r.texels_after;
   d["packing_efficiency"] = r.packing_efficiency;
   d["scale"] = r.scale;
+  d["shrunk"] = r.shrunk;
   d["energy_initial_median"] = r.energy_initial_median;
   d["energy_median"] = r.energy_median;
   d["energy_max"] = r.energy_max;
@@ -275,6 +290,7 @@ py::dict defragment_py(const py::object& positions, const py::object& triangles,
   out["page_sizes"] = sizes_array(r.pages);
   out["report"] = report_dict(r.report);
   out["charts"] = chart_arrays(r.charts);
+  out["face_chart"] = int_array(r.face_chart);
   return out;
 }
 
@@ -450,6 +466,33 @@ py::dict compare_colors_py(const py::object& positions, const py::object& triang
   return d;
 }
 
+// Packs charts given in texels, as the pipeline does after flattening.
+py::dict pack_charts_py(const py::list& charts, const py::object& options, const py::object& cancel) {
+  std::vector<RowMatrixX2d> uv;
+  for (size_t c = 0; c < charts.size(); ++c) {
+    const std::string name = "charts[" + std::to_string(c) + "]";
+    const auto a = checked<double>(charts[c], name.c_str(), {3, 2}, "(F_c, 3, 2)");
+    uv.push_back(to_matrix<RowMatrixX2d>(a, 3 * a.shape(0), 2));
+  }
+  const PackOptions o = pipeline_options(options).pack;
+  const RunControl control = control_from(py::none(), cancel);
+  PackResult r;
+  {
+    py::gil_scoped_release release;
+    r = pack_charts(uv, o, control);
+  }
+  py::list placed;
+  for (const RowMatrixX2d& p : r.placed_uv) placed.append(uv_array(p));
+  py::dict out;
+  out["uvs"] = placed;
+  out["chart_page"] = py::array_t<int>(r.chart_page.size(), r.chart_page.data());
+  out["page_sizes"] = sizes_array(r.pages);
+  out["scale"] = r.scale;
+  out["shrunk"] = r.shrunk;
+  out["efficiency"] = r.efficiency;
+  return out;
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_native, m) {
@@ -469,9 +512,17 @@ PYBIND11_MODULE(_native, m) {
 positions (V,3) float, triangles (F,3) int (triangulate quads and n-gons first),
 uvs (F,3,2) per-corner UVs in page units, face_page (F,) int (-1: untextured,
 UVs pass through), page_sizes (P,2) (width, height) in texels. face_group (F,)
-keeps groups apart. Returns dict(uvs, face_page, page_sizes, report, charts); charts
+keeps groups apart. Returns dict(uvs, face_page, page_sizes, report, charts, face_chart
+(output chart per face, -1 untextured)); charts
 holds per output chart: faces, flattened (else original UVs kept), energy_initial
 and energy_final (symmetric Dirichlet per unit reference area, 4 = isometric).)");
+
+  m.def("pack_charts", &pack_charts_py, py::arg("charts"), py::kw_only(), py::arg("options") = py::none(),
+        py::arg("cancel") = py::none(),
+        R"(Packs charts alone: charts is a list of (F_c,3,2) corner arrays in texels (any
+placement); options takes the packing keys of defragment's options. Returns
+dict(uvs: list of (F_c,3,2) in page units, chart_page, page_sizes, scale, shrunk
+(scale below density_scale), efficiency).)");
 
   m.def("chart_graph", &chart_graph_py, py::arg("positions"), py::arg("triangles"), py::arg("uvs"),
         py::arg("face_page"), py::arg("page_sizes"), "The input's UV charts: counts and the chart of each face.");

@@ -5,12 +5,13 @@
 #include <vector>
 
 #include "mesh.hpp"
+#include "pack.hpp"
 #include "run_control.hpp"
 #include "scaled_chart.hpp"
 
 namespace atlas {
 
-constexpr int kSideQuantum = 4;  // page sides are multiples of this
+constexpr int kSideQuantum = 4;  // page sides are multiples of this in PageSides::MultipleOf4
 // Holes are searched on a grid of kHoleCell x kHoleCell texel cells: 16x less
 // work than texel by texel, at the price of hole spots on multiples of 4.
 constexpr int kHoleCell = 4;
@@ -21,7 +22,14 @@ constexpr int kHoleCell = 4;
 struct Frame {
   int padding = 0;
   int margin = 0;
+  PageSides sides = PageSides::MultipleOf4;
+  bool square = false;  // both sides equal (the larger of the two)
 };
+
+// Smallest side >= `side` (and >= 1) of the kind `sides` allows.
+int allowed_side(double side, PageSides sides);
+// Largest side <= max_side (>= kSideQuantum) of that kind.
+int largest_allowed_side(int max_side, PageSides sides);
 
 // Where a chart went: its dilated mask's texel (0, 0) sits at (x, y) of the
 // virtual frame of page `page`.
@@ -44,8 +52,8 @@ struct OnePage {
 // Charts, largest bounding box first: big charts shape the page, small ones fill gaps.
 std::vector<int> largest_first(const std::vector<ScaledChart>& charts);
 
-// Page side (a multiple of kSideQuantum) holding `used` virtual texels.
-int trimmed_side(int used, const Frame& frame);
+// Page holding `used` virtual texels, its sides of the frame's kind.
+PageSize trimmed_page(PageSize used, const Frame& frame);
 
 // The charts of `order` on one page whose virtual frame is width x height,
 // or nullopt as soon as one does not fit.

@@ -2,6 +2,7 @@
 
 #include <omp.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -110,9 +111,28 @@ long long page_texels(const std::vector<PageSize>& pages, const std::vector<char
   return total;
 }
 
+// Texels per unit of surface length of the charts: sqrt(texel area / 3D area).
+double texel_density(const Mesh& mesh, const std::vector<FlatChart>& charts, const std::vector<int>& members) {
+  double texel_area = 0, surface_area = 0;
+  for (int c : members) {
+    const RowMatrixX2d& uv = charts[c].corner_uv;
+    for (size_t j = 0; j < charts[c].faces.size(); ++j) {
+      const Eigen::RowVector2d a = uv.row(3 * j + 1) - uv.row(3 * j), b = uv.row(3 * j + 2) - uv.row(3 * j);
+      texel_area += 0.5 * std::abs(a.x() * b.y() - a.y() * b.x());
+      const int f = charts[c].faces[j];
+      const Eigen::RowVector3d p = mesh.positions.row(mesh.triangles(f, 0));
+      surface_area += 0.5 * (mesh.positions.row(mesh.triangles(f, 1)) - p)
+                                .cross(mesh.positions.row(mesh.triangles(f, 2)) - p)
+                                .norm();
+    }
+  }
+  return surface_area > 0 && texel_area > 0 ? std::sqrt(texel_area / surface_area) : 0;
+}
+
 // Packs each face group on pages of its own and writes the placed UVs.
 void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std::vector<FlatChart>& charts,
-                 const PackOptions& base, const RunControl& control, PipelineResult& result) {
+                 const PipelineOptions& pipeline, const RunControl& control, PipelineResult& result) {
+  const PackOptions& base = pipeline.pack;
   std::map<int, std::vector<int>> by_group;
   for (size_t c = 0; c < charts.size(); ++c)
     by_group[face_group.empty() ? 0 : face_group[charts[c].faces.front()]].push_back(static_cast<int>(c));
@@ -125,12 +145,18 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
       for (int f : charts[c].faces) used[mesh.face_page[f]] = 1;
     }
     PackOptions options = base;
-    // By default the output may hold as many texels as the input, times the
-    // area scale the caller asked for.
-    if (options.texel_budget <= 0 && options.fixed_page_size <= 0)
-      options.texel_budget = static_cast<long long>(static_cast<double>(page_texels(mesh.pages, used)) *
-                                                    options.density_scale * options.density_scale);
-    const PackResult packed = pack_charts(uv, options, control);
+    if (pipeline.texels_per_unit > 0) {
+      const double density = texel_density(mesh, charts, members);
+      if (density > 0) options.density_scale = pipeline.texels_per_unit / density;
+    }
+    if (options.fixed_page_size <= 0) {
+      if (options.max_pages <= 0)
+        options.max_pages = std::max<int>(1, static_cast<int>(std::count(used.begin(), used.end(), 1)));
+      if (pipeline.texels_at_most_input && options.texel_budget <= 0)
+        options.texel_budget = static_cast<long long>(static_cast<double>(page_texels(mesh.pages, used)) *
+                                                      options.density_scale * options.density_scale);
+    }
+  const PackResult packed = pack_charts(uv, options, control);
     const int first_page = static_cast<int>(result.pages.size());
     for (size_t i = 0; i < members.size(); ++i) {
       const FlatChart& chart = charts[members[i]];
@@ -145,6 +171,7 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
     covered += packed.efficiency * texels;
     total += texels;
     scale = std::min(scale, packed.scale);
+    result.report.shrunk |= packed.shrunk;
   }
   result.report.packing_efficiency = total > 0 ? covered / total : 0;
   result.report.scale = by_group.empty() ? 1.0 : scale;
@@ -206,14 +233,17 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   enlarge_tiny_charts(charts);
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
-  for (const FlatChart& c : charts)
+  result.face_chart = Eigen::VectorXi::Constant(mesh.face_count(), -1);
+  for (const FlatChart& c : charts) {
+    for (int f : c.faces) result.face_chart[f] = static_cast<int>(result.charts.size());
     result.charts.push_back({static_cast<int>(c.faces.size()), !c.kept_original, c.energy_initial, c.energy_final});
+  }
   clock.lap("flatten");
 
   // Untextured faces keep their input UVs and page -1.
   result.corner_uv = mesh.corner_uv;
   result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
-  pack_groups(mesh, face_group, charts, options.pack, control, result);
+  pack_groups(mesh, face_group, charts, options, control, result);
   report.texels_after = page_texels(result.pages, {});
   clock.lap("pack");
 

@@ -92,12 +92,21 @@ def main(argv=None) -> int:
     parser.add_argument("--padding", type=int, default=4)
     parser.add_argument("--target-charts", type=int, default=0)
     parser.add_argument("--weighting", choices=["uv", "3d"], default="3d")
+    parser.add_argument("--max-page-size", type=int, default=8192)
+    parser.add_argument("--page-sides", choices=["tight", "multiple_of_4", "power_of_two"], default="multiple_of_4")
+    parser.add_argument("--square-pages", action="store_true")
+    parser.add_argument("--texels-at-most-input", action="store_true",
+                        help="shrink charts rather than exceed the input's texel count")
+    parser.add_argument("--texels-per-unit", type=float, default=0.0,
+                        help="texels per unit of surface length (0: the input's density)")
     args = parser.parse_args(argv)
 
     t0 = time.perf_counter()
     scan = scan_io.load(args.input)
     t_load = time.perf_counter() - t0
-    options = {"padding": args.padding, "target_charts": args.target_charts, "weighting": args.weighting}
+    options = {"padding": args.padding, "target_charts": args.target_charts, "weighting": args.weighting,
+               "max_page_size": args.max_page_size, "page_sides": args.page_sides, "square_pages": args.square_pages,
+               "texels_at_most_input": args.texels_at_most_input, "texels_per_unit": args.texels_per_unit}
     result = _native.defragment(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
                                 options=options, progress=progress_line)
     t1 = time.perf_counter()
@@ -128,7 +137,8 @@ def main(argv=None) -> int:
           f"over {r['charts_solved']} flattened charts (4 = isometric)")
     print(f"  seam length   {r['seam_before']:.1f} -> {r['seam_after']:.1f} (3D length / sqrt(area))")
     print(f"  texels        {r['texels_before']:,} -> {r['texels_after']:,} "
-          f"(packing efficiency {r['packing_efficiency']:.1%}, scale {r['scale']:.3f})")
+          f"(packing efficiency {r['packing_efficiency']:.1%}, scale {r['scale']:.3f}"
+          f"{', SHRUNK below the density asked for' if r['shrunk'] else ''}; pages {result['page_sizes'].tolist()})")
     print(f"  flipped       {m['old']['flipped_faces']} -> {m['new']['flipped_faces']}; "
           f"texels shared by two triangles {m['old']['overlap_texels']} -> {m['new']['overlap_texels']}")
     print(f"  density loss  {m['map']['density_loss_area_share']:.2%} of the area below half its texel density")

@@ -89,7 +89,8 @@ def finish(obj, read: read_bpy.ReadResult, result: job.JobResult, settings: Sett
     report["object"] = obj.name
     report["source_uv_map"] = read.uv_map
     report.update(written)
-    report["warnings"] = list(read.warnings) + list(written.get("warnings", []))
+    report["warnings"] = (list(result.report.get("warnings", [])) + list(read.warnings)
+                          + list(written.get("warnings", [])))
     return report
 
 

@@ -104,9 +104,13 @@ class Options:
     target_charts: int = 0  # 0 = automatic
     weighting: str = "3d"  # 'uv' or '3d'
     padding: int = 4
-    output_size: int = 0  # 0 = automatic (keeps the texel budget)
+    output_size: int = 0  # 0 = automatic (full texel density, smallest page)
     max_page_size: int = 8192
     density_scale: float = 1.0
+    page_sides: str = "multiple_of_4"  # 'tight', 'multiple_of_4' or 'power_of_two'
+    square_pages: bool = False
+    texels_at_most_input: bool = False  # shrink charts rather than exceed the input's texel count
+    texels_per_unit: float = 0.0  # > 0: texels per unit of surface length, replaces density_scale
 
     def validate(self) -> None:
         w = str(self.weighting).lower()
@@ -120,6 +124,10 @@ class Options:
             setattr(self, name, int(value))
         if not (self.density_scale > 0):
             raise DefragError(f"density_scale must be positive, not {self.density_scale!r}")
+        if self.page_sides not in ("tight", "multiple_of_4", "power_of_two"):
+            raise DefragError(f"page_sides must be 'tight', 'multiple_of_4' or 'power_of_two', not {self.page_sides!r}")
+        if not (self.texels_per_unit >= 0):
+            raise DefragError(f"texels_per_unit must be >= 0 (0: density_scale applies), not {self.texels_per_unit!r}")
         if self.output_size and self.output_size > self.max_page_size:
             raise DefragError(
                 f"output_size {self.output_size} is larger than max_page_size {self.max_page_size}")
@@ -132,6 +140,10 @@ class Options:
             "output_size": self.output_size,
             "max_page_size": self.max_page_size,
             "density_scale": float(self.density_scale),
+            "page_sides": self.page_sides,
+            "square_pages": bool(self.square_pages),
+            "texels_at_most_input": bool(self.texels_at_most_input),
+            "texels_per_unit": float(self.texels_per_unit),
         }
 
 
@@ -310,6 +322,9 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     report["pages_before"] = int(len(job.pages))
     report["pages_after"] = int(len(new_sizes))
     report["images_written"] = len(images)
+    if report.get("shrunk"):
+        report["warnings"] = [f"charts scaled to {report.get('scale', 0):.3g} of the texel density asked for, "
+                              "to fit max_page_size / output_size or the texel budget"]
     if progress is not None:
         progress("done", 1.0)
     return JobResult(uvs=new_uvs, face_page=new_face_page, page_sizes=new_sizes,
@@ -399,4 +414,5 @@ def summary(report: dict) -> str:
     return (f"charts {num('charts_before')} -> {num('charts_after')}, "
             f"seam {num('seam_before', '{:.4g}')} -> {num('seam_after', '{:.4g}')}, "
             f"pages {num('pages_before')} -> {num('pages_after')}, "
-            f"time {'?' if secs is None else f'{secs:.1f}'} s")
+            + (f"charts scaled to {num('scale', '{:.3g}')} of their texel density, " if report.get("shrunk") else "")
+            + f"time {'?' if secs is None else f'{secs:.1f}'} s")
