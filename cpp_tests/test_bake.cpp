@@ -306,6 +306,42 @@ TEST(Bake, ChartsMovedByWholeTexelsAreCopiedExactly) {
             << x << "," << y;
 }
 
+TEST(Bake, QuarterTurnedChartsAreCopiedBitForBitAndCounted) {
+  // Float noise: any blend of two texels would show in the low bits.
+  auto none = [](int, const Eigen::Vector2d&) { return Colour{}; };
+  const Eigen::Matrix2d kept = 0.5 * Eigen::Matrix2d::Identity();  // 32 texels on a 64 page
+  const Eigen::Matrix2d turned = turn(0.5, 0, -1, 1, 0);
+  // Old uv = o + kept * l, new uv = n + turned * l: old = o + kept * turned^-1 (new - n).
+  const Eigen::Vector2d old_offset = Eigen::Vector2d(8, 8) / 64, new_offset = Eigen::Vector2d(45, 6) / 64;
+  Scene<float> sc = scene<float>({{kept, old_offset, 0}}, {{turned, new_offset, 0}}, 64, {{64, 64}}, 3, 0.0, none,
+                                 Colour{}, 1, 4);
+  std::uint32_t state = 777;
+  for (float& v : sc.old_images[0].texels) v = static_cast<float>((state = state * 1664525u + 1013904223u) >> 8) / 16777216.0f;
+  BakeStats stats;
+  const Image<float> out =
+      bake_map<float>(sc.old_layout.view(), sc.old_views(), sc.new_layout.view(), sc.new_pages, {}, RunControl(), &stats)[0];
+  EXPECT_EQ(stats.covered_texels, 32 * 32);
+  EXPECT_EQ(stats.copied_texels, stats.covered_texels);
+  const Eigen::Matrix2d new_to_old = kept * turned.inverse();
+  const Image<float>& old_page = sc.old_images[0];
+  for (int y = 6; y < 6 + 32; ++y)
+    for (int x = 45 - 32; x < 45; ++x) {
+      const Eigen::Vector2d old_uv = old_offset + new_to_old * (Eigen::Vector2d(x + 0.5, y + 0.5) / 64 - new_offset);
+      const int ox = static_cast<int>(std::floor(old_uv.x() * 64)), oy = static_cast<int>(std::floor(old_uv.y() * 64));
+      for (int k = 0; k < 3; ++k)
+        ASSERT_EQ(out.texels[(y * 64 + x) * 3 + k], old_page.texels[(oy * 64 + ox) * 3 + k]) << x << "," << y;
+    }
+
+  // Half a texel off the grid: resampled, none copied.
+  Scene<float> off = scene<float>({{kept, old_offset, 0}}, {{turned, new_offset + Eigen::Vector2d(0.5, 0) / 64, 0}},
+                                  64, {{64, 64}}, 3, 0.0, none, Colour{}, 1, 4);
+  off.old_images = sc.old_images;
+  bake_map<float>(off.old_layout.view(), off.old_views(), off.new_layout.view(), off.new_pages, {}, RunControl(),
+                  &stats);
+  EXPECT_GT(stats.covered_texels, 0);
+  EXPECT_EQ(stats.copied_texels, 0);
+}
+
 // Charts turned a quarter, mirrored in x, mirrored in y, and kept, on one 128 x 128 page.
 std::vector<Placement> reoriented_placements() {
   const double s = 0.6;

@@ -34,6 +34,14 @@ struct BakeOptions {
   int padding = 4;          // texels around charts filled with edge colour before pull-push
 };
 
+// What the bake did with the texels its faces cover (padding and fill not counted).
+struct BakeStats {
+  long long covered_texels = 0;
+  // Copied from one old texel, unresampled: the face only moved by whole
+  // texels and quarter turns (or mirrors), so its texel centres land on old ones.
+  long long copied_texels = 0;
+};
+
 struct UvLayout {
   const RowMatrixX2d* corner_uv = nullptr;  // 3F x 2, page units
   const Eigen::VectorXi* face_page = nullptr;
@@ -43,6 +51,7 @@ struct UvLayout {
 template <class T>
 std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
                                const UvLayout& new_layout, const std::vector<PageSize>& new_pages,
-                               const BakeOptions& options, const RunControl& control);
+                               const BakeOptions& options, const RunControl& control,
+                               BakeStats* stats = nullptr);
 
 }  // namespace atlas

@@ -353,23 +353,24 @@ py::array_t<T> image_array(Image<T>&& image) {
 
 template <class T>
 py::list bake_typed(const Layout& old_l, const py::list& images, const Layout& new_l, const std::vector<PageSize>& out,
-                    const BakeOptions& options, const RunControl& control) {
+                    const BakeOptions& options, const RunControl& control, BakeStats& stats) {
   std::vector<py::array> keep;
   const auto views = image_views<T>(images, "images", keep);
   std::vector<Image<T>> baked;
   {
     py::gil_scoped_release release;
     baked = bake_map<T>({&old_l.corner_uv, &old_l.face_page}, views, {&new_l.corner_uv, &new_l.face_page}, out,
-                        options, control);
+                        options, control, &stats);
   }
   py::list result;
   for (auto& image : baked) result.append(image_array(std::move(image)));
   return result;
 }
 
-py::list bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
-                 const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
-                 bool normal_map, int padding, const py::object& progress, const py::object& cancel) {
+py::object bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
+                   const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
+                   bool normal_map, int padding, const py::object& progress, const py::object& cancel,
+                   bool with_stats) {
   const Eigen::Index faces = checked<double>(old_uvs, "old_uvs", {3, 2}, "(F, 3, 2)").shape(0);
   const Layout old_l = layout(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
   const Layout new_l = layout(new_uvs, new_face_page, faces, "new_uvs", "new_face_page");
@@ -377,8 +378,16 @@ py::list bake_py(const py::object& old_uvs, const py::object& old_face_page, con
   if (padding < 0 || padding > 64) throw py::value_error("padding must be 0..64 texels");
   const BakeOptions options{normal_map, padding};
   const RunControl control = control_from(progress, cancel);
-  if (is_uint8_images(images, "images")) return bake_typed<std::uint8_t>(old_l, images, new_l, out, options, control);
-  return bake_typed<float>(old_l, images, new_l, out, options, control);
+  BakeStats stats;
+  const py::list baked = is_uint8_images(images, "images")
+                             ? bake_typed<std::uint8_t>(old_l, images, new_l, out, options, control, stats)
+                             : bake_typed<float>(old_l, images, new_l, out, options, control, stats);
+  if (!with_stats) return baked;
+  py::dict d;
+  d["covered_texels"] = stats.covered_texels;
+  d["copied_texels"] = stats.copied_texels;
+  d["copied_share"] = stats.covered_texels > 0 ? static_cast<double>(stats.copied_texels) / stats.covered_texels : 0.0;
+  return py::make_tuple(baked, d);
 }
 
 py::dict atlas_dict(const AtlasMeasures& m) {
@@ -463,6 +472,9 @@ py::dict compare_colors_py(const py::object& positions, const py::object& triang
   d["psnr_db"] = c.psnr_db;
   d["share_off_32"] = c.share_off_32;
   d["samples"] = c.samples;
+  d["psnr_clean_db"] = c.psnr_clean_db;
+  d["psnr_border_db"] = c.psnr_border_db;
+  d["clean_share"] = c.samples > 0 ? static_cast<double>(c.clean_samples) / c.samples : 0.0;
   return d;
 }
 
@@ -530,11 +542,15 @@ dict(uvs: list of (F_c,3,2) in page units, chart_page, page_sizes, scale, shrunk
   m.def("bake", &bake_py, py::arg("old_uvs"), py::arg("old_face_page"), py::arg("images"), py::arg("new_uvs"),
         py::arg("new_face_page"), py::arg("out_sizes"), py::kw_only(), py::arg("normal_map") = false,
         py::arg("padding") = 4, py::arg("progress") = py::none(), py::arg("cancel") = py::none(),
+        py::arg("with_stats") = false,
         R"(Bakes one map through the new layout.
 
 images: one (H,W,C) uint8 or float32 array per old page, row 0 at v = 0 (Blender's
 order). Returns one array per entry of out_sizes (width, height), same dtype.
-normal_map re-orients tangent-space XY per face.)");
+normal_map re-orients tangent-space XY per face. with_stats: returns (images,
+dict(covered_texels, copied_texels, copied_share)), copied texels being taken
+unresampled from the old texel they land on (faces moved by whole texels and
+quarter turns only).)");
 
   m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),
@@ -543,5 +559,7 @@ normal_map re-orients tangent-space XY per face.)");
   m.def("compare_colors", &compare_colors_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_images"), py::arg("new_uvs"), py::arg("new_face_page"),
         py::arg("new_images"), py::kw_only(), py::arg("samples") = 400000, py::arg("seed") = 1,
-        "PSNR and share of points off by more than 32/255, on points drawn uniformly by surface area.");
+        R"(PSNR and share of points off by more than 32/255, on points drawn uniformly by
+surface area; also PSNR on clean points (all four bilinear texels of the old atlas
+inside the point's own old chart: clean_share of them) and on the border rest.)");
 }

@@ -78,8 +78,11 @@ def bake_maps(scan, result) -> list[dict]:
         images = [scan_io.load_image(page[role]) for page in scan.maps]
         channels = min(im.shape[2] for im in images)
         images = [np.ascontiguousarray(im[:, :, :channels]) for im in images]
-        baked = _native.bake(scan.uvs, scan.face_page, images, result["uvs"], result["face_page"],
-                             result["page_sizes"], normal_map=role == "normal", progress=progress_line)
+        baked, stats = _native.bake(scan.uvs, scan.face_page, images, result["uvs"], result["face_page"],
+                                    result["page_sizes"], normal_map=role == "normal", progress=progress_line,
+                                    with_stats=True)
+        if role == "base_color":
+            result["report"]["copied_share"] = stats["copied_share"]
         for page, image in enumerate(baked):
             out_pages[page][role] = image
     return out_pages
@@ -139,10 +142,14 @@ def main(argv=None) -> int:
     print(f"  texels        {r['texels_before']:,} -> {r['texels_after']:,} "
           f"(packing efficiency {r['packing_efficiency']:.1%}, scale {r['scale']:.3f}"
           f"{', SHRUNK below the density asked for' if r['shrunk'] else ''}; pages {result['page_sizes'].tolist()})")
+    if "copied_share" in r:
+        print(f"  copied        {r['copied_share']:.1%} of the covered texels taken unresampled from the old atlas")
     print(f"  flipped       {m['old']['flipped_faces']} -> {m['new']['flipped_faces']}; "
           f"texels shared by two triangles {m['old']['overlap_texels']} -> {m['new']['overlap_texels']}")
     print(f"  density loss  {m['map']['density_loss_area_share']:.2%} of the area below half its texel density")
-    print(f"  colour        PSNR {fidelity['psnr_db']:.1f} dB, {fidelity['share_off_32']:.2%} of points off by > 32/255")
+    print(f"  colour        PSNR {fidelity['psnr_db']:.1f} dB (clean {fidelity['psnr_clean_db']:.1f}, border "
+          f"{fidelity['psnr_border_db']:.1f}, {fidelity['clean_share']:.0%} clean), "
+          f"{fidelity['share_off_32']:.2%} of points off by > 32/255")
     stages = ", ".join(f"{k} {v:.2f}" for k, v in r["seconds"].items())
     print(f"  seconds       load {t_load:.2f}, {stages}, bake {t_bake:.2f}")
     print(f"  written to    {args.output}")
