@@ -9,6 +9,7 @@
 #include <type_traits>
 
 #include "bake.hpp"
+#include "sample_texture.hpp"
 
 namespace atlas {
 namespace {
@@ -304,6 +305,40 @@ TEST(Bake, ChartsMovedByWholeTexelsAreCopiedExactly) {
       for (int k = 0; k < 3; ++k)
         ASSERT_EQ(out.texels[(y * 64 + x) * 3 + k], old_page.texels[((y - 5) * 64 + x - 12) * 3 + k])
             << x << "," << y;
+}
+
+TEST(SampleTexture, CubicNearOneToOneIsSharperThanBilinearAndNeverRings) {
+  // A sine of period 5 texels along x, sampled between texel centres.
+  constexpr double kTau = 6.283185307179586;
+  Image<float> wave = blank<float>(40, 4, 1);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 40; ++x) wave.texels[y * 40 + x] = static_cast<float>(std::sin(kTau * (x + 0.5) / 5.0));
+  const Footprint one_to_one = footprint_of(Eigen::Matrix2d::Identity());
+  ASSERT_TRUE(one_to_one.cubic);
+  EXPECT_FALSE(footprint_of(0.4 * Eigen::Matrix2d::Identity()).cubic);  // magnified: bilinear
+  EXPECT_GT(footprint_of(3.0 * Eigen::Matrix2d::Identity()).samples_x, 1);  // minified: box
+  double cubic_error = 0, bilinear_error = 0;
+  for (int i = 0; i < 40; ++i) {
+    const Eigen::Vector2d at(10.0 + 0.5 * i / 2.0, 2.0);
+    const double truth = std::sin(kTau * at.x() / 5.0);
+    double c, b;
+    sample_texture(view_of(wave), at, one_to_one, &c);
+    sample_texture(view_of(wave), at, Footprint{}, &b);
+    cubic_error += (c - truth) * (c - truth);
+    bilinear_error += (b - truth) * (b - truth);
+  }
+  EXPECT_LT(cubic_error, 0.5 * bilinear_error);
+
+  // A step: the cubic stays within the two texels it lies between.
+  Image<float> step = blank<float>(8, 4, 1);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 4; x < 8; ++x) step.texels[y * 8 + x] = 1.0f;
+  for (double u = 3.5; u <= 4.5; u += 0.125) {
+    double v;
+    sample_texture(view_of(step), Eigen::Vector2d(u, 2.0), one_to_one, &v);
+    EXPECT_GE(v, 0.0);
+    EXPECT_LE(v, 1.0);
+  }
 }
 
 TEST(Bake, QuarterTurnedChartsAreCopiedBitForBitAndCounted) {
