@@ -20,10 +20,17 @@ constexpr int kTallPage = 4;               // fixed size: trial pages are this m
 // Fixed size: first guess of the share of the page the charts' own area fills.
 constexpr double kExpectedFill = 0.6;
 
+// Padded chart texels over page texels at which a page is taken as full,
+// to estimate how far charts that did not fit overshoot it.
+constexpr double kFullPage = 0.8;
+
 struct Packing {
   double scale = 1.0;
   std::vector<ScaledChart> charts;
   Layout layout;
+  // > 0: the charts did not fit the one page allowed (layout empty); their
+  // padded texels over that page's.
+  double overflow = 0.0;
 };
 
 long long page_texels(const std::vector<PageSize>& pages) {
@@ -92,15 +99,22 @@ double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, i
   return extent > 0.0 ? room / extent : std::numeric_limits<double>::infinity();
 }
 
-// Default sizing at one scale: the smallest page, else the fewest max pages.
+// Default sizing at one scale: the smallest page, else the fewest max pages
+// (unless max_pages is 1: then the overflow is all a scale search needs).
 Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale, const Frame& frame,
-                  int max_side, const RunControl& control) {
+                  int max_side, int max_pages, const RunControl& control) {
   Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, control), {}};
   const std::vector<int> order = largest_first(packing.charts);
-  if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control))
+  if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control)) {
     packing.layout = std::move(*single);
-  else
+  } else if (max_pages == 1) {
+    double padded = 0.0;
+    for (const ScaledChart& chart : packing.charts) padded += static_cast<double>(chart.turned[0].texels);
+    const double side = max_side + 2.0 * frame.margin;
+    packing.overflow = padded / (side * side);
+  } else {
     packing.layout = pack_many_pages(order, packing.charts, frame, max_side, control);
+  }
   return packing;
 }
 
@@ -161,7 +175,9 @@ struct PageLimits {
   // How far a packing overshoots: > 1 when it breaks a limit. Both parts grow
   // about as scale^2, so the scale search can predict from them: page texels
   // over the budget, and over `pages` full pages (more pages is > 1 anyway).
-  double ratio(const std::vector<PageSize>& pages_used, int max_side) const {
+  double ratio(const Packing& packing, int max_side) const {
+    if (packing.overflow > 0.0) return std::max(1.0 + 1e-9, packing.overflow / kFullPage);
+    const std::vector<PageSize>& pages_used = packing.layout.pages;
     double r = 0.0;
     const double used = static_cast<double>(page_texels(pages_used));
     if (texels > 0) r = used / texels;
@@ -180,8 +196,8 @@ Packing shrink_to_limits(const std::vector<const RowMatrixX2d*>& chart_uv, doubl
                          double failed, const Frame& frame, int max_side, const PageLimits& limits,
                          const RunControl& control) {
   auto try_scale = [&](double s) {
-    Packing packing = pack_free(chart_uv, s, frame, max_side, control);
-    const double ratio = limits.ratio(packing.layout.pages, max_side);
+    Packing packing = pack_free(chart_uv, s, frame, max_side, limits.pages, control);
+    const double ratio = limits.ratio(packing, max_side);
     return std::make_pair(std::move(packing), ratio);
   };
   return largest_fitting_packing(try_scale, start, cap, failed,
@@ -301,8 +317,8 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
     packing = shrink_to_limits(uv, scale * std::sqrt(kExpectedFill * texel_limit / area), scale,
                                scale, frame, max_side, limits, control);
   } else {
-    packing = pack_free(uv, scale, frame, max_side, control);
-    const double ratio = limits.ratio(packing.layout.pages, max_side);
+    packing = pack_free(uv, scale, frame, max_side, limits.pages, control);
+    const double ratio = limits.ratio(packing, max_side);
     if (ratio > 1.0)
       packing = shrink_to_limits(uv, kAimBelow * scale / std::sqrt(ratio), scale, scale, frame,
                                  max_side, limits, control);
