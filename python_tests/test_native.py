@@ -294,3 +294,19 @@ def test_page_side_modes_and_texel_density_target(native, scans, tetra_result):
     assert not dense["report"]["shrunk"]
     with pytest.raises(ValueError, match="page_sides"):
         native.defragment(*args(scan), options={"page_sides": "odd"})
+
+
+def test_a_dense_atlas_keeps_its_density_by_default(native, scans):
+    # The tetra scan's charts on a page 16x narrower: its atlas is then denser
+    # than the output can be with the default padding.
+    scan = scans("tetra")
+    small = np.full_like(np.asarray(scan.page_sizes), 128)
+    dense = (scan.positions, scan.triangles, scan.uvs, scan.face_page, small)
+    result = native.defragment(*dense)
+    assert result["report"]["scale"] == 1.0 and not result["report"]["shrunk"]
+    m = native.measure(*dense, result["uvs"], result["face_page"], result["page_sizes"])
+    assert m["map"]["density_loss_area_share"] < 0.01
+    # The input's texel count as a hard limit shrinks the charts, and says so.
+    limited = native.defragment(*dense, options={"texels_at_most_input": True})
+    assert limited["report"]["shrunk"] and limited["report"]["scale"] < 1.0
+    assert limited["report"]["texels_after"] <= limited["report"]["texels_before"]
