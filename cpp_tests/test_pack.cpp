@@ -1,12 +1,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "chart_raster.hpp"
 #include "coarse_mask.hpp"
 #include "pack.hpp"
 #include "page_occupancy.hpp"
+#include "smallest_box_turn.hpp"
 
 namespace atlas {
 namespace {
@@ -360,6 +362,30 @@ TEST(PackCharts, TenThousandStackedChartsPackWithinTheLimits) {
   ASSERT_EQ(one_page.pages.size(), 1u);
   EXPECT_GT(one_page.efficiency, 0.4);
   expect_valid_packing(charts, one_page, options.padding);
+}
+
+TEST(SmallestBoxTurn, TurnsATiltedRectangleUprightWithoutMirroring) {
+  const double a = 0.5236;  // 30 degrees
+  Eigen::Matrix2d r;
+  r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
+  const RowMatrixX2d tilted = (rectangle(40, 10, 5, 7) * r.transpose()).eval();
+  const RowMatrixX2d upright = turned_to_smallest_box(tilted);
+  const Eigen::RowVector2d extent = upright.colwise().maxCoeff() - upright.colwise().minCoeff();
+  EXPECT_NEAR(extent.x() * extent.y(), 400.0, 1e-6);
+  auto signed_area = [](const RowMatrixX2d& uv) {
+    const Eigen::RowVector2d e1 = uv.row(1) - uv.row(0), e2 = uv.row(2) - uv.row(0);
+    return e1.x() * e2.y() - e1.y() * e2.x();
+  };
+  EXPECT_NEAR(signed_area(upright), signed_area(tilted), 1e-9);  // a turn, not a mirror
+  // Lengths are kept: the texel density does not change.
+  EXPECT_NEAR((upright.row(1) - upright.row(0)).norm(), 40.0, 1e-9);
+
+  // Nothing to turn: a point, a segment, non-finite corners.
+  const RowMatrixX2d point = RowMatrixX2d::Constant(3, 2, 1.5);
+  EXPECT_EQ(turned_to_smallest_box(point), point);
+  RowMatrixX2d bad = tilted;
+  bad(2, 0) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(turned_to_smallest_box(bad).row(0).isApprox(bad.row(0)));
 }
 
 TEST(PackCharts, ChartLargerThanMaxPageIsScaledDown) {

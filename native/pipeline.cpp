@@ -15,6 +15,7 @@
 #include "cut_mesh.hpp"
 #include "overlap.hpp"
 #include "reference_triangles.hpp"
+#include "smallest_box_turn.hpp"
 #include "topology.hpp"
 
 namespace atlas {
@@ -102,6 +103,16 @@ void enlarge_tiny_charts(std::vector<FlatChart>& charts) {
     const double across = extent.maxCoeff();
     if (across > 0 && across < 1) chart.corner_uv /= across;
   }
+}
+
+// Flattened charts come out at arbitrary angles; turned to their smallest
+// bounding box they pack tighter. Kept charts keep their angle, so that the
+// packer moves them by whole texels and the bake copies their texels.
+void turn_solved_charts(std::vector<FlatChart>& charts) {
+  const int n = static_cast<int>(charts.size());
+#pragma omp parallel for schedule(dynamic, 8)
+  for (int c = 0; c < n; ++c)
+    if (!charts[c].kept_original) charts[c].corner_uv = turned_to_smallest_box(charts[c].corner_uv);
 }
 
 long long page_texels(const std::vector<PageSize>& pages, const std::vector<char>& used) {
@@ -231,6 +242,7 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
 
   std::vector<FlatChart> charts = flatten_all(mesh, topology, graph, aggregation, options.slim, control, report);
   enlarge_tiny_charts(charts);
+  turn_solved_charts(charts);
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
   result.face_chart = Eigen::VectorXi::Constant(mesh.face_count(), -1);
