@@ -161,11 +161,18 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
       if (density > 0) options.density_scale = pipeline.texels_per_unit / density;
     }
     if (options.fixed_page_size <= 0) {
+      // The input's texels at the density asked for.
+      const double wanted = static_cast<double>(page_texels(mesh.pages, used)) * options.density_scale *
+                            options.density_scale;
+      // As many pages as the input used, or as many of max_page_size as hold its texels.
+      const double max_page = static_cast<double>(options.max_page_size) * options.max_page_size;
       if (options.max_pages <= 0)
-        options.max_pages = std::max<int>(1, static_cast<int>(std::count(used.begin(), used.end(), 1)));
+        options.max_pages = static_cast<int>(std::min<double>(
+            4096, std::max<double>(static_cast<double>(std::count(used.begin(), used.end(), 1)),
+                                   std::ceil(wanted / max_page))));
+      options.max_pages = std::max(1, options.max_pages);
       if (pipeline.texels_at_most_input && options.texel_budget <= 0)
-        options.texel_budget = static_cast<long long>(static_cast<double>(page_texels(mesh.pages, used)) *
-                                                      options.density_scale * options.density_scale);
+        options.texel_budget = static_cast<long long>(wanted);
     }
   const PackResult packed = pack_charts(uv, options, control);
     const int first_page = static_cast<int>(result.pages.size());

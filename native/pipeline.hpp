@@ -16,8 +16,9 @@ namespace atlas {
 struct PipelineOptions {
   AggregateOptions aggregate;
   SlimOptions slim;
-  // max_pages 0: as many pages as the group's faces use in the input (at least 1),
-  // so that charts shrink only when they would not fit that many of max_page_size.
+  // max_pages 0: as many pages as the group's faces use in the input (at least
+  // 1), or as many of max_page_size as hold the input's texels times
+  // density_scale^2 if that is more: charts shrink only when they would not fit.
   PackOptions pack;
   // true and texel_budget 0: at most the input's texel count per group, times
   // density_scale^2 (charts shrink to keep within it).

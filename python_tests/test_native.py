@@ -263,7 +263,12 @@ def test_default_keeps_full_density_and_fewer_texels(native, scans, tetra_result
 
 def test_a_small_max_page_size_shrinks_and_says_so(native, scans):
     scan = scans("tetra")
-    result = native.defragment(*args(scan), options={"max_page_size": 512})
+    # By default charts spill onto as many 640^2 pages as the input's texels fill.
+    spilled = native.defragment(*args(scan), options={"max_page_size": 640})
+    assert not spilled["report"]["shrunk"] and spilled["report"]["scale"] == 1.0
+    assert len(spilled["page_sizes"]) > 1 and spilled["page_sizes"].max() <= 640
+    # One page of at most 512^2: the charts shrink, and the report says so.
+    result = native.defragment(*args(scan), options={"max_page_size": 512, "max_pages": 1})
     report = result["report"]
     assert report["shrunk"] and 0.2 < report["scale"] < 1.0
     assert len(result["page_sizes"]) == 1 and max(result["page_sizes"][0]) <= 512
