@@ -99,12 +99,12 @@ def defragment(obj, progress=None, cancel=None, **options) -> dict:
 
     Options: uv_map (default: active), target_charts (0 = automatic),
     weighting ('uv' | '3d'), padding, output_size (0 = automatic),
-    max_page_size, density_scale, page_sides ('tight' | 'multiple_of_4' |
-    'power_of_two'), square_pages, texels_at_most_input, texels_per_unit
-    (0 = density_scale applies), storage ('PACK' | 'SAVE'), image_dir,
-    duplicate_materials. The report's 'shrunk' (and a warning) says when
-    charts lost texel density to fit max_page_size or a texel limit.
-    Raises DefragError (a subclass of Exception) with
+    max_page_size, max_pages (0 = automatic), density_scale, page_sides
+    ('tight' | 'multiple_of_4' | 'power_of_two'), square_pages,
+    texels_at_most_input, texels_per_unit (0 = density_scale applies),
+    storage ('PACK' | 'SAVE'), image_dir, duplicate_materials. The report's
+    'shrunk' (and a warning) says when charts lost texel density to fit
+    max_page_size, max_pages or a texel limit. Raises DefragError (a subclass of Exception) with
     the reason; on any error nothing is changed.
     """
     settings = Settings.from_kwargs(**options)

@@ -107,6 +107,7 @@ class Options:
     output_size: int = 0  # 0 = automatic (full texel density, smallest page)
     max_page_size: int = 8192
     density_scale: float = 1.0
+    max_pages: int = 0  # 0 = as many as the input uses (or as hold its texels); charts shrink past it
     page_sides: str = "multiple_of_4"  # 'tight', 'multiple_of_4' or 'power_of_two'
     square_pages: bool = False
     texels_at_most_input: bool = False  # shrink charts rather than exceed the input's texel count
@@ -117,7 +118,8 @@ class Options:
         if w not in ("uv", "3d"):
             raise DefragError(f"weighting must be 'uv' or '3d', not {self.weighting!r}")
         self.weighting = w
-        for name, low in (("target_charts", 0), ("padding", 0), ("output_size", 0), ("max_page_size", 16)):
+        for name, low in (("target_charts", 0), ("padding", 0), ("output_size", 0), ("max_page_size", 16),
+                          ("max_pages", 0)):
             value = getattr(self, name)
             if int(value) != value or value < low:
                 raise DefragError(f"{name} must be an integer >= {low}, not {value!r}")
@@ -140,6 +142,7 @@ class Options:
             "output_size": self.output_size,
             "max_page_size": self.max_page_size,
             "density_scale": float(self.density_scale),
+            "max_pages": self.max_pages,
             "page_sides": self.page_sides,
             "square_pages": bool(self.square_pages),
             "texels_at_most_input": bool(self.texels_at_most_input),
@@ -324,7 +327,7 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     report["images_written"] = len(images)
     if report.get("shrunk"):
         report["warnings"] = [f"charts scaled to {report.get('scale', 0):.3g} of the texel density asked for, "
-                              "to fit max_page_size / output_size or the texel budget"]
+                              "to fit max_page_size / output_size, max_pages or the texel budget"]
     if progress is not None:
         progress("done", 1.0)
     return JobResult(uvs=new_uvs, face_page=new_face_page, page_sizes=new_sizes,
