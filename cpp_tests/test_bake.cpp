@@ -9,6 +9,7 @@
 #include <type_traits>
 
 #include "bake/bake.hpp"
+#include "bake/sample_texture.hpp"
 
 namespace atlas {
 namespace {
@@ -206,10 +207,10 @@ struct Scene {
     for (const Image<T>& img : old_images) v.push_back(view_of(img));
     return v;
   }
-  std::vector<Image<T>> bake(const BakeOptions& options = {}) const {
+  std::vector<Image<T>> bake(const BakeOptions& options = {}, BakeStats* stats = nullptr) const {
     const std::vector<ImageView<T>> views = old_views();
     const std::vector<PageSize> old_pages = sizes_of(views);
-    return bake_map<T>(old_layout.view(old_pages), views, new_layout.view(new_pages), options, RunControl());
+    return bake_map<T>(old_layout.view(old_pages), views, new_layout.view(new_pages), options, RunControl(), stats);
   }
 };
 
@@ -314,6 +315,74 @@ TEST(Bake, ChartsMovedByWholeTexelsAreCopiedExactly) {
       for (int k = 0; k < 3; ++k)
         ASSERT_EQ(out.texels[(y * 64 + x) * 3 + k], old_page.texels[((y - 5) * 64 + x - 12) * 3 + k])
             << x << "," << y;
+}
+
+TEST(SampleTexture, CubicNearOneToOneIsSharperThanBilinearAndNeverRings) {
+  // A sine of period 5 texels along x, sampled between texel centres.
+  constexpr double kTau = 6.283185307179586;
+  Image<float> wave = blank<float>(40, 4, 1);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 40; ++x) wave.texels[y * 40 + x] = static_cast<float>(std::sin(kTau * (x + 0.5) / 5.0));
+  const Footprint one_to_one = footprint_of(Eigen::Matrix2d::Identity());
+  ASSERT_TRUE(one_to_one.cubic);
+  EXPECT_FALSE(footprint_of(0.4 * Eigen::Matrix2d::Identity()).cubic);  // magnified: bilinear
+  EXPECT_GT(footprint_of(3.0 * Eigen::Matrix2d::Identity()).samples_x, 1);  // minified: box
+  double cubic_error = 0, bilinear_error = 0;
+  for (int i = 0; i < 40; ++i) {
+    const Eigen::Vector2d at(10.0 + 0.5 * i / 2.0, 2.0);
+    const double truth = std::sin(kTau * at.x() / 5.0);
+    double c, b;
+    sample_texture(view_of(wave), at, one_to_one, &c);
+    sample_texture(view_of(wave), at, Footprint{}, &b);
+    cubic_error += (c - truth) * (c - truth);
+    bilinear_error += (b - truth) * (b - truth);
+  }
+  EXPECT_LT(cubic_error, 0.5 * bilinear_error);
+
+  // A step: the cubic stays within the two texels it lies between.
+  Image<float> step = blank<float>(8, 4, 1);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 4; x < 8; ++x) step.texels[y * 8 + x] = 1.0f;
+  for (double u = 3.5; u <= 4.5; u += 0.125) {
+    double v;
+    sample_texture(view_of(step), Eigen::Vector2d(u, 2.0), one_to_one, &v);
+    EXPECT_GE(v, 0.0);
+    EXPECT_LE(v, 1.0);
+  }
+}
+
+TEST(Bake, QuarterTurnedChartsAreCopiedBitForBitAndCounted) {
+  // Float noise: any blend of two texels would show in the low bits.
+  auto none = [](int, const Eigen::Vector2d&) { return Colour{}; };
+  const Eigen::Matrix2d kept = 0.5 * Eigen::Matrix2d::Identity();  // 32 texels on a 64 page
+  const Eigen::Matrix2d turned = turn(0.5, 0, -1, 1, 0);
+  // Old uv = o + kept * l, new uv = n + turned * l: old = o + kept * turned^-1 (new - n).
+  const Eigen::Vector2d old_offset = Eigen::Vector2d(8, 8) / 64, new_offset = Eigen::Vector2d(45, 6) / 64;
+  Scene<float> sc = scene<float>({{kept, old_offset, 0}}, {{turned, new_offset, 0}}, 64, {{64, 64}}, 3, 0.0, none,
+                                 Colour{}, 1, 4);
+  std::uint32_t state = 777;
+  for (float& v : sc.old_images[0].texels) v = static_cast<float>((state = state * 1664525u + 1013904223u) >> 8) / 16777216.0f;
+  BakeStats stats;
+  const Image<float> out = sc.bake({}, &stats)[0];
+  EXPECT_EQ(stats.covered_texels, 32 * 32);
+  EXPECT_EQ(stats.copied_texels, stats.covered_texels);
+  const Eigen::Matrix2d new_to_old = kept * turned.inverse();
+  const Image<float>& old_page = sc.old_images[0];
+  for (int y = 6; y < 6 + 32; ++y)
+    for (int x = 45 - 32; x < 45; ++x) {
+      const Eigen::Vector2d old_uv = old_offset + new_to_old * (Eigen::Vector2d(x + 0.5, y + 0.5) / 64 - new_offset);
+      const int ox = static_cast<int>(std::floor(old_uv.x() * 64)), oy = static_cast<int>(std::floor(old_uv.y() * 64));
+      for (int k = 0; k < 3; ++k)
+        ASSERT_EQ(out.texels[(y * 64 + x) * 3 + k], old_page.texels[(oy * 64 + ox) * 3 + k]) << x << "," << y;
+    }
+
+  // Half a texel off the grid: resampled, none copied.
+  Scene<float> off = scene<float>({{kept, old_offset, 0}}, {{turned, new_offset + Eigen::Vector2d(0.5, 0) / 64, 0}},
+                                  64, {{64, 64}}, 3, 0.0, none, Colour{}, 1, 4);
+  off.old_images = sc.old_images;
+  off.bake({}, &stats);
+  EXPECT_GT(stats.covered_texels, 0);
+  EXPECT_EQ(stats.copied_texels, 0);
 }
 
 // Charts turned a quarter, mirrored in x, mirrored in y, and kept, on one 128 x 128 page.

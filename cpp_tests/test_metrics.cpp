@@ -359,6 +359,28 @@ TEST(CompareColors, ConstantOffsetGivesKnownPsnr) {
   EXPECT_EQ(again.psnr_db, c.psnr_db);
 }
 
+TEST(CompareColors, BorderPointsAreThoseReadingGutterTexels) {
+  // One chart over [0, 0.9]^2 of a 64^2 page: texels from column or row 58 on
+  // are gutter. The new image changes only those.
+  const Mesh mesh = atlas::testing::grid_disk(8, 0.9, 64);
+  const std::vector<std::uint8_t> a = pattern_image<std::uint8_t>(64, 64, 3, 1.0);
+  std::vector<std::uint8_t> b = a;
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x)
+      if (x >= 58 || y >= 58)
+        for (int k = 0; k < 3; ++k) b[(static_cast<size_t>(y) * 64 + x) * 3 + k] ^= 0x80;
+  const ColorFidelity c = compare_colors<std::uint8_t>(mesh, layout_of(mesh), {view_of(a, 64, 64, 3)}, layout_of(mesh),
+                                         {view_of(b, 64, 64, 3)}, 20000, 3);
+  EXPECT_DOUBLE_EQ(c.psnr_clean_db, kMaxPsnrDb);
+  EXPECT_LT(c.psnr_border_db, 30.0);
+  EXPECT_LT(c.psnr_db, kMaxPsnrDb);
+  // Border points lie within about a texel of the chart's outer edges:
+  // 2 of its 57.6-texel sides (the other two wrap onto gutter too).
+  const double border_share = 1.0 - static_cast<double>(c.clean_samples) / c.samples;
+  EXPECT_GT(border_share, 0.01);
+  EXPECT_LT(border_share, 0.1);
+}
+
 TEST(CompareColors, SamplesUniformlyBy3DArea) {
   // UVs stay on the regular grid but x is squared in 3D: u < 0.5 holds 1/4 of the
   // surface. Old image black for u < 0.5, white above; new image all black.

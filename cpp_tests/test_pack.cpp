@@ -1,12 +1,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "pack/chart_raster.hpp"
 #include "pack/coarse_mask.hpp"
 #include "pack/pack.hpp"
 #include "pack/page_occupancy.hpp"
+#include "pack/smallest_box_turn.hpp"
 
 namespace atlas {
 namespace {
@@ -262,6 +264,128 @@ TEST(PackCharts, MaxPageSizeSpillsOntoMorePages) {
   expect_valid_packing(charts, result, options.padding);
   // Fewest pages: all but the last are well filled.
   EXPECT_GT(result.efficiency, 0.5);
+}
+
+TEST(PackCharts, MaxPagesShrinksChartsOnlyWhenTheyDoNotFit) {
+  const auto charts = random_rectangles(300, 40, 5);
+  PackOptions options;
+  options.padding = 3;
+  options.max_page_size = 256;
+  options.max_pages = 1;
+  const PackResult shrunk = pack_charts(charts, options, RunControl());
+  ASSERT_EQ(shrunk.pages.size(), 1u);
+  EXPECT_LT(shrunk.scale, 1.0);
+  // Not needlessly small: 2% more and the charts take a second page.
+  PackOptions larger = options;
+  larger.max_pages = 0;
+  larger.density_scale = 1.02 * shrunk.scale;
+  EXPECT_GT(pack_charts(charts, larger, RunControl()).pages.size(), 1u);
+  EXPECT_TRUE(shrunk.shrunk);
+  expect_valid_packing(charts, shrunk, options.padding);
+  expect_reported_transform(charts, shrunk);
+
+  options.max_page_size = 2048;  // room enough: full density, no warning
+  const PackResult full = pack_charts(charts, options, RunControl());
+  EXPECT_DOUBLE_EQ(full.scale, 1.0);
+  EXPECT_FALSE(full.shrunk);
+}
+
+TEST(PackCharts, EveryPageSideModeGivesPagesOfItsKind) {
+  const auto charts = random_blobs(200, 4);
+  PackOptions tight_options;
+  tight_options.padding = 2;
+  tight_options.page_sides = PageSides::Tight;
+  const PageSize tight = pack_charts(charts, tight_options, RunControl()).pages[0];
+  for (PageSides sides : {PageSides::Tight, PageSides::MultipleOf4, PageSides::PowerOfTwo})
+    for (bool square : {false, true}) {
+      PackOptions options;
+      options.padding = 2;
+      options.page_sides = sides;
+      options.square_pages = square;
+      const PackResult result = pack_charts(charts, options, RunControl());
+      ASSERT_EQ(result.pages.size(), 1u);
+      const PageSize page = result.pages[0];
+      if (sides == PageSides::MultipleOf4) {
+        EXPECT_EQ(page.width % 4, 0);
+        EXPECT_EQ(page.height % 4, 0);
+      }
+      if (sides == PageSides::PowerOfTwo) {
+        EXPECT_EQ(page.width & (page.width - 1), 0) << page.width;
+        EXPECT_EQ(page.height & (page.height - 1), 0) << page.height;
+      }
+      if (square) EXPECT_EQ(page.width, page.height);
+      EXPECT_DOUBLE_EQ(result.scale, 1.0);
+      // Rounding costs at most 2x per side for powers of two, and the square
+      // takes the longer side of a near-square page.
+      const double side_growth = (sides == PageSides::PowerOfTwo ? 2.0 : 1.1) * (square ? 1.3 : 1.0);
+      EXPECT_LE(page.width, side_growth * std::max(tight.width, tight.height)) << page.width;
+      EXPECT_LE(page.height, side_growth * std::max(tight.width, tight.height)) << page.height;
+      EXPECT_LE(static_cast<double>(page.width) * page.height,
+                side_growth * side_growth * tight.width * tight.height);
+      expect_valid_packing(charts, result, options.padding);
+    }
+}
+
+TEST(PackCharts, PowerOfTwoPagesOnManyPagesToo) {
+  const auto charts = random_rectangles(300, 40, 5);
+  PackOptions options;
+  options.padding = 3;
+  options.max_page_size = 300;  // pages of at most 256
+  options.page_sides = PageSides::PowerOfTwo;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  EXPECT_GT(result.pages.size(), 1u);
+  for (const PageSize& page : result.pages) {
+    EXPECT_LE(page.width, 256);
+    EXPECT_EQ(page.width & (page.width - 1), 0) << page.width;
+    EXPECT_EQ(page.height & (page.height - 1), 0) << page.height;
+  }
+  expect_valid_packing(charts, result, options.padding);
+}
+
+// Thousands of charts on one UV area (duplicated meshes, scan debris) used to
+// make every scale try of the budget search rasterise them all at full size.
+TEST(PackCharts, TenThousandStackedChartsPackWithinTheLimits) {
+  std::mt19937 rng(9);
+  std::vector<RowMatrixX2d> charts;
+  for (int i = 0; i < 10000; ++i) charts.push_back(blob(rng, 512.0, 12, 512.0, 512.0));
+  PackOptions options;
+  options.texel_budget = 1024 * 1024;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  EXPECT_LE(total_page_texels(result), options.texel_budget);
+  EXPECT_TRUE(result.shrunk);
+  expect_valid_packing(charts, result, options.padding);
+
+  options.texel_budget = 0;
+  options.max_pages = 1;
+  options.max_page_size = 4096;
+  const PackResult one_page = pack_charts(charts, options, RunControl());
+  ASSERT_EQ(one_page.pages.size(), 1u);
+  EXPECT_GT(one_page.efficiency, 0.4);
+  expect_valid_packing(charts, one_page, options.padding);
+}
+
+TEST(SmallestBoxTurn, TurnsATiltedRectangleUprightWithoutMirroring) {
+  const double a = 0.5236;  // 30 degrees
+  Eigen::Matrix2d r;
+  r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
+  const RowMatrixX2d tilted = (rectangle(40, 10, 5, 7) * r.transpose()).eval();
+  const RowMatrixX2d upright = turned_to_smallest_box(tilted);
+  const Eigen::RowVector2d extent = upright.colwise().maxCoeff() - upright.colwise().minCoeff();
+  EXPECT_NEAR(extent.x() * extent.y(), 400.0, 1e-6);
+  auto signed_area = [](const RowMatrixX2d& uv) {
+    const Eigen::RowVector2d e1 = uv.row(1) - uv.row(0), e2 = uv.row(2) - uv.row(0);
+    return e1.x() * e2.y() - e1.y() * e2.x();
+  };
+  EXPECT_NEAR(signed_area(upright), signed_area(tilted), 1e-9);  // a turn, not a mirror
+  // Lengths are kept: the texel density does not change.
+  EXPECT_NEAR((upright.row(1) - upright.row(0)).norm(), 40.0, 1e-9);
+
+  // Nothing to turn: a point, a segment, non-finite corners.
+  const RowMatrixX2d point = RowMatrixX2d::Constant(3, 2, 1.5);
+  EXPECT_EQ(turned_to_smallest_box(point), point);
+  RowMatrixX2d bad = tilted;
+  bad(2, 0) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(turned_to_smallest_box(bad).row(0).isApprox(bad.row(0)));
 }
 
 TEST(PackCharts, ChartLargerThanMaxPageIsScaledDown) {

@@ -141,6 +141,12 @@ RunControl control_from(const py::object& progress, const py::object& cancel) {
   return RunControl(report, cancel.cast<CancelToken&>().flag);
 }
 
+// True or False only: a number or a string is refused, not read as a flag.
+bool bool_option(const py::handle& value, const std::string& key) {
+  if (!py::isinstance<py::bool_>(value)) throw py::value_error(key + " must be True or False");
+  return value.cast<bool>();
+}
+
 PipelineOptions pipeline_options(const py::object& obj) {
   PipelineOptions o;
   if (obj.is_none()) return o;
@@ -160,6 +166,17 @@ PipelineOptions pipeline_options(const py::object& obj) {
     else if (key == "density_scale") o.pack.density_scale = value.cast<double>();
     else if (key == "texel_budget") o.pack.texel_budget = value.cast<long long>();
     else if (key == "max_iterations") o.slim.max_iterations = value.cast<int>();
+    else if (key == "max_pages") o.pack.max_pages = value.cast<int>();
+    else if (key == "square_pages") o.pack.square_pages = bool_option(value, key);
+    else if (key == "texels_at_most_input") o.texels_at_most_input = bool_option(value, key);
+    else if (key == "texels_per_unit") o.texels_per_unit = value.cast<double>();
+    else if (key == "page_sides") {
+      const std::string v = value.cast<std::string>();
+      if (v == "tight") o.pack.page_sides = PageSides::Tight;
+      else if (v == "multiple_of_4") o.pack.page_sides = PageSides::MultipleOf4;
+      else if (v == "power_of_two") o.pack.page_sides = PageSides::PowerOfTwo;
+      else throw py::value_error("page_sides must be 'tight', 'multiple_of_4' or 'power_of_two', got '" + v + "'");
+    }
     else throw py::value_error("unknown option '" + key + "'");
   }
   if (o.pack.padding < 0 || o.pack.padding > 64) throw py::value_error("padding must be 0..64 texels");
@@ -170,6 +187,10 @@ PipelineOptions pipeline_options(const py::object& obj) {
     throw py::value_error("fixed_page_size must be 0 (automatic) or 64..max_page_size texels");
   if (!(o.pack.density_scale >= 0.01 && o.pack.density_scale <= 16))
     throw py::value_error("density_scale must be 0.01..16");
+  if (o.pack.max_pages < 0 || o.pack.max_pages > 4096)
+    throw py::value_error("max_pages must be 0 (automatic) or 1..4096");
+  if (o.texels_per_unit != 0 && !(o.texels_per_unit >= 0.001 && o.texels_per_unit <= 1e9))
+    throw py::value_error("texels_per_unit must be 0 (density_scale applies) or 0.001..1e9");
   if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");
@@ -244,6 +265,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["texels_after"] = r.texels_after;
   d["packing_efficiency"] = r.packing_efficiency;
   d["scale"] = r.scale;
+  d["shrunk"] = r.shrunk;
   d["energy_initial_median"] = r.energy_initial_median;
   d["energy_median"] = r.energy_median;
   d["energy_max"] = r.energy_max;
@@ -275,6 +297,7 @@ py::dict defragment_py(const py::object& positions, const py::object& triangles,
   out["page_sizes"] = sizes_array(r.pages);
   out["report"] = report_dict(r.report);
   out["charts"] = chart_arrays(r.charts);
+  out["face_chart"] = int_array(r.face_chart);
   return out;
 }
 
@@ -337,23 +360,24 @@ py::array_t<T> image_array(Image<T>&& image) {
 
 template <class T>
 py::list bake_typed(LayoutArrays& old_l, const py::list& images, const LayoutArrays& new_l,
-                    const BakeOptions& options, const RunControl& control) {
+                    const BakeOptions& options, const RunControl& control, BakeStats& stats) {
   std::vector<py::array> keep;
   const auto views = image_views<T>(images, "images", keep);
   for (const ImageView<T>& v : views) old_l.pages.push_back({v.width, v.height});
   std::vector<Image<T>> baked;
   {
     py::gil_scoped_release release;
-    baked = bake_map<T>(old_l.view(), views, new_l.view(), options, control);
+    baked = bake_map<T>(old_l.view(), views, new_l.view(), options, control, &stats);
   }
   py::list result;
   for (auto& image : baked) result.append(image_array(std::move(image)));
   return result;
 }
 
-py::list bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
-                 const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
-                 bool normal_map, int padding, const py::object& progress, const py::object& cancel) {
+py::object bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
+                   const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
+                   bool normal_map, int padding, const py::object& progress, const py::object& cancel,
+                   bool with_stats) {
   const Eigen::Index faces = checked<double>(old_uvs, "old_uvs", {3, 2}, "(F, 3, 2)").shape(0);
   LayoutArrays old_l = layout_arrays(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
   const LayoutArrays new_l =
@@ -361,8 +385,16 @@ py::list bake_py(const py::object& old_uvs, const py::object& old_face_page, con
   if (padding < 0 || padding > 64) throw py::value_error("padding must be 0..64 texels");
   const BakeOptions options{normal_map, padding};
   const RunControl control = control_from(progress, cancel);
-  if (is_uint8_images(images, "images")) return bake_typed<std::uint8_t>(old_l, images, new_l, options, control);
-  return bake_typed<float>(old_l, images, new_l, options, control);
+  BakeStats stats;
+  const py::list baked = is_uint8_images(images, "images")
+                             ? bake_typed<std::uint8_t>(old_l, images, new_l, options, control, stats)
+                             : bake_typed<float>(old_l, images, new_l, options, control, stats);
+  if (!with_stats) return baked;
+  py::dict d;
+  d["covered_texels"] = stats.covered_texels;
+  d["copied_texels"] = stats.copied_texels;
+  d["copied_share"] = stats.covered_texels > 0 ? static_cast<double>(stats.copied_texels) / stats.covered_texels : 0.0;
+  return py::make_tuple(baked, d);
 }
 
 py::dict atlas_dict(const AtlasMeasures& m) {
@@ -447,7 +479,37 @@ py::dict compare_colors_py(const py::object& positions, const py::object& triang
   d["psnr_db"] = c.psnr_db;
   d["share_off_32"] = c.share_off_32;
   d["samples"] = c.samples;
+  d["psnr_clean_db"] = c.psnr_clean_db;
+  d["psnr_border_db"] = c.psnr_border_db;
+  d["clean_share"] = c.samples > 0 ? static_cast<double>(c.clean_samples) / c.samples : 0.0;
   return d;
+}
+
+// Packs charts given in texels, as the pipeline does after flattening.
+py::dict pack_charts_py(const py::list& charts, const py::object& options, const py::object& cancel) {
+  std::vector<RowMatrixX2d> uv;
+  for (size_t c = 0; c < charts.size(); ++c) {
+    const std::string name = "charts[" + std::to_string(c) + "]";
+    const auto a = checked<double>(charts[c], name.c_str(), {3, 2}, "(F_c, 3, 2)");
+    uv.push_back(to_matrix<RowMatrixX2d>(a, 3 * a.shape(0), 2));
+  }
+  const PackOptions o = pipeline_options(options).pack;
+  const RunControl control = control_from(py::none(), cancel);
+  PackResult r;
+  {
+    py::gil_scoped_release release;
+    r = pack_charts(uv, o, control);
+  }
+  py::list placed;
+  for (const RowMatrixX2d& p : r.placed_uv) placed.append(uv_array(p));
+  py::dict out;
+  out["uvs"] = placed;
+  out["chart_page"] = py::array_t<int>(r.chart_page.size(), r.chart_page.data());
+  out["page_sizes"] = sizes_array(r.pages);
+  out["scale"] = r.scale;
+  out["shrunk"] = r.shrunk;
+  out["efficiency"] = r.efficiency;
+  return out;
 }
 
 }  // namespace
@@ -469,9 +531,17 @@ PYBIND11_MODULE(_native, m) {
 positions (V,3) float, triangles (F,3) int (triangulate quads and n-gons first),
 uvs (F,3,2) per-corner UVs in page units, face_page (F,) int (-1: untextured,
 UVs pass through), page_sizes (P,2) (width, height) in texels. face_group (F,)
-keeps groups apart. Returns dict(uvs, face_page, page_sizes, report, charts); charts
+keeps groups apart. Returns dict(uvs, face_page, page_sizes, report, charts, face_chart
+(output chart per face, -1 untextured)); charts
 holds per output chart: faces, flattened (else original UVs kept), energy_initial
 and energy_final (symmetric Dirichlet per unit reference area, 4 = isometric).)");
+
+  m.def("pack_charts", &pack_charts_py, py::arg("charts"), py::kw_only(), py::arg("options") = py::none(),
+        py::arg("cancel") = py::none(),
+        R"(Packs charts alone: charts is a list of (F_c,3,2) corner arrays in texels (any
+placement); options takes the packing keys of defragment's options. Returns
+dict(uvs: list of (F_c,3,2) in page units, chart_page, page_sizes, scale, shrunk
+(scale below density_scale), efficiency).)");
 
   m.def("chart_graph", &chart_graph_py, py::arg("positions"), py::arg("triangles"), py::arg("uvs"),
         py::arg("face_page"), py::arg("page_sizes"), "The input's UV charts: counts and the chart of each face.");
@@ -479,11 +549,15 @@ and energy_final (symmetric Dirichlet per unit reference area, 4 = isometric).)"
   m.def("bake", &bake_py, py::arg("old_uvs"), py::arg("old_face_page"), py::arg("images"), py::arg("new_uvs"),
         py::arg("new_face_page"), py::arg("out_sizes"), py::kw_only(), py::arg("normal_map") = false,
         py::arg("padding") = 4, py::arg("progress") = py::none(), py::arg("cancel") = py::none(),
+        py::arg("with_stats") = false,
         R"(Bakes one map through the new layout.
 
 images: one (H,W,C) uint8 or float32 array per old page, row 0 at v = 0 (Blender's
 order). Returns one array per entry of out_sizes (width, height), same dtype.
-normal_map re-orients tangent-space XY per face.)");
+normal_map re-orients tangent-space XY per face. with_stats: returns (images,
+dict(covered_texels, copied_texels, copied_share)), copied texels being taken
+unresampled from the old texel they land on (faces moved by whole texels and
+quarter turns only).)");
 
   m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),
@@ -492,5 +566,7 @@ normal_map re-orients tangent-space XY per face.)");
   m.def("compare_colors", &compare_colors_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_images"), py::arg("new_uvs"), py::arg("new_face_page"),
         py::arg("new_images"), py::kw_only(), py::arg("samples") = 400000, py::arg("seed") = 1,
-        "PSNR and share of points off by more than 32/255, on points drawn uniformly by surface area.");
+        R"(PSNR and share of points off by more than 32/255, on points drawn uniformly by
+surface area; also PSNR on clean points (all four bilinear texels of the old atlas
+inside the point's own old chart: clean_share of them) and on the border rest.)");
 }

@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -14,6 +15,7 @@
 #include "charts/chart_graph.hpp"
 #include "core/geometry.hpp"
 #include "core/rasterize_triangle.hpp"
+#include "core/topology.hpp"
 
 namespace atlas {
 namespace {
@@ -291,6 +293,62 @@ MapMeasures measure_map(const Mesh& mesh, const UvLayout& old_atlas, const UvLay
   return m;
 }
 
+namespace {
+
+constexpr int kNoChart = -1, kManyCharts = -2;
+
+// Per page of the atlas, per texel: the chart whose faces cover its centre,
+// kNoChart, or kManyCharts where faces of several charts do.
+std::vector<std::vector<int>> texel_charts(const UvLayout& atlas, const std::vector<PageSize>& sizes,
+                                           const std::vector<int>& face_chart) {
+  std::vector<std::vector<int>> owner(sizes.size());
+  for (size_t p = 0; p < sizes.size(); ++p)
+    owner[p].assign(static_cast<size_t>(sizes[p].width) * sizes[p].height, kNoChart);
+  for (int f = 0; f < static_cast<int>(face_chart.size()); ++f) {
+    const int p = (*atlas.face_page)[f];
+    if (p < 0 || face_chart[f] < 0) continue;
+    const PageSize page = sizes[p];
+    const Eigen::Vector2d scale(page.width, page.height);
+    TexelTriangle t;
+    if (!t.setup(atlas.corner_uv->row(3 * f).transpose().cwiseProduct(scale),
+                 atlas.corner_uv->row(3 * f + 1).transpose().cwiseProduct(scale),
+                 atlas.corner_uv->row(3 * f + 2).transpose().cwiseProduct(scale)))
+      continue;
+    for (int y = std::max(0, t.row_begin); y < std::min(page.height, t.row_end); ++y) {
+      int x0, x1;
+      t.row_span(y, x0, x1);
+      for (int x = std::max(0, x0); x < std::min(page.width, x1); ++x) {
+        int& o = owner[p][static_cast<size_t>(y) * page.width + x];
+        o = o == kNoChart || o == face_chart[f] ? face_chart[f] : kManyCharts;
+      }
+    }
+  }
+  return owner;
+}
+
+// Whether the four texels bilinear sampling reads at `at` (texels, wrapping
+// as sample_texture does) all belong to `chart`.
+bool bilinear_texels_in_chart(const std::vector<int>& owner, const PageSize& page, const Eigen::Vector2d& at,
+                              int chart) {
+  const int x0 = static_cast<int>(std::floor(at.x() - 0.5)), y0 = static_cast<int>(std::floor(at.y() - 0.5));
+  for (int dy = 0; dy < 2; ++dy)
+    for (int dx = 0; dx < 2; ++dx) {
+      const int x = ((x0 + dx) % page.width + page.width) % page.width;
+      const int y = ((y0 + dy) % page.height + page.height) % page.height;
+      if (owner[static_cast<size_t>(y) * page.width + x] != chart) return false;
+    }
+  return true;
+}
+
+double psnr_of(double error, long long values) {
+  const double mse = values > 0 ? error / values : 0.0;
+  const double psnr = mse > 0 ? -10.0 * std::log10(mse) : kMaxPsnrDb;
+  // Capped both ways: identical colours give +99, absurd float values at worst -99, never NaN.
+  return std::isfinite(psnr) ? std::clamp(psnr, -kMaxPsnrDb, kMaxPsnrDb) : -kMaxPsnrDb;
+}
+
+}  // namespace
+
 template <class T>
 ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const std::vector<ImageView<T>>& old_images,
                              const UvLayout& new_atlas, const std::vector<ImageView<T>>& new_images, int samples,
@@ -316,18 +374,27 @@ ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const 
   }
   if (face.empty() || samples <= 0) return result;
 
+  std::vector<PageSize> old_sizes;
+  for (const ImageView<T>& image : old_images) old_sizes.push_back({image.width, image.height});
+  const std::vector<int> face_chart =
+      build_chart_graph(mesh, build_topology(mesh.triangles, mesh.vertex_count()), {}).face_chart;
+  const std::vector<std::vector<int>> owner = texel_charts(old_atlas, old_sizes, face_chart);
+
   const double scale = texel_scale<T>();
   constexpr int kChunk = 4096;  // per-chunk partial sums keep the total independent of thread count
   const int chunks = (samples + kChunk - 1) / kChunk;
-  std::vector<double> chunk_error(chunks, 0.0);
-  std::vector<long long> chunk_off(chunks, 0), chunk_values(chunks, 0);
+  // Per chunk, [0] clean and [1] border points.
+  std::vector<std::array<double, 2>> chunk_error(chunks, {0.0, 0.0});
+  std::vector<std::array<long long, 2>> chunk_values(chunks, {0, 0});
+  std::vector<long long> chunk_off(chunks, 0), chunk_clean(chunks, 0);
   const std::uint64_t stream = splitmix64(0x5eed0000ull ^ seed);
 
 #pragma omp parallel for schedule(dynamic, 1)
   for (int chunk = 0; chunk < chunks; ++chunk) {
     const int begin = chunk * kChunk, end = std::min(samples, begin + kChunk);
-    double error = 0;
-    long long off = 0, values = 0;
+    std::array<double, 2> error = {0.0, 0.0};
+    std::array<long long, 2> values = {0, 0};
+    long long off = 0, clean = 0;
     double old_px[kMaxTexelChannels], new_px[kMaxTexelChannels];
     // Jittered stratified picks: sample i lands uniformly in the i-th of `samples`
     // equal slices of the cumulative area, so picks rise with i and the face search
@@ -350,36 +417,41 @@ ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const 
       };
       const ImageView<T>& old_image = old_images[(*old_atlas.face_page)[f]];
       const ImageView<T>& new_image = new_images[(*new_atlas.face_page)[f]];
-      sample_texture(old_image, at(old_atlas, old_image), Footprint{}, old_px);
+      const int old_page = (*old_atlas.face_page)[f];
+      const Eigen::Vector2d old_at = at(old_atlas, old_image);
+      sample_texture(old_image, old_at, Footprint{}, old_px);
       sample_texture(new_image, at(new_atlas, new_image), Footprint{}, new_px);
+      const int kind = bilinear_texels_in_chart(owner[old_page], old_sizes[old_page], old_at, face_chart[f]) ? 0 : 1;
       const int channels = std::min({3, old_image.channels, new_image.channels});
       bool is_off = false;
       for (int c = 0; c < channels; ++c) {
         double d = std::abs(new_px[c] - old_px[c]) * scale;
         if (!std::isfinite(d)) d = 1.0;
-        error += d * d;
+        error[kind] += d * d;
         is_off = is_off || d > 32.0 / 255.0;
       }
-      values += channels;
+      values[kind] += channels;
       off += is_off;
+      clean += kind == 0;
     }
     chunk_error[chunk] = error;
     chunk_off[chunk] = off;
+    chunk_clean[chunk] = clean;
     chunk_values[chunk] = values;
   }
-  double error = 0;
-  long long off = 0, values = 0;
+  std::array<double, 2> error = {0.0, 0.0};
+  std::array<long long, 2> values = {0, 0};
+  long long off = 0;
   for (int c = 0; c < chunks; ++c) {
-    error += chunk_error[c];
+    for (int k = 0; k < 2; ++k) error[k] += chunk_error[c][k], values[k] += chunk_values[c][k];
     off += chunk_off[c];
-    values += chunk_values[c];
+    result.clean_samples += chunk_clean[c];
   }
   result.samples = samples;
   result.share_off_32 = static_cast<double>(off) / samples;
-  const double mse = values > 0 ? error / values : 0.0;
-  const double psnr = mse > 0 ? -10.0 * std::log10(mse) : kMaxPsnrDb;
-  // Capped both ways: identical colours give +99, absurd float values at worst -99, never NaN.
-  result.psnr_db = std::isfinite(psnr) ? std::clamp(psnr, -kMaxPsnrDb, kMaxPsnrDb) : -kMaxPsnrDb;
+  result.psnr_db = psnr_of(error[0] + error[1], values[0] + values[1]);
+  result.psnr_clean_db = psnr_of(error[0], values[0]);
+  result.psnr_border_db = psnr_of(error[1], values[1]);
   return result;
 }
 

@@ -50,6 +50,12 @@ struct ColorFidelity {
   double psnr_db = kMaxPsnrDb;  // over RGB (first min(3, channels) channels) in [0,1] units
   double share_off_32 = 0;      // share of points where some channel differs by > 32/255
   long long samples = 0;        // points drawn (0 when no face is textured in both layouts)
+  // The same PSNR on two halves of the points: "clean" ones, whose four
+  // bilinear texels in the old atlas all lie inside the point's own old chart
+  // (a texel lies inside a chart when one of its faces covers the texel
+  // centre), and the "border" rest, where the old atlas blends gutter texels.
+  double psnr_clean_db = kMaxPsnrDb, psnr_border_db = kMaxPsnrDb;
+  long long clean_samples = 0;
 };
 
 // Draws `samples` surface points uniformly by 3D area over the faces textured
@@ -57,7 +63,9 @@ struct ColorFidelity {
 // barycentrics; deterministic for a given seed, independent of thread count),
 // samples old_images[old page] and new_images[new page] bilinearly with repeat
 // wrapping at the points' UVs. uint8 values are divided by 255, floats used as
-// they are; a non-finite difference counts as 1. Throws InputError when a used
+// they are; a non-finite difference counts as 1. The clean / border split takes
+// the old charts from the mesh's own UVs (old_atlas is atlas_of(mesh) in every
+// caller). Throws InputError when a used
 // page has no image or an image view is inconsistent.
 template <class T>
 ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const std::vector<ImageView<T>>& old_images,

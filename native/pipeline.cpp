@@ -2,6 +2,7 @@
 
 #include <omp.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -10,9 +11,11 @@
 #include <map>
 #include <numeric>
 
+#include "core/geometry.hpp"
 #include "core/parallel_for.hpp"
 #include "core/topology.hpp"
 #include "core/uv_layout.hpp"
+#include "pack/smallest_box_turn.hpp"
 
 namespace atlas {
 namespace {
@@ -84,9 +87,32 @@ void enlarge_tiny_charts(std::vector<FlatChart>& charts) {
   }
 }
 
+// Flattened charts come out at arbitrary angles; turned to their smallest
+// bounding box they pack tighter. Kept charts keep their angle, so that the
+// packer moves them by whole texels and the bake copies their texels.
+void turn_solved_charts(std::vector<FlatChart>& charts) {
+  parallel_for(static_cast<int>(charts.size()), 8, [&](int c) {
+    if (!charts[c].kept_original) charts[c].corner_uv = turned_to_smallest_box(charts[c].corner_uv);
+  });
+}
+
+// Texels per unit of surface length of the charts: sqrt(texel area / 3D area).
+double texel_density(const Mesh& mesh, const std::vector<FlatChart>& charts, const std::vector<int>& members) {
+  double texel_area = 0, surface_area = 0;
+  for (int c : members) {
+    const RowMatrixX2d& uv = charts[c].corner_uv;
+    for (size_t j = 0; j < charts[c].faces.size(); ++j) {
+      texel_area += std::abs(signed_area(uv.row(3 * j), uv.row(3 * j + 1), uv.row(3 * j + 2)));
+      surface_area += mesh.area_3d(charts[c].faces[j]);
+    }
+  }
+  return surface_area > 0 && texel_area > 0 ? std::sqrt(texel_area / surface_area) : 0;
+}
+
 // Packs each face group on pages of its own and writes the placed UVs.
 void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std::vector<FlatChart>& charts,
-                 const PackOptions& base, const RunControl& control, PipelineResult& result) {
+                 const PipelineOptions& pipeline, const RunControl& control, PipelineResult& result) {
+  const PackOptions& base = pipeline.pack;
   std::map<int, std::vector<int>> by_group;
   for (size_t c = 0; c < charts.size(); ++c)
     by_group[face_group.empty() ? 0 : face_group[charts[c].faces.front()]].push_back(static_cast<int>(c));
@@ -99,12 +125,25 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
       for (int f : charts[c].faces) used[mesh.face_page[f]] = 1;
     }
     PackOptions options = base;
-    // By default the output may hold as many texels as the input, times the
-    // area scale the caller asked for.
-    if (options.texel_budget <= 0 && options.fixed_page_size <= 0)
-      options.texel_budget = static_cast<long long>(static_cast<double>(page_texels(mesh.pages, used)) *
-                                                    options.density_scale * options.density_scale);
-    const PackResult packed = pack_charts(uv, options, control);
+    if (pipeline.texels_per_unit > 0) {
+      const double density = texel_density(mesh, charts, members);
+      if (density > 0) options.density_scale = pipeline.texels_per_unit / density;
+    }
+    if (options.fixed_page_size <= 0) {
+      // The input's texels at the density asked for.
+      const double wanted = static_cast<double>(page_texels(mesh.pages, used)) * options.density_scale *
+                            options.density_scale;
+      // As many pages as the input used, or as many of max_page_size as hold its texels.
+      const double max_page = static_cast<double>(options.max_page_size) * options.max_page_size;
+      if (options.max_pages <= 0)
+        options.max_pages = static_cast<int>(std::min<double>(
+            4096, std::max<double>(static_cast<double>(std::count(used.begin(), used.end(), 1)),
+                                   std::ceil(wanted / max_page))));
+      options.max_pages = std::max(1, options.max_pages);
+      if (pipeline.texels_at_most_input && options.texel_budget <= 0)
+        options.texel_budget = static_cast<long long>(wanted);
+    }
+  const PackResult packed = pack_charts(uv, options, control);
     const int first_page = static_cast<int>(result.pages.size());
     for (size_t i = 0; i < members.size(); ++i) {
       const FlatChart& chart = charts[members[i]];
@@ -119,6 +158,7 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
     covered += packed.efficiency * texels;
     total += texels;
     scale = std::min(scale, packed.scale);
+    result.report.shrunk |= packed.shrunk;
   }
   result.report.packing_efficiency = total > 0 ? covered / total : 0;
   result.report.scale = by_group.empty() ? 1.0 : scale;
@@ -178,16 +218,20 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
 
   std::vector<FlatChart> charts = flatten_all(mesh, topology, graph, aggregation, options.slim, control, report);
   enlarge_tiny_charts(charts);
+  turn_solved_charts(charts);
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
-  for (const FlatChart& c : charts)
+  result.face_chart = Eigen::VectorXi::Constant(mesh.face_count(), -1);
+  for (const FlatChart& c : charts) {
+    for (int f : c.faces) result.face_chart[f] = static_cast<int>(result.charts.size());
     result.charts.push_back({static_cast<int>(c.faces.size()), !c.kept_original, c.energy_initial, c.energy_final});
+  }
   clock.lap("flatten");
 
   // Untextured faces keep their input UVs and page -1.
   result.corner_uv = mesh.corner_uv;
   result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
-  pack_groups(mesh, face_group, charts, options.pack, control, result);
+  pack_groups(mesh, face_group, charts, options, control, result);
   report.texels_after = page_texels(result.pages, {});
   clock.lap("pack");
 

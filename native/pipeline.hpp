@@ -16,7 +16,16 @@ namespace atlas {
 struct PipelineOptions {
   AggregateOptions aggregate;
   SlimOptions slim;
-  PackOptions pack;  // texel_budget 0: the input's texel count per group, times density_scale^2
+  // max_pages 0: as many pages as the group's faces use in the input (at least
+  // 1), or as many of max_page_size as hold the input's texels times
+  // density_scale^2 if that is more: charts shrink only when they would not fit.
+  PackOptions pack;
+  // true and texel_budget 0: at most the input's texel count per group, times
+  // density_scale^2 (charts shrink to keep within it).
+  bool texels_at_most_input = false;
+  // > 0: output texels per unit of surface length (per metre for scans in
+  // metres), replacing density_scale; 0: density_scale applies.
+  double texels_per_unit = 0;
 };
 
 struct StageTime {
@@ -35,6 +44,7 @@ struct PipelineReport {
   long long texels_before = 0, texels_after = 0;
   double packing_efficiency = 0;
   double scale = 1;            // smallest uniform texel scale the packer applied
+  bool shrunk = false;         // some group's charts got less than the density asked for (scale says how much)
   // Symmetric Dirichlet energy per unit reference area of the solved charts
   // (4 is isometric): median at the initial embedding, then median and max after SLIM.
   double energy_initial_median = 0, energy_median = 0, energy_max = 0;
@@ -58,6 +68,7 @@ struct ChartSummary {
 struct PipelineResult {
   RowMatrixX2d corner_uv;       // 3F x 2, page units of the new pages
   Eigen::VectorXi face_page;    // new page per face, -1 kept for untextured faces
+  Eigen::VectorXi face_chart;   // output chart per face (index into charts), -1 for untextured faces
   std::vector<PageSize> pages;
   std::vector<ChartSummary> charts;
   PipelineReport report;

@@ -246,3 +246,69 @@ def test_faces_naming_a_vertex_twice_stay_apart(native):
     result = native.defragment(positions, triangles, uvs, face_page, np.array([[64, 64]], np.int32))
     assert result["report"]["charts_after"] == 3
     assert np.isfinite(result["uvs"]).all()
+
+
+def test_default_keeps_full_density_and_fewer_texels(native, scans, tetra_result):
+    scan, result = tetra_result
+    report = result["report"]
+    assert report["scale"] == 1.0 and not report["shrunk"]
+    assert report["texels_after"] < report["texels_before"]
+    assert report["packing_efficiency"] > 0.53  # 55.2% when written; the padding alone bounds it at 71.7%
+    m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
+    assert m["map"]["density_loss_area_share"] < 0.01
+
+
+def test_a_small_max_page_size_shrinks_and_says_so(native, scans):
+    scan = scans("tetra")
+    # By default charts spill onto as many 640^2 pages as the input's texels fill.
+    spilled = native.defragment(*args(scan), options={"max_page_size": 640})
+    assert not spilled["report"]["shrunk"] and spilled["report"]["scale"] == 1.0
+    assert len(spilled["page_sizes"]) > 1 and spilled["page_sizes"].max() <= 640
+    # One page of at most 512^2: the charts shrink, and the report says so.
+    result = native.defragment(*args(scan), options={"max_page_size": 512, "max_pages": 1})
+    report = result["report"]
+    assert report["shrunk"] and 0.2 < report["scale"] < 1.0
+    assert len(result["page_sizes"]) == 1 and max(result["page_sizes"][0]) <= 512
+    # The input's texel count as a limit is an option, no longer the default.
+    limited = native.defragment(*args(scan), options={"texels_at_most_input": True})
+    assert limited["report"]["texels_after"] <= limited["report"]["texels_before"]
+
+
+def test_page_side_modes_and_texel_density_target(native, scans, tetra_result):
+    scan, full = tetra_result
+    for sides, square in (("power_of_two", False), ("multiple_of_4", True), ("tight", False)):
+        result = native.defragment(*args(scan), options={"page_sides": sides, "square_pages": square})
+        (w, h), = result["page_sizes"].tolist()
+        if sides == "power_of_two":
+            assert w & (w - 1) == 0 and h & (h - 1) == 0
+        if square:
+            assert w == h and w % 4 == 0
+    # A density target of twice the input's texels per unit of length.
+    textured = scan.face_page >= 0
+    uv = scan.uvs[textured] * np.asarray(scan.page_sizes)[scan.face_page[textured]][:, None, :]
+    texel_area = 0.5 * np.abs(np.cross(uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0])).sum()
+    p = scan.positions[scan.triangles[textured]]
+    surface = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
+    target = 2.0 * np.sqrt(texel_area / surface)
+    dense = native.defragment(*args(scan), options={"texels_per_unit": target})
+    m = native.measure(*args(scan), dense["uvs"], dense["face_page"], dense["page_sizes"])
+    assert m["map"]["density_ratio_p50"] == pytest.approx(4.0, rel=0.1)  # texel area: 2^2
+    assert not dense["report"]["shrunk"]
+    with pytest.raises(ValueError, match="page_sides"):
+        native.defragment(*args(scan), options={"page_sides": "odd"})
+
+
+def test_a_dense_atlas_keeps_its_density_by_default(native, scans):
+    # The tetra scan's charts on a page 16x narrower: its atlas is then denser
+    # than the output can be with the default padding.
+    scan = scans("tetra")
+    small = np.full_like(np.asarray(scan.page_sizes), 128)
+    dense = (scan.positions, scan.triangles, scan.uvs, scan.face_page, small)
+    result = native.defragment(*dense)
+    assert result["report"]["scale"] == 1.0 and not result["report"]["shrunk"]
+    m = native.measure(*dense, result["uvs"], result["face_page"], result["page_sizes"])
+    assert m["map"]["density_loss_area_share"] < 0.01
+    # The input's texel count as a hard limit shrinks the charts, and says so.
+    limited = native.defragment(*dense, options={"texels_at_most_input": True})
+    assert limited["report"]["shrunk"] and limited["report"]["scale"] < 1.0
+    assert limited["report"]["texels_after"] <= limited["report"]["texels_before"]

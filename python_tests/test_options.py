@@ -18,6 +18,8 @@ def probes(option):
     """Values on both sides of every bound, and 0 where it means automatic."""
     if option.choices:
         return [c.value for c in option.choices] + ["area"]
+    if option.kind is bool:
+        return [True, False, "yes"]
     step = 1 if option.kind is int else option.low / 2
     values = [option.low, option.low - step] + ([0, -step] if option.automatic else [])
     if option.high is not None:

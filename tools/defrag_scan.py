@@ -131,12 +131,13 @@ def main(argv=None) -> int:
     write_obj(args.output / f"{args.input.stem}_defrag.obj", scan, result.uvs, result.face_page,
               page_maps(result))
     print(f"{args.input.name}: {len(scan.triangles)} faces")
-    print_report(result.report, m, fidelity, t_load)
+    print_report(result, m, fidelity, t_load)
     print(f"  written to    {args.output}")
     return 0
 
 
-def print_report(r: dict, m: dict, fidelity: dict, t_load: float) -> None:
+def print_report(result: job.JobResult, m: dict, fidelity: dict, t_load: float) -> None:
+    r = result.report
     print(f"  charts        {r['charts_before']} -> {r['charts_after']} (aggregated {r['charts_aggregated']}, "
           f"split back: {r['splits_overlap']} overlap, {r['splits_density']} density, {r['splits_solver']} solver, "
           f"{r['splits_not_disk']} topology)")
@@ -146,11 +147,15 @@ def print_report(r: dict, m: dict, fidelity: dict, t_load: float) -> None:
           f"over {r['charts_solved']} flattened charts (4 = isometric)")
     print(f"  seam length   {r['seam_before']:.1f} -> {r['seam_after']:.1f} (3D length / sqrt(area))")
     print(f"  texels        {r['texels_before']:,} -> {r['texels_after']:,} "
-          f"(packing efficiency {r['packing_efficiency']:.1%}, scale {r['scale']:.3f})")
+          f"(packing efficiency {r['packing_efficiency']:.1%}, scale {r['scale']:.3f}"
+          f"{', SHRUNK below the density asked for' if r['shrunk'] else ''}; pages {result.page_sizes.tolist()})")
+    print(f"  copied        {r['copied_share']:.1%} of the covered texels taken unresampled from the old atlas")
     print(f"  flipped       {m['old']['flipped_faces']} -> {m['new']['flipped_faces']}; "
           f"texels shared by two triangles {m['old']['overlap_texels']} -> {m['new']['overlap_texels']}")
     print(f"  density loss  {m['map']['density_loss_area_share']:.2%} of the area below half its texel density")
-    print(f"  colour        PSNR {fidelity['psnr_db']:.1f} dB, {fidelity['share_off_32']:.2%} of points off by > 32/255")
+    print(f"  colour        PSNR {fidelity['psnr_db']:.1f} dB (clean {fidelity['psnr_clean_db']:.1f}, border "
+          f"{fidelity['psnr_border_db']:.1f}, {fidelity['clean_share']:.0%} clean), "
+          f"{fidelity['share_off_32']:.2%} of points off by > 32/255")
     stages = ", ".join(f"{k} {v:.2f}" for k, v in r["seconds"].items() if k != "total")
     print(f"  seconds       load {t_load:.2f}, {stages}")
 

@@ -87,7 +87,8 @@ def finish(obj, read: read_bpy.ReadResult, result: job.JobResult, settings: Sett
     report["object"] = obj.name
     report["source_uv_map"] = read.uv_map
     report.update(written)
-    report["warnings"] = list(read.warnings) + list(written.get("warnings", []))
+    report["warnings"] = (list(result.report.get("warnings", [])) + list(read.warnings)
+                          + list(written.get("warnings", [])))
     return report
 
 
@@ -95,8 +96,10 @@ def defragment(obj, progress=None, cancel=None, **options) -> dict:
     """Defragments obj's texture atlas synchronously; returns the report dict.
 
     Options: those of options.SCHEMA, and uv_map (default: active), storage
-    ('PACK' | 'SAVE'), image_dir, duplicate_materials. Raises DefragError (a
-    subclass of Exception) with the reason; on any error nothing is changed.
+    ('PACK' | 'SAVE'), image_dir, duplicate_materials. The report's 'shrunk'
+    (and a warning) says when charts lost texel density to fit max_page_size,
+    max_pages or the input's texel count. Raises DefragError (a subclass of
+    Exception) with the reason; on any error nothing is changed.
     """
     settings = Settings.from_kwargs(**options)
     t0 = time.perf_counter()

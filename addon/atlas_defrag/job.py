@@ -275,9 +275,13 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     page_group = _new_page_groups(layout)
     t_layout = time.perf_counter()
     images: List[OutputImage] = []
+    texels = {"covered_texels": 0, "copied_texels": 0}
     for i, (g, role) in enumerate(bake_calls):
-        images.extend(_bake_group_role(layout, g, role, options.padding, calls,
-                                       calls.share(layout_share + i * bake_share, bake_share)))
+        baked, stats = _bake_group_role(layout, g, role, options.padding, calls,
+                                        calls.share(layout_share + i * bake_share, bake_share))
+        images.extend(baked)
+        for key in texels:
+            texels[key] += stats[key]
     t_end = time.perf_counter()
 
     report = layout.report
@@ -286,7 +290,11 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     seconds["bake"] = t_end - t_layout
     seconds["total"] = t_end - t_start
     report.update(seconds=seconds, pages_before=int(len(job.pages)),
-                  pages_after=int(len(layout.page_sizes)), images_written=len(images))
+                  pages_after=int(len(layout.page_sizes)), images_written=len(images),
+                  copied_share=texels["copied_texels"] / max(1, texels["covered_texels"]))
+    if report.get("shrunk"):
+        report["warnings"] = [f"charts scaled to {report.get('scale', 0):.3g} of the texel density asked for, "
+                              "to fit max_page_size, max_pages or the input's texel count"]
     if progress is not None:
         progress("done", 1.0)
     return JobResult(uvs=layout.uvs, face_page=layout.face_page, page_sizes=layout.page_sizes,
@@ -342,12 +350,13 @@ def _new_page_groups(layout: _Layout) -> np.ndarray:
 
 
 def _bake_group_role(layout: _Layout, group: int, role: str, padding: int, calls: _NativeCalls,
-                     progress) -> List[OutputImage]:
-    """_native.bake of one role of one material group onto its new pages."""
+                     progress) -> Tuple[List[OutputImage], dict]:
+    """_native.bake of one role of one material group onto its new pages, and
+    what it copied texel for texel (covered_texels, copied_texels)."""
     job, mesh = layout.job, layout.job.mesh
     faces = np.nonzero(layout.face_group == group)[0]
     if not len(faces):
-        return []
+        return [], {"covered_texels": 0, "copied_texels": 0}
     old_pages = np.unique(mesh.face_page[faces])
     new_pages = np.unique(layout.face_page[faces])
     maps = [job.pages[p].map_for(role) for p in old_pages]
@@ -355,7 +364,7 @@ def _bake_group_role(layout: _Layout, group: int, role: str, padding: int, calls
     channels = max(s.pixels.shape[2] for s in sources)
     dtype = np.float32 if any(s.pixels.dtype != np.uint8 for s in sources) else np.uint8
     pixels = [_as_bake_pixels(s.pixels.astype(dtype, copy=False), channels) for s in sources]
-    baked = calls(
+    baked, stats = calls(
         calls.native.bake,
         np.ascontiguousarray(mesh.uvs[faces], dtype=np.float64),
         _local_index(old_pages, len(job.pages))[mesh.face_page[faces]],
@@ -366,6 +375,7 @@ def _bake_group_role(layout: _Layout, group: int, role: str, padding: int, calls
         normal_map=any(m.normal_map for m in maps),
         padding=padding,
         progress=progress,
+        with_stats=True,
     )
     del pixels
     # The first source of the role names the output and gives its format.
@@ -373,7 +383,7 @@ def _bake_group_role(layout: _Layout, group: int, role: str, padding: int, calls
     return [OutputImage(page=int(new_pages[q_local]), role=role, source=maps[0].image,
                         pixels=np.asarray(arr), colorspace=first.colorspace,
                         is_float=first.is_float, alpha_mode=first.alpha_mode)
-            for q_local, arr in enumerate(baked)]
+            for q_local, arr in enumerate(baked)], stats
 
 
 def _local_index(pages: np.ndarray, count: int) -> np.ndarray:
@@ -415,4 +425,5 @@ def summary(report: dict) -> str:
     return (f"charts {num('charts_before')} -> {num('charts_after')}, "
             f"seam {num('seam_before', '{:.4g}')} -> {num('seam_after', '{:.4g}')}, "
             f"pages {num('pages_before')} -> {num('pages_after')}, "
-            f"time {'?' if secs is None else f'{secs:.1f}'} s")
+            + (f"charts scaled to {num('scale', '{:.3g}')} of their texel density, " if report.get("shrunk") else "")
+            + f"time {'?' if secs is None else f'{secs:.1f}'} s")

@@ -66,6 +66,8 @@ def _option_property(option):
     if option.choices:
         return EnumProperty(items=[(c.value.upper(), c.label, c.help) for c in option.choices],
                             default=option.default.upper(), **common)
+    if option.kind is bool:
+        return BoolProperty(default=option.default, **common)
     if option.low is not None:
         common["min"] = option.low
     if option.high is not None:

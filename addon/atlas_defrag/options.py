@@ -27,7 +27,7 @@ class Option(NamedTuple):
     Both are inclusive."""
 
     name: str  # keyword of job.Options and of the native module
-    kind: type  # int, float or str (one of choices)
+    kind: type  # int, float, bool or str (one of choices)
     default: object
     label: str  # dialog label
     help: str
@@ -59,6 +59,21 @@ SCHEMA: Tuple[Option, ...] = (
     Option("density_scale", float, 1.0, "Density Scale",
            "Output texel density relative to the source (ignored with a fixed page size)",
            low=0.01, high=16.0),
+    Option("texels_per_unit", float, 0.0, "Texels per Unit",
+           "Output texel density in texels per unit of surface length (per metre in Blender), "
+           "instead of the source's density times Density Scale",
+           low=0.001, high=1e9, automatic="the source's density times Density Scale", manual_default=1024.0),
+    Option("max_pages", int, 0, "Maximum Pages",
+           "Pages of Maximum Page Size the charts may fill before they are shrunk",
+           low=1, high=4096, automatic="as many as the source uses, or as hold its texels",
+           manual_default=1),
+    Option("texels_at_most_input", bool, False, "At Most the Source's Texels",
+           "Shrink the charts rather than exceed the source's texel count (costs detail on dense atlases)"),
+    Option("page_sides", str, "multiple_of_4", "Page Sides", "How the sides of each output page are rounded",
+           choices=(Choice("tight", "Tight", "The smallest page that holds the charts"),
+                    Choice("multiple_of_4", "Multiple of 4", "Sides a multiple of 4 texels (BCn and ASTC blocks)"),
+                    Choice("power_of_two", "Power of Two", "Sides a power of two (older engines, full mip chains)"))),
+    Option("square_pages", bool, False, "Square Pages", "Both sides of every page equal (the larger one)"),
 )
 
 BY_NAME = {o.name: o for o in SCHEMA}
@@ -68,6 +83,8 @@ def range_text(option: Option) -> str:
     """The allowed values in words, as error messages and docs say them."""
     if option.choices:
         return " or ".join(repr(c.value) for c in option.choices)
+    if option.kind is bool:
+        return "True or False"
     if option.high is None:
         text = f">= {option.low}"
     else:
@@ -83,6 +100,10 @@ def check(option: Option, value):
         if text not in {c.value for c in option.choices}:
             raise ValueError(f"{option.name} must be {range_text(option)}, not {value!r}")
         return text
+    if option.kind is bool:
+        if not isinstance(value, bool):
+            raise ValueError(f"{option.name} must be {range_text(option)}, not {value!r}")
+        return value
     number = _number(option, value)
     if number is None:
         kind = "an integer" if option.kind is int else "a number"
@@ -127,6 +148,10 @@ def add_arguments(group) -> None:
     """Every option as a command-line flag of an argparse parser or group
     (the batch entry, tools/defrag_scan.py); bad values exit with code 2."""
     for o in SCHEMA:
+        if o.kind is bool:
+            group.add_argument(flag(o), action=argparse.BooleanOptionalAction, default=o.default,
+                               help=f"{o.help} (default {o.default!r})")
+            continue
         zero = f"; 0: {o.automatic}" if o.automatic else ""
         group.add_argument(flag(o), type=_argument_type(o), default=o.default,
                            metavar=None if o.choices else o.name.upper(),

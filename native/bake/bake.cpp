@@ -25,6 +25,11 @@ namespace {
 constexpr int kBandRows = 16;
 // New triangles with a smaller doubled area (texels^2) have no usable new->old map.
 constexpr double kMinDoubledArea = 1e-9;
+// A face copies texels when its new->old Jacobian is within this of a signed
+// permutation and its texel centres within this (old texels) of old centres:
+// far below what bilinear weights could show in 8 or 32 bits, far above the
+// rounding of UVs stored in page units.
+constexpr double kCopyTolerance = 1e-5;
 
 // ---- validation ------------------------------------------------------------
 
@@ -98,12 +103,31 @@ struct FaceMap {
   Eigen::Matrix2d new_to_old;             // Jacobian: old texels per new texel
   Footprint footprint;                    // new texel's extent in the old page
   Eigen::Matrix2d frame_turn;             // how the tangent frame turned: applied to normal XY
+  bool copies = false;                    // texel centres land on old texel centres (see kCopyTolerance)
 
   // Affine map old = old_origin + new_to_old (p - corner 0): barycentric interpolation.
   Eigen::Vector2d old_position(const Eigen::Vector2d& p) const {
     return old_origin + new_to_old * (p - corner[0]);
   }
 };
+
+// Whether old = origin + m (p - corner0) maps every texel centre p onto an old
+// texel centre: m a signed permutation (quarter turns, mirrors) and the centre
+// of texel (0, 0) landing on one. Then all do, since m maps integer steps to
+// integer steps.
+bool lands_on_texel_centres(const Eigen::Matrix2d& m, const Eigen::Vector2d& origin,
+                            const Eigen::Vector2d& corner0) {
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j)
+      if (std::abs(m(i, j) - std::round(m(i, j))) > kCopyTolerance) return false;
+  if (std::abs(std::abs(m.determinant()) - 1.0) > kCopyTolerance ||
+      std::abs(m(0, 0) * m(0, 1)) + std::abs(m(1, 0) * m(1, 1)) > kCopyTolerance)
+    return false;
+  const Eigen::Vector2d at = origin + m * (Eigen::Vector2d(0.5, 0.5) - corner0);
+  for (int i = 0; i < 2; ++i)
+    if (std::abs(at[i] - 0.5 - std::round(at[i] - 0.5)) > kCopyTolerance) return false;
+  return true;
+}
 
 Eigen::Matrix2d edge_matrix(const std::array<Eigen::Vector2d, 3>& v) {
   Eigen::Matrix2d m;
@@ -131,6 +155,7 @@ FaceMap map_face(int f, const UvLayout& old_layout, const PageSize& old_size, co
   face.old_origin = old_texel[0];
   face.new_to_old = edge_matrix(old_texel) * new_edges.inverse();
   face.footprint = footprint_of(face.new_to_old);
+  face.copies = lands_on_texel_centres(face.new_to_old, face.old_origin, face.corner[0]);
   // J = dNewUV/dOldUV is the inverse of old-per-new, whose orthogonal factor is the
   // transpose. Old-per-new exists even when the old triangle is degenerate. UV units,
   // not texels: renderers derive tangent frames from UVs, whatever the page aspect.
@@ -257,6 +282,26 @@ void bake_texel(const BakeJob<T>& job, const FaceMap& face, const Eigen::Vector2
   for (int k = 0; k < old_page.channels; ++k) out[k] = encode_texel<T>(value[k]);
 }
 
+// Value of new texel centre p of a copying face: the old texel it lands on.
+template <class T>
+void copy_texel(const BakeJob<T>& job, const FaceMap& face, const Eigen::Vector2d& p, T* out) {
+  const ImageView<T>& old_page = job.old_pages[face.old_page];
+  const Eigen::Vector2d at = face.old_position(p);
+  // Wrapped as sample_texture wraps.
+  const int w = old_page.width, h = old_page.height;
+  const int x = ((static_cast<int>(std::lround(at.x() - 0.5)) % w) + w) % w;
+  const int y = ((static_cast<int>(std::lround(at.y() - 0.5)) % h) + h) % h;
+  const T* texel = old_page.texels + (static_cast<std::size_t>(y) * w + x) * old_page.channels;
+  if (!job.options.normal_map) {
+    std::copy(texel, texel + old_page.channels, out);
+    return;
+  }
+  double value[kMaxTexelChannels];
+  for (int k = 0; k < old_page.channels; ++k) value[k] = texel[k];
+  reorient_normal<T>(face.frame_turn, value);
+  for (int k = 0; k < old_page.channels; ++k) out[k] = encode_texel<T>(value[k]);
+}
+
 // ---- rasterisation ---------------------------------------------------------
 
 // Rows [row0, row1] of one page, with the set flags of its texels.
@@ -273,7 +318,7 @@ struct BandTarget {
 // Bakes the texels of the band whose centres the face claims and no earlier face took.
 // TexelTriangle decides coverage exactly, so faces sharing an edge tile it without gaps.
 template <class T>
-void cover_band(const BakeJob<T>& job, const FaceMap& face, const BandTarget<T>& band) {
+void cover_band(const BakeJob<T>& job, const FaceMap& face, const BandTarget<T>& band, BakeStats& stats) {
   const int last_row = std::min(face.raster.row_end - 1, band.row1);
   for (int y = std::max(face.raster.row_begin, band.row0); y <= last_row; ++y) {
     int x0, x1;
@@ -282,7 +327,14 @@ void cover_band(const BakeJob<T>& job, const FaceMap& face, const BandTarget<T>&
       const std::size_t i = band.index(x, y);
       if (band.is_set[i]) continue;
       band.is_set[i] = 1;
-      bake_texel(job, face, Eigen::Vector2d(x + 0.5, y + 0.5), band.texel(i));
+      ++stats.covered_texels;
+      const Eigen::Vector2d centre(x + 0.5, y + 0.5);
+      if (face.copies) {
+        copy_texel(job, face, centre, band.texel(i));
+        ++stats.copied_texels;
+      } else {
+        bake_texel(job, face, centre, band.texel(i));
+      }
     }
   }
 }
@@ -364,7 +416,7 @@ void pad_band(const BakeJob<T>& job, const int* band_faces, int count, const Ban
 
 template <class T>
 void rasterize(const BakeJob<T>& job, const BandFaces& bins, std::vector<Image<T>>& pages,
-               std::vector<std::vector<std::uint8_t>>& is_set, const RunControl& control) {
+               std::vector<std::vector<std::uint8_t>>& is_set, const RunControl& control, BakeStats& stats) {
   const int band_count = bins.page_first_band.back();
   int widest = 0;
   for (const Image<T>& page : pages) widest = std::max(widest, page.width);
@@ -372,26 +424,33 @@ void rasterize(const BakeJob<T>& job, const BandFaces& bins, std::vector<Image<T
   std::vector<PaddingCandidates> scratch;
   for (int t = 0; t < omp_get_max_threads(); ++t)
     scratch.emplace_back(static_cast<std::size_t>(kBandRows) * widest);
-#pragma omp parallel for schedule(dynamic)
+  long long covered = 0, copied = 0;
+#pragma omp parallel for schedule(dynamic) reduction(+ : covered, copied)
   for (int b = 0; b < band_count; ++b) {
     if (control.cancelled()) continue;
+    BakeStats band_stats;
     const auto after = std::upper_bound(bins.page_first_band.begin(), bins.page_first_band.end(), b);
     const int p = static_cast<int>(after - bins.page_first_band.begin()) - 1;
     const int row0 = (b - bins.page_first_band[p]) * kBandRows;
     const BandTarget<T> band{row0, std::min(row0 + kBandRows, pages[p].height) - 1, pages[p], is_set[p]};
     const int* band_faces = bins.face.data() + bins.start[b];
     const int count = bins.start[b + 1] - bins.start[b];
-    for (int j = 0; j < count; ++j) cover_band(job, job.faces[band_faces[j]], band);
+    for (int j = 0; j < count; ++j) cover_band(job, job.faces[band_faces[j]], band, band_stats);
     if (job.options.padding > 0) pad_band(job, band_faces, count, band, scratch[omp_get_thread_num()]);
+    covered += band_stats.covered_texels;
+    copied += band_stats.copied_texels;
   }
   control.throw_if_cancelled();
+  stats.covered_texels += covered;
+  stats.copied_texels += copied;
 }
 
 }  // namespace
 
 template <class T>
 std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
-                               const UvLayout& new_layout, const BakeOptions& options, const RunControl& control) {
+                               const UvLayout& new_layout, const BakeOptions& options, const RunControl& control,
+                               BakeStats* stats) {
   const int channels = require_old_pages(old_pages);
   const Eigen::Index face_count = old_layout.face_page ? old_layout.face_page->size() : 0;
   require_layout(old_layout, face_count, "bake: old layout", Untextured::refused);
@@ -416,7 +475,9 @@ std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<Ima
     is_set[p].assign(static_cast<std::size_t>(new_pages[p].width) * new_pages[p].height, 0);
   }
   // Sampling is most of the work; the fill of each page takes the rest.
-  rasterize(BakeJob<T>{faces, old_pages, options}, bins, baked, is_set, control);
+  BakeStats counted;
+  rasterize(BakeJob<T>{faces, old_pages, options}, bins, baked, is_set, control, counted);
+  if (stats) *stats = counted;
   control.progress("bake", 0.8);
   for (std::size_t p = 0; p < baked.size(); ++p) {
     pull_push_fill(baked[p], is_set[p], control);
@@ -428,8 +489,9 @@ std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<Ima
 template std::vector<Image<std::uint8_t>> bake_map<std::uint8_t>(const UvLayout&,
                                                                   const std::vector<ImageView<std::uint8_t>>&,
                                                                   const UvLayout&, const BakeOptions&,
-                                                                  const RunControl&);
+                                                                  const RunControl&, BakeStats*);
 template std::vector<Image<float>> bake_map<float>(const UvLayout&, const std::vector<ImageView<float>>&,
-                                                   const UvLayout&, const BakeOptions&, const RunControl&);
+                                                   const UvLayout&, const BakeOptions&, const RunControl&,
+                                                   BakeStats*);
 
 }  // namespace atlas

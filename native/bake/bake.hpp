@@ -35,11 +35,21 @@ struct BakeOptions {
   int padding = 4;          // texels around charts filled with edge colour before pull-push
 };
 
+// What the bake did with the texels its faces cover (padding and fill not counted).
+struct BakeStats {
+  long long covered_texels = 0;
+  // Copied from one old texel, unresampled: the face only moved by whole
+  // texels and quarter turns (or mirrors), so its texel centres land on old ones.
+  long long copied_texels = 0;
+};
+
 // Bakes one map (uint8_t or float texels) onto the pages of new_layout.
 // old_pages[p] is the image of old page p, of the size old_layout gives it.
-// Every face must be textured in both layouts.
+// Every face must be textured in both layouts. stats, when given, receives
+// what was copied and what resampled.
 template <class T>
 std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
-                               const UvLayout& new_layout, const BakeOptions& options, const RunControl& control);
+                               const UvLayout& new_layout, const BakeOptions& options, const RunControl& control,
+                               BakeStats* stats = nullptr);
 
 }  // namespace atlas

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 
 namespace atlas {
 
@@ -11,6 +12,8 @@ namespace {
 
 // Beyond this many old texels per new texel a single bilinear tap skips texels.
 constexpr double kBilinearMaxExtent = 1.5;
+// Below this many old texels per new texel (magnification) bilinear is kept.
+constexpr double kCubicMinExtent = 2.0 / 3.0;
 // 8 x 8 taps bound the cost; only extreme (> 8x) minification still aliases a little.
 constexpr int kMaxSamplesPerAxis = 8;
 
@@ -56,13 +59,56 @@ void blend(const ImageView<T>& page, const Tap& x, const Tap& y, double* out) {
   }
 }
 
+// Catmull-Rom weights of the texels at offsets -1, 0, 1, 2 from Tap::lo, for
+// fraction t: w(d) = 1.5|d|^3 - 2.5|d|^2 + 1 for |d| <= 1, and
+// -0.5|d|^3 + 2.5|d|^2 - 4|d| + 2 for 1 < |d| < 2. They sum to 1 and
+// reproduce linear ramps, so constants and gradients stay exact.
+inline void catmull_rom_weights(double t, double w[4]) {
+  const double t2 = t * t, t3 = t2 * t;
+  w[0] = -0.5 * t3 + t2 - 0.5 * t;
+  w[1] = 1.5 * t3 - 2.5 * t2 + 1.0;
+  w[2] = -1.5 * t3 + 2.0 * t2 + 0.5 * t;
+  w[3] = 0.5 * t3 - 0.5 * t2;
+}
+
+inline int wrapped(int i, int n) { return (i % n + n) % n; }
+
+// Catmull-Rom over the 4 x 4 texels around the taps, each channel clamped to
+// the range of the four bilinear texels: no ringing past the values it blends.
+template <int C, class T>
+void cubic_blend(const ImageView<T>& page, const Tap& x, const Tap& y, double* out) {
+  double wx[4], wy[4];
+  catmull_rom_weights(x.t, wx);
+  catmull_rom_weights(y.t, wy);
+  int column[4], row[4];
+  for (int i = 0; i < 4; ++i) {
+    column[i] = wrapped(x.lo - 1 + i, page.width);
+    row[i] = wrapped(y.lo - 1 + i, page.height);
+  }
+  const std::size_t stride = static_cast<std::size_t>(page.width) * C;
+  double sum[C] = {}, lo[C], hi[C];
+  for (int k = 0; k < C; ++k) lo[k] = std::numeric_limits<double>::infinity(), hi[k] = -lo[k];
+  for (int j = 0; j < 4; ++j) {
+    const T* r = page.texels + stride * row[j];
+    for (int i = 0; i < 4; ++i)
+      for (int k = 0; k < C; ++k) {
+        const double v = r[column[i] * C + k];
+        sum[k] += wy[j] * wx[i] * v;
+        if ((i == 1 || i == 2) && (j == 1 || j == 2)) lo[k] = std::min(lo[k], v), hi[k] = std::max(hi[k], v);
+      }
+  }
+  for (int k = 0; k < C; ++k) out[k] = std::clamp(sum[k], lo[k], hi[k]);
+}
+
 // Channel count as a template argument: the per-tap loops fully unroll.
 template <int C, class T>
 void sample_channels(const ImageView<T>& page, const Eigen::Vector2d& at, const Footprint& footprint,
                      double* out) {
   const int nx = footprint.samples_x, ny = footprint.samples_y;
   if (nx * ny == 1) {
-    blend<C>(page, wrapped_tap(at.x(), page.width), wrapped_tap(at.y(), page.height), out);
+    const Tap x = wrapped_tap(at.x(), page.width), y = wrapped_tap(at.y(), page.height);
+    if (footprint.cubic) cubic_blend<C>(page, x, y, out);
+    else blend<C>(page, x, y, out);
     return;
   }
   // Stratified grid: tap (i, j) sits at the centre of cell (i, j) of the new texel,
@@ -86,7 +132,10 @@ Footprint footprint_of(const Eigen::Matrix2d& new_to_old_texels) {
   footprint.axes = new_to_old_texels;
   const double extent_x = new_to_old_texels.col(0).norm();
   const double extent_y = new_to_old_texels.col(1).norm();
-  if (std::max(extent_x, extent_y) <= kBilinearMaxExtent) return footprint;
+  if (std::max(extent_x, extent_y) <= kBilinearMaxExtent) {
+    footprint.cubic = std::min(extent_x, extent_y) >= kCubicMinExtent;
+    return footprint;
+  }
   footprint.samples_x = samples_along(extent_x);
   footprint.samples_y = samples_along(extent_y);
   return footprint;

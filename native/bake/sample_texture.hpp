@@ -15,11 +15,17 @@ struct Footprint {
   Eigen::Matrix2d axes = Eigen::Matrix2d::Identity();
   int samples_x = 1;
   int samples_y = 1;
+  // One tap reconstructed by Catmull-Rom over 4 x 4 texels, clamped to the
+  // range of the 2 x 2 bilinear ones, instead of bilinear.
+  bool cubic = false;
 };
 
-// One bilinear tap while a new texel spans at most ~1.5 old texels along both axes
-// (magnification or ~1:1); otherwise ceil(extent) taps per axis, capped, so that tap
-// spacing stays <= 1 old texel and the average approximates a box filter.
+// One tap while a new texel spans at most ~1.5 old texels along both axes
+// (magnification or ~1:1): Catmull-Rom where it spans at least ~2/3 of one
+// (neither magnified nor minified much: a cubic keeps the detail bilinear
+// blurs), bilinear where the map magnifies more (a cubic would only add
+// overshoot the clamp cuts). Otherwise ceil(extent) taps per axis, capped, so
+// that tap spacing stays <= 1 old texel and the average approximates a box filter.
 Footprint footprint_of(const Eigen::Matrix2d& new_to_old_texels);
 
 // Writes page.channels values to out: the footprint-weighted average of the page

@@ -20,10 +20,17 @@ constexpr int kTallPage = 4;               // fixed size: trial pages are this m
 // Fixed size: first guess of the share of the page the charts' own area fills.
 constexpr double kExpectedFill = 0.6;
 
+// Padded chart texels over page texels at which a page is taken as full,
+// to estimate how far charts that did not fit overshoot it.
+constexpr double kFullPage = 0.8;
+
 struct Packing {
   double scale = 1.0;
   std::vector<ScaledChart> charts;
   Layout layout;
+  // > 0: the charts did not fit the one page allowed (layout empty); their
+  // padded texels over that page's.
+  double overflow = 0.0;
 };
 
 long long page_texels(const std::vector<PageSize>& pages) {
@@ -42,6 +49,8 @@ void require_valid(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions&
     msg << "max_page_size must be >= " << kSideQuantum << ", got " << o.max_page_size;
   else if (o.fixed_page_size < 0)
     msg << "fixed_page_size must be >= 0, got " << o.fixed_page_size;
+  else if (o.max_pages < 0)
+    msg << "max_pages must be >= 0, got " << o.max_pages;
   else if (o.texel_budget < 0)
     msg << "texel_budget must be >= 0, got " << o.texel_budget;
   else if (o.fixed_page_size > 0 && o.texel_budget > 0 &&
@@ -90,15 +99,22 @@ double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, i
   return extent > 0.0 ? room / extent : std::numeric_limits<double>::infinity();
 }
 
-// Default sizing at one scale: the smallest page, else the fewest max pages.
+// Default sizing at one scale: the smallest page, else the fewest max pages
+// (unless max_pages is 1: then the overflow is all a scale search needs).
 Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale, const Frame& frame,
-                  int max_side, const RunControl& control) {
+                  int max_side, int max_pages, const RunControl& control) {
   Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, control), {}};
   const std::vector<int> order = largest_first(packing.charts);
-  if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control))
+  if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control)) {
     packing.layout = std::move(*single);
-  else
+  } else if (max_pages == 1) {
+    double padded = 0.0;
+    for (const ScaledChart& chart : packing.charts) padded += static_cast<double>(chart.turned[0].texels);
+    const double side = max_side + 2.0 * frame.margin;
+    packing.overflow = padded / (side * side);
+  } else {
     packing.layout = pack_many_pages(order, packing.charts, frame, max_side, control);
+  }
   return packing;
 }
 
@@ -140,20 +156,53 @@ Packing largest_fitting_packing(TryScale try_scale, double start, double cap, do
   return std::move(*fitting);
 }
 
-// texel_budget: the largest scale below the first packing's whose pages fit
-// the budget; page area grows as scale^2.
-Packing shrink_to_budget(const std::vector<const RowMatrixX2d*>& chart_uv, Packing first,
-                         const Frame& frame, int max_side, long long budget,
+// Area of the corner triangles, in the units of the corners squared.
+double corner_area(const std::vector<const RowMatrixX2d*>& chart_uv) {
+  double area = 0.0;
+  for (const RowMatrixX2d* uv : chart_uv)
+    for (Eigen::Index f = 0; f + 2 < uv->rows(); f += 3) {
+      const Eigen::RowVector2d a = uv->row(f + 1) - uv->row(f), b = uv->row(f + 2) - uv->row(f);
+      area += 0.5 * std::abs(a.x() * b.y() - a.y() * b.x());
+    }
+  return area;
+}
+
+// Page limits of the free sizing: total texels (0: none) and page count (0: none).
+struct PageLimits {
+  long long texels = 0;
+  int pages = 0;
+
+  // How far a packing overshoots: > 1 when it breaks a limit. Both parts grow
+  // about as scale^2, so the scale search can predict from them: page texels
+  // over the budget, and over `pages` full pages (more pages is > 1 anyway).
+  double ratio(const Packing& packing, int max_side) const {
+    if (packing.overflow > 0.0) return std::max(1.0 + 1e-9, packing.overflow / kFullPage);
+    const std::vector<PageSize>& pages_used = packing.layout.pages;
+    double r = 0.0;
+    const double used = static_cast<double>(page_texels(pages_used));
+    if (texels > 0) r = used / texels;
+    if (pages > 0) {
+      const double full = static_cast<double>(pages) * max_side * max_side;
+      r = std::max(r, static_cast<int>(pages_used.size()) > pages ? std::max(1.0 + 1e-9, used / full)
+                                                                   : used / full);
+    }
+    return r;
+  }
+};
+
+// The largest scale <= cap whose pages keep within the limits; `failed` is
+// a scale known not to (infinite if none is known yet).
+Packing shrink_to_limits(const std::vector<const RowMatrixX2d*>& chart_uv, double start, double cap,
+                         double failed, const Frame& frame, int max_side, const PageLimits& limits,
                          const RunControl& control) {
   auto try_scale = [&](double s) {
-    Packing packing = pack_free(chart_uv, s, frame, max_side, control);
-    const double ratio = static_cast<double>(page_texels(packing.layout.pages)) / budget;
+    Packing packing = pack_free(chart_uv, s, frame, max_side, limits.pages, control);
+    const double ratio = limits.ratio(packing, max_side);
     return std::make_pair(std::move(packing), ratio);
   };
-  const double ratio = static_cast<double>(page_texels(first.layout.pages)) / budget;
-  return largest_fitting_packing(try_scale, kAimBelow * first.scale / std::sqrt(ratio),
-                                 first.scale, first.scale,
-                                 "texel_budget is too small to hold the charts with their padding");
+  return largest_fitting_packing(try_scale, start, cap, failed,
+                                 "the charts with their padding do not fit the texel budget or the "
+                                 "page count at any scale");
 }
 
 // fixed_page_size: the largest scale at which the charts fit one side x side
@@ -172,12 +221,7 @@ Packing pack_fixed(const std::vector<const RowMatrixX2d*>& chart_uv, const Frame
   };
   double cap = largest_fitting_scale(chart_uv, virtual_side, frame.padding);
   if (std::isinf(cap)) cap = 1.0;  // every chart is a point: any scale packs the same
-  double area = 0.0;                // at scale 1, of the corner polygons
-  for (const RowMatrixX2d* uv : chart_uv)
-    for (Eigen::Index f = 0; f + 2 < uv->rows(); f += 3) {
-      const Eigen::RowVector2d a = uv->row(f + 1) - uv->row(f), b = uv->row(f + 2) - uv->row(f);
-      area += 0.5 * std::abs(a.x() * b.y() - a.y() * b.x());
-    }
+  const double area = corner_area(chart_uv);  // at scale 1
   const double start = area > 0.0 ? std::sqrt(kExpectedFill * side * side / area) : cap;
   return largest_fitting_packing(try_scale, start, cap, std::numeric_limits<double>::infinity(),
                                  "fixed_page_size is too small to hold the charts with their padding");
@@ -227,7 +271,7 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
   control.throw_if_cancelled();
   // Half the padding may lie beyond the border: pages wrap when sampled, so
   // the two borders together still give a chart its full padding.
-  const Frame frame{options.padding, options.padding / 2};
+  const Frame frame{options.padding, options.padding / 2, options.page_sides, options.square_pages};
   if (chart_uv.empty()) {
     PackResult empty;
     empty.scale = options.density_scale;
@@ -249,16 +293,39 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
     }
   }
 
-  if (options.fixed_page_size > 0)
-    return to_result(uv, pack_fixed(uv, frame, options.fixed_page_size, control), frame);
+  if (options.fixed_page_size > 0) {
+    // density_scale does not apply: below 1 the charts lost texel density.
+    PackResult result = to_result(uv, pack_fixed(uv, frame, options.fixed_page_size, control), frame);
+    result.shrunk = result.scale < 1.0 - 1e-9;
+    return result;
+  }
 
-  const int max_side = options.max_page_size / kSideQuantum * kSideQuantum;
+  const int max_side = largest_allowed_side(options.max_page_size, options.page_sides);
   const double scale = std::min(
       options.density_scale, largest_fitting_scale(uv, max_side + 2 * frame.margin, frame.padding));
-  Packing packing = pack_free(uv, scale, frame, max_side, control);
-  if (options.texel_budget > 0 && page_texels(packing.layout.pages) > options.texel_budget)
-    packing = shrink_to_budget(uv, std::move(packing), frame, max_side, options.texel_budget, control);
-  return to_result(uv, packing, frame);
+  const PageLimits limits{options.texel_budget, options.max_pages};
+  // Charts whose own area already breaks the texel limit are not packed at
+  // full scale first: rasterising thousands of them there costs more than
+  // all the packings at the scale that fits.
+  const double area = corner_area(uv) * scale * scale;
+  const long long texel_limit = std::min<long long>(
+      options.texel_budget > 0 ? options.texel_budget : std::numeric_limits<long long>::max(),
+      options.max_pages > 0 ? static_cast<long long>(options.max_pages) * max_side * max_side
+                            : std::numeric_limits<long long>::max());
+  Packing packing;
+  if (area > static_cast<double>(texel_limit)) {
+    packing = shrink_to_limits(uv, scale * std::sqrt(kExpectedFill * texel_limit / area), scale,
+                               scale, frame, max_side, limits, control);
+  } else {
+    packing = pack_free(uv, scale, frame, max_side, limits.pages, control);
+    const double ratio = limits.ratio(packing, max_side);
+    if (ratio > 1.0)
+      packing = shrink_to_limits(uv, kAimBelow * scale / std::sqrt(ratio), scale, scale, frame,
+                                 max_side, limits, control);
+  }
+  PackResult result = to_result(uv, packing, frame);
+  result.shrunk = result.scale < options.density_scale * (1.0 - 1e-9);
+  return result;
 }
 
 }  // namespace atlas

@@ -8,6 +8,13 @@
 
 namespace atlas {
 
+// How page sides are rounded once the charts are placed.
+enum class PageSides {
+  Tight,        // the texels used, nothing more
+  MultipleOf4,  // multiples of 4 texels (BCn and ASTC 4x4 blocks)
+  PowerOfTwo,
+};
+
 struct PackOptions {
   double density_scale = 1.0;  // texels per original texel
   int padding = 4;             // empty texels kept around every chart
@@ -15,6 +22,10 @@ struct PackOptions {
   int fixed_page_size = 0;     // > 0: square pages of this side, charts scaled to fit one page
   long long texel_budget = 0;  // > 0: total output texels may not exceed this; charts are
                                // scaled down uniformly if they would
+  int max_pages = 0;           // > 0: at most this many pages; charts are scaled down
+                               // uniformly if they need more pages of max_page_size
+  PageSides page_sides = PageSides::MultipleOf4;
+  bool square_pages = false;   // pages with equal sides (the larger one)
 };
 
 struct PackResult {
@@ -22,6 +33,7 @@ struct PackResult {
   std::vector<int> chart_page;          // per chart: output page
   std::vector<PageSize> pages;
   double scale = 1.0;                   // uniform scale finally applied (< density_scale if shrunk)
+  bool shrunk = false;                  // scale < density_scale: the charts lost texel density
   double efficiency = 0.0;              // chart texels / page texels
   // The exact transform, per chart: page texel = scale * R * input texel + translation,
   // R turning 90 degrees counter-clockwise ((x, y) -> (-y, x)) when chart_rotated.

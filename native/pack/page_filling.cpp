@@ -90,10 +90,6 @@ bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
   return true;
 }
 
-int round_up_to_quantum(double side) {
-  return std::max(kSideQuantum,
-                  static_cast<int>(std::ceil(side / kSideQuantum - 1e-9)) * kSideQuantum);
-}
 
 long long area(const PageSize& page) { return static_cast<long long>(page.width) * page.height; }
 
@@ -110,8 +106,34 @@ std::vector<int> largest_first(const std::vector<ScaledChart>& charts) {
   return order;
 }
 
-int trimmed_side(int used, const Frame& frame) {
-  return round_up_to_quantum(std::max(1, used - 2 * frame.margin));
+int allowed_side(double side, PageSides sides) {
+  side = std::max(1.0, side) - 1e-9;
+  switch (sides) {
+    case PageSides::Tight:
+      return static_cast<int>(std::ceil(side));
+    case PageSides::MultipleOf4:
+      return std::max(kSideQuantum, static_cast<int>(std::ceil(side / kSideQuantum)) * kSideQuantum);
+    case PageSides::PowerOfTwo:
+      break;
+  }
+  int p = 1;
+  while (p < side) p *= 2;
+  return p;
+}
+
+int largest_allowed_side(int max_side, PageSides sides) {
+  if (sides == PageSides::Tight) return max_side;
+  if (sides == PageSides::MultipleOf4) return max_side / kSideQuantum * kSideQuantum;
+  int p = 1;
+  while (2 * p <= max_side) p *= 2;
+  return p;
+}
+
+PageSize trimmed_page(PageSize used, const Frame& frame) {
+  PageSize page{allowed_side(used.width - 2 * frame.margin, frame.sides),
+                allowed_side(used.height - 2 * frame.margin, frame.sides)};
+  if (frame.square) page.width = page.height = std::max(page.width, page.height);
+  return page;
 }
 
 std::optional<OnePage> pack_one_page(const std::vector<int>& order,
@@ -144,13 +166,12 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
   }
   if (dilated_texels > static_cast<double>(max_virtual) * max_virtual) return std::nullopt;
   auto width_for = [&](double virtual_width) {
-    return std::min(max_side, round_up_to_quantum(virtual_width - to_virtual));
+    return std::min(max_side, allowed_side(virtual_width - to_virtual, frame.sides));
   };
   auto pack = [&](int width) -> std::optional<Layout> {
     auto page = pack_one_page(order, charts, width + to_virtual, max_virtual, control);
     if (!page) return std::nullopt;
-    return Layout{std::move(page->placement),
-                  {{trimmed_side(page->used.width, frame), trimmed_side(page->used.height, frame)}}};
+    return Layout{std::move(page->placement), {trimmed_page(page->used, frame)}};
   };
   int width = width_for(std::max(narrowest, static_cast<int>(std::sqrt(dilated_texels / kExpectedDensity))));
   std::optional<Layout> best = pack(width);
@@ -169,6 +190,16 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
     if (!candidate) break;
     height = candidate->pages[0].height;
     if (area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
+  }
+  // Power-of-two widths step by 2x, past what the probes above look at: the
+  // neighbouring widths may hold the charts on half the page.
+  if (frame.sides == PageSides::PowerOfTwo) {
+    const int chosen = best->pages[0].width;
+    for (int other : {chosen / 2, chosen * 2}) {
+      if (other + to_virtual < narrowest || other > max_side) continue;
+      auto candidate = pack(other);
+      if (candidate && area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
+    }
   }
   return best;
 }
@@ -191,8 +222,8 @@ Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledCh
     }
   }
   for (const Page& page : pages)
-    layout.pages.push_back({trimmed_side(page.texels.used_width(), frame),
-                            trimmed_side(page.texels.used_height(), frame)});
+    layout.pages.push_back(
+        trimmed_page({page.texels.used_width(), page.texels.used_height()}, frame));
 
   const int last = static_cast<int>(pages.size()) - 1;
   std::vector<int> last_order;

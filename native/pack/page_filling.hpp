@@ -6,14 +6,17 @@
 
 #include "core/mesh.hpp"
 #include "core/run_control.hpp"
+#include "pack/pack.hpp"
 #include "pack/scaled_chart.hpp"
 
 namespace atlas {
 
-constexpr int kSideQuantum = 4;  // page sides are multiples of this
-// Holes are searched on a grid of kHoleCell x kHoleCell texel cells: 16x less
-// work than texel by texel, at the price of hole spots on multiples of 4.
-constexpr int kHoleCell = 4;
+constexpr int kSideQuantum = 4;  // page sides are multiples of this in PageSides::MultipleOf4
+// Holes are searched on a grid of kHoleCell x kHoleCell texel cells: 4x less
+// work than texel by texel, at the price of hole spots on even texels and
+// cells lost where a hole's edge crosses them (larger cells lose holes that
+// small charts would fill, and save little: drops dominate the time).
+constexpr int kHoleCell = 2;
 
 // Pages are packed in a virtual frame reaching `margin` texels beyond every
 // border: dilated masks must stay inside it, so a chart's own texels keep
@@ -21,7 +24,14 @@ constexpr int kHoleCell = 4;
 struct Frame {
   int padding = 0;
   int margin = 0;
+  PageSides sides = PageSides::MultipleOf4;
+  bool square = false;  // both sides equal (the larger of the two)
 };
+
+// Smallest side >= `side` (and >= 1) of the kind `sides` allows.
+int allowed_side(double side, PageSides sides);
+// Largest side <= max_side (>= kSideQuantum) of that kind.
+int largest_allowed_side(int max_side, PageSides sides);
 
 // Where a chart went: its dilated mask's texel (0, 0) sits at (x, y) of the
 // virtual frame of page `page`.
@@ -44,8 +54,8 @@ struct OnePage {
 // Charts, largest bounding box first: big charts shape the page, small ones fill gaps.
 std::vector<int> largest_first(const std::vector<ScaledChart>& charts);
 
-// Page side (a multiple of kSideQuantum) holding `used` virtual texels.
-int trimmed_side(int used, const Frame& frame);
+// Page holding `used` virtual texels, its sides of the frame's kind.
+PageSize trimmed_page(PageSize used, const Frame& frame);
 
 // The charts of `order` on one page whose virtual frame is width x height,
 // or nullopt as soon as one does not fit.

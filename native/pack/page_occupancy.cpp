@@ -110,11 +110,15 @@ std::optional<Eigen::Vector2i> PageOccupancy::lowest_drop(const PlacementShape& 
   int best_y = std::min(height_, top_limit) - shape.mask.height + 1, best_x = -1;
   for (const auto& [bound, b] : block_bounds_) {
     if (bound >= best_y) break;
+    // The column that ruled a spot out usually rules out the next one too:
+    // it is tested first.
+    int blocker = shape.column_order.front();
     for (int x = b * kBlock; x < std::min(x_count, (b + 1) * kBlock); ++x) {
-      int y = bound;
-      for (int i : shape.column_order) {
+      int y = std::max(bound, horizon_[x + blocker] - shape.column_bottom[blocker]);
+      for (size_t k = 0; y < best_y && k < shape.column_order.size(); ++k) {
+        const int i = shape.column_order[k];
         y = std::max(y, horizon_[x + i] - shape.column_bottom[i]);
-        if (y >= best_y) break;
+        if (y >= best_y) blocker = i;
       }
       if (y < best_y) {
         best_y = y;

@@ -160,6 +160,9 @@ def test_operator_properties_follow_the_schema(pkg):
             assert [i.identifier for i in p.enum_items] == [c.value.upper() for c in o.choices]
             assert p.default == o.default.upper()
             continue
+        if o.kind is bool:
+            assert p.type == "BOOLEAN" and p.default is o.default, o.name
+            continue
         assert p.hard_min == pytest.approx(o.low, rel=1e-6), o.name
         if o.high is not None:
             assert p.hard_max == pytest.approx(o.high, rel=1e-6), o.name
