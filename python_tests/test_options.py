@@ -100,3 +100,16 @@ def test_readme_option_table_is_current():
 
     text = options_doc.README.read_text()
     assert options_doc.update(text) == text, "run tools/options_doc.py"
+
+
+def test_argument_words_parse_back_to_the_value():
+    """What the many-models form passes on to each single-model run."""
+    parser = batch.single_parser()
+    for o in options.SCHEMA:
+        for value in probes(o):
+            try:
+                value = options.check(o, value)
+            except ValueError:
+                continue
+            args = parser.parse_args(["in.obj", "out.glb"] + options.argument_words(o, value))
+            assert getattr(args, o.name) == value, (o.name, value)

@@ -423,8 +423,11 @@ def main_multi(argv) -> int:
 
 def _passthrough(args) -> list:
     """The single-model arguments that repeat the options given here."""
+    schema = _schema()
     out = []
-    for opt in [o.name for o in _schema().SCHEMA] + ["uv_map", "texture"]:
+    for o in schema.SCHEMA:
+        out += schema.argument_words(o, getattr(args, o.name))
+    for opt in ("uv_map", "texture"):
         value = getattr(args, opt)
         if value is not None:
             out += ["--" + opt.replace("_", "-"), str(value)]

@@ -144,6 +144,13 @@ def flag(option: Option) -> str:
     return "--" + option.name.replace("_", "-")
 
 
+def argument_words(option: Option, value) -> list:
+    """The command-line words that give option this value (add_arguments parses them back)."""
+    if option.kind is bool:
+        return [flag(option) if value else "--no-" + flag(option)[2:]]
+    return [flag(option), str(value)]
+
+
 def add_arguments(group) -> None:
     """Every option as a command-line flag of an argparse parser or group
     (the batch entry, tools/defrag_scan.py); bad values exit with code 2."""
