@@ -2,16 +2,25 @@
 
 #include <algorithm>
 #include <numeric>
+#include <unordered_map>
+
+#include "union_find.hpp"
 
 namespace atlas {
 namespace {
 
 int prev_corner(int c) { return 3 * (c / 3) + (c % 3 + 2) % 3; }
 
+MergeCheck refused(MergeRefusal why) {
+  MergeCheck out;
+  out.refusal = why;
+  return out;
+}
+
 }  // namespace
 
 DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-                           int cluster_count, std::vector<char> kept_seams)
+                           int cluster_count, std::vector<char> kept_seams, bool partial_merges)
     : mesh_(mesh),
       topology_(topology),
       face_cluster_(std::move(face_cluster)),
@@ -19,6 +28,7 @@ DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::
       euler_(cluster_count, 0),
       manifold_(cluster_count, 0),
       seam_(std::move(kept_seams)),
+      partial_merges_(partial_merges),
       edge_stamp_(topology.edge_count(), 0),
       vertex_stamp_(mesh.vertex_count(), 0) {
   for (int f = 0; f < mesh.face_count(); ++f)
@@ -100,7 +110,14 @@ int DiskClusters::fan_count(int v, int a, int b) const {
 }
 
 MergeCheck DiskClusters::check_merge(int a, int b) {
-  if (a == b || !manifold_[a] || !manifold_[b]) return {MergeRefusal::NonManifold};
+  if (a == b || !manifold_[a] || !manifold_[b]) return refused(MergeRefusal::NonManifold);
+  std::vector<int> shared;
+  MergeCheck full = weld_all(a, b, partial_merges_ ? &shared : nullptr);
+  if (full.refusal != MergeRefusal::NotDisk || shared.size() < 2) return full;
+  return weld_longest_arc(a, b, shared);
+}
+
+MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
   if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
   ++stamp_;
   int shared_edges = 0, fans_joined = 0;
@@ -114,9 +131,10 @@ MergeCheck DiskClusters::check_merge(int a, int b) {
           if (face_cluster_[ci / 3] != b) continue;
           // Never merge across a non-manifold edge or a winding flip.
           if (topology_.edge_valence(e) != 2 || mesh_.triangles(ci / 3, ci % 3) == v)
-            return {MergeRefusal::NonManifold};
+            return refused(MergeRefusal::NonManifold);
           if (seam_[e]) continue;
           ++shared_edges;
+          if (shared) shared->push_back(e);
         }
       }
       if (vertex_stamp_[v] != stamp_) {
@@ -127,24 +145,62 @@ MergeCheck DiskClusters::check_merge(int a, int b) {
         if (touches_b) fans_joined += fan_count(v, a, a) + fan_count(v, b, b) - fan_count(v, a, b);
       }
     }
-  if (shared_edges == 0) return {MergeRefusal::NotDisk};
+  if (shared_edges == 0) return refused(MergeRefusal::NotDisk);
   // Inclusion-exclusion with pinches split: every shared edge joins two faces'
   // sides into one, every fan that merges with another removes a vertex.
   const int euler = euler_[a] + euler_[b] - fans_joined + shared_edges;
   // A disk, or a step towards one: a chart with holes (chi < 1) absorbing an
   // island fills a hole and raises chi. Anything else adds a hole or a handle.
   // chi == 2 would close a sphere: no boundary left to flatten.
-  if (euler == 1 || (euler < 1 && euler > std::min(euler_[a], euler_[b]))) return {MergeRefusal::None, euler};
-  return {MergeRefusal::NotDisk};
+  if (euler == 1 || (euler < 1 && euler > std::min(euler_[a], euler_[b]))) {
+    MergeCheck out;
+    out.euler = euler;
+    return out;
+  }
+  return refused(MergeRefusal::NotDisk);
 }
 
-int DiskClusters::merge(int a, int b, int merged_euler) {
+// Arcs: the shared edges joined through common end vertices. Every arc but
+// the longest is marked a seam for the time of one weld_all, which says
+// whether the union is then a disk; two disks sharing k arcs make
+// chi = 2 - k when all are welded, and a disk when one is.
+MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& shared) {
+  const int n = static_cast<int>(shared.size());
+  UnionFind arcs(n);
+  std::unordered_map<int, int> edge_at_vertex;
+  for (int i = 0; i < n; ++i)
+    for (int end = 0; end < 2; ++end) {
+      const auto [it, fresh] = edge_at_vertex.emplace(topology_.edge_vertices(shared[i], end), i);
+      if (!fresh) arcs.unite(i, it->second);
+    }
+  std::vector<int> arc = arcs.dense_labels();
+  std::vector<double> length(n, 0.0), edge_length(n);
+  for (int i = 0; i < n; ++i) {
+    edge_length[i] = (mesh_.positions.row(topology_.edge_vertices(shared[i], 0)) -
+                      mesh_.positions.row(topology_.edge_vertices(shared[i], 1))).norm();
+    length[arc[i]] += edge_length[i];
+  }
+  const int longest = static_cast<int>(std::max_element(length.begin(), length.end()) - length.begin());
+  if (*std::max_element(arc.begin(), arc.end()) == 0) return refused(MergeRefusal::NotDisk);  // a single arc
+  MergeCheck out;
+  for (int i = 0; i < n; ++i)
+    if (arc[i] != longest) out.left_open.push_back(shared[i]), out.open_length += edge_length[i];
+  for (int e : out.left_open) seam_[e] = 1;
+  const MergeCheck welded = weld_all(a, b, nullptr);
+  for (int e : out.left_open) seam_[e] = 0;
+  if (!welded || welded.euler != 1) return refused(MergeRefusal::NotDisk);
+  out.euler = welded.euler;
+  return out;
+}
+
+int DiskClusters::merge(int a, int b, const MergeCheck& check) {
+  for (int e : check.left_open) seam_[e] = 1;
   if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
   for (int f : faces_[a]) face_cluster_[f] = b;
   faces_[b].insert(faces_[b].end(), faces_[a].begin(), faces_[a].end());
   faces_[a].clear();
   faces_[a].shrink_to_fit();
-  euler_[b] = merged_euler;
+  euler_[b] = check.euler;
   manifold_[a] = 0;
   return b;
 }

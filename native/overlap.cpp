@@ -184,7 +184,7 @@ SubMesh sub_mesh(const Mesh& mesh, const std::vector<int>& faces) {
 // at a boundary crossing, so the crossing ends up between the groups) or else
 // the member farthest from the largest. Every group is strictly smaller than
 // the input, so the recursion ends.
-std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& graph,
+std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                                             const std::vector<std::vector<int>>& chart_faces,
                                             const std::vector<int>& members, int culprit) {
   const int m = static_cast<int>(members.size());
@@ -203,8 +203,12 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& 
   for (int i = 0; i < m; ++i)
     for (int f : chart_faces[members[i]]) faces.push_back(f), label.push_back(i);
   const SubMesh sub = sub_mesh(mesh, faces);
-  DiskClusters disks(sub.mesh, sub.topology, label, m,
-                     self_seams(sub.topology, sub.mesh.triangles, sub.mesh.corner_uv, sub.mesh.face_page, label));
+  // The graph's seams (partial merges' open arcs among them) stay open too.
+  std::vector<char> seams = self_seams(sub.topology, sub.mesh.triangles, sub.mesh.corner_uv, sub.mesh.face_page, label);
+  for (size_t i = 0; i < faces.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      if (graph.self_seam[topology.corner_edge[3 * faces[i] + k]]) seams[sub.topology.corner_edge[3 * i + k]] = 1;
+  DiskClusters disks(sub.mesh, sub.topology, label, m, std::move(seams));
 
   auto area = [&](int i) { return graph.charts[members[i]].area_uv; };
   const int culprit_index = culprit < 0 ? -1 : static_cast<int>(std::find(members.begin(), members.end(), culprit) - members.begin());
@@ -245,7 +249,7 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& 
       for (int n : neighbours[i]) {
         if (group_of[n] >= 0) continue;
         if (const MergeCheck check = disks.check_merge(cluster[g], n)) {
-          cluster[g] = disks.merge(cluster[g], n, check.euler);
+          cluster[g] = disks.merge(cluster[g], n, check);
           group_of[n] = g;
           groups[g].push_back(n);
           group_area[g] += area(n);
@@ -434,7 +438,7 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
     return done;
   }
   ++(stats.*attempt.refusal);
-  const std::vector<std::vector<int>> pieces = split_members(mesh, graph, chart_faces, members, attempt.culprit);
+  const std::vector<std::vector<int>> pieces = split_members(mesh, topology, graph, chart_faces, members, attempt.culprit);
   std::vector<std::vector<FlatChart>> parts(pieces.size());
   std::vector<FlattenStats> part_stats(pieces.size());
   std::vector<std::exception_ptr> errors(pieces.size());

@@ -202,7 +202,10 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   report.aggregate_stops = aggregation.stops;
   clock.lap("aggregate");
 
-  std::vector<FlatChart> charts = flatten_all(mesh, topology, graph, aggregation, options.slim, control, report);
+  // The flattening keeps the arcs partial merges left open as seams.
+  ChartGraph flat_graph = graph;
+  flat_graph.self_seam = aggregation.kept_seam;
+  std::vector<FlatChart> charts = flatten_all(mesh, topology, flat_graph, aggregation, options.slim, control, report);
   enlarge_tiny_charts(charts);
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
