@@ -151,6 +151,8 @@ PipelineOptions pipeline_options(const py::object& obj) {
     } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = value.cast<double>();
     else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = value.cast<double>();
     else if (key == "max_chart_faces") o.aggregate.max_chart_faces = value.cast<int>();
+    else if (key == "partial_merges") o.aggregate.partial_merges = value.cast<bool>();
+    else if (key == "refine_min_area_ratio") o.refine.min_area_ratio = value.cast<double>();
     else if (key == "padding") o.pack.padding = value.cast<int>();
     else if (key == "output_size") o.pack.fixed_page_size = value.cast<int>();
     else if (key == "max_page_size") o.pack.max_page_size = value.cast<int>();
@@ -165,6 +167,8 @@ PipelineOptions pipeline_options(const py::object& obj) {
   if (o.pack.fixed_page_size < 0 || o.pack.fixed_page_size > o.pack.max_page_size)
     throw py::value_error("output_size must be 0 (automatic) or at most max_page_size");
   if (!(o.pack.density_scale > 0 && o.pack.density_scale <= 16)) throw py::value_error("density_scale must be in (0, 16]");
+  if (!(o.refine.min_area_ratio >= 0 && o.refine.min_area_ratio <= 1))
+    throw py::value_error("refine_min_area_ratio must be in [0, 1] (0: no seam refinement)");
   if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");
@@ -228,6 +232,8 @@ py::dict report_dict(const PipelineReport& r) {
   d["charts_before"] = r.charts_before;
   d["charts_aggregated"] = r.charts_aggregated;
   d["aggregate_stops"] = stops_dict(r.aggregate_stops);
+  d["refine_faces_moved"] = r.refine_faces_moved;
+  d["refine_seam_removed"] = r.refine_seam_removed;
   d["charts_after"] = r.charts_after;
   d["charts_solved"] = r.charts_solved;
   d["splits_not_disk"] = r.splits_not_disk;

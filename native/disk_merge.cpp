@@ -160,10 +160,13 @@ MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
   return refused(MergeRefusal::NotDisk);
 }
 
-// Arcs: the shared edges joined through common end vertices. Every arc but
-// the longest is marked a seam for the time of one weld_all, which says
-// whether the union is then a disk; two disks sharing k arcs make
-// chi = 2 - k when all are welded, and a disk when one is.
+// Arcs: the shared edges joined through common end vertices. All arcs but
+// one are marked seams for the time of one weld_all, which says whether the
+// union is then acceptable: two disks sharing k arcs make chi = 2 - k when
+// all are welded, and a disk when one is; a disk glued along one arc to a
+// chart with holes keeps its holes, and adds none. The longest arcs are
+// tried first, a few of them: an arc that touches another at a vertex may
+// not weld alone.
 MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& shared) {
   const int n = static_cast<int>(shared.size());
   UnionFind arcs(n);
@@ -173,24 +176,90 @@ MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& 
       const auto [it, fresh] = edge_at_vertex.emplace(topology_.edge_vertices(shared[i], end), i);
       if (!fresh) arcs.unite(i, it->second);
     }
-  std::vector<int> arc = arcs.dense_labels();
-  std::vector<double> length(n, 0.0), edge_length(n);
+  const std::vector<int> arc = arcs.dense_labels();
+  const int arc_count = *std::max_element(arc.begin(), arc.end()) + 1;
+  if (arc_count == 1) return refused(MergeRefusal::NotDisk);
+  std::vector<double> length(arc_count, 0.0), edge_length(n);
   for (int i = 0; i < n; ++i) {
     edge_length[i] = (mesh_.positions.row(topology_.edge_vertices(shared[i], 0)) -
                       mesh_.positions.row(topology_.edge_vertices(shared[i], 1))).norm();
     length[arc[i]] += edge_length[i];
   }
-  const int longest = static_cast<int>(std::max_element(length.begin(), length.end()) - length.begin());
-  if (*std::max_element(arc.begin(), arc.end()) == 0) return refused(MergeRefusal::NotDisk);  // a single arc
-  MergeCheck out;
-  for (int i = 0; i < n; ++i)
-    if (arc[i] != longest) out.left_open.push_back(shared[i]), out.open_length += edge_length[i];
-  for (int e : out.left_open) seam_[e] = 1;
-  const MergeCheck welded = weld_all(a, b, nullptr);
-  for (int e : out.left_open) seam_[e] = 0;
-  if (!welded || welded.euler != 1) return refused(MergeRefusal::NotDisk);
-  out.euler = welded.euler;
-  return out;
+  std::vector<int> order(arc_count);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int x, int y) { return length[x] > length[y]; });
+  constexpr int kArcsTried = 3;
+  for (int t = 0; t < std::min(arc_count, kArcsTried); ++t) {
+    MergeCheck out;
+    for (int i = 0; i < n; ++i)
+      if (arc[i] != order[t]) out.left_open.push_back(shared[i]), out.open_length += edge_length[i];
+    for (int e : out.left_open) seam_[e] = 1;
+    const MergeCheck welded = weld_all(a, b, nullptr);
+    for (int e : out.left_open) seam_[e] = 0;
+    if (welded && (welded.euler == 1 || welded.euler >= std::min(euler_[a], euler_[b]))) {
+      out.euler = welded.euler;
+      return out;
+    }
+  }
+  return refused(MergeRefusal::NotDisk);
+}
+
+// chi of cluster c restricted to what face f can change: the fans of c at
+// f's vertices minus the edges of f that c uses (a seam once per side).
+int DiskClusters::local_euler(int f, int c) const {
+  int count = 0;
+  for (int k = 0; k < 3; ++k) {
+    count += fan_count(mesh_.triangles(f, k), c, c);
+    const int e = topology_.corner_edge[3 * f + k];
+    int uses = 0;
+    for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i)
+      uses += face_cluster_[topology_.edge_corners[i] / 3] == c;
+    count -= seam_[e] ? uses : std::min(uses, 1);
+  }
+  return count;
+}
+
+bool DiskClusters::move_keeps_topology(int f, int to) {
+  const int from = face_cluster_[f];
+  if (from < 0 || to < 0 || from == to || faces_[from].size() < 2 || !manifold_[from] || !manifold_[to]) return false;
+  int inside = 0, joined = 0;
+  for (int k = 0; k < 3; ++k) {
+    const int c = 3 * f + k, e = topology_.corner_edge[c];
+    if (seam_[e] || topology_.edge_valence(e) > 2) return false;
+    for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
+      const int ci = topology_.edge_corners[i];
+      if (ci == c) continue;
+      if (mesh_.triangles(ci / 3, ci % 3) == mesh_.triangles(f, k)) return false;  // winding flip
+      inside += face_cluster_[ci / 3] == from;
+      joined += face_cluster_[ci / 3] == to;
+    }
+  }
+  if (inside != 1 || joined == 0) return false;
+  int fans_before[2][3], fans_after[2][3];
+  for (int k = 0; k < 3; ++k)
+    fans_before[0][k] = fan_count(mesh_.triangles(f, k), from, from), fans_before[1][k] = fan_count(mesh_.triangles(f, k), to, to);
+  const int from_before = local_euler(f, from), to_before = local_euler(f, to);
+  face_cluster_[f] = to;
+  for (int k = 0; k < 3; ++k)
+    fans_after[0][k] = fan_count(mesh_.triangles(f, k), from, from), fans_after[1][k] = fan_count(mesh_.triangles(f, k), to, to);
+  const int from_after = local_euler(f, from), to_after = local_euler(f, to);
+  face_cluster_[f] = from;
+  // No new pinch: a chart that touches itself at a vertex is a disk once the
+  // vertex is split, but one that closes a ring round a hole that way
+  // flattens like an annulus, squeezing the inner side.
+  for (int c = 0; c < 2; ++c)
+    for (int k = 0; k < 3; ++k)
+      if (fans_after[c][k] > std::max(1, fans_before[c][k])) return false;
+  // chi = V - E + F: the face itself leaves one cluster and joins the other.
+  return from_after - 1 == from_before && to_after + 1 == to_before;
+}
+
+void DiskClusters::move(int f, int to) {
+  std::vector<int>& from = faces_[face_cluster_[f]];
+  *std::find(from.begin(), from.end(), f) = from.back();
+  from.pop_back();
+  faces_[to].push_back(f);
+  face_cluster_[f] = to;
 }
 
 int DiskClusters::merge(int a, int b, const MergeCheck& check) {

@@ -51,6 +51,13 @@ class DiskClusters {
   // check's left_open edges become seams the union keeps.
   int merge(int a, int b, const MergeCheck& check);
 
+  // True when face f may leave its cluster for cluster `to` with both keeping
+  // their topology: f joins `to` across an edge, has exactly one neighbour
+  // left in its own cluster (so that cluster stays connected), touches no
+  // seam, and chi of both is unchanged (counted at f's vertices and edges).
+  bool move_keeps_topology(int f, int to);
+  void move(int f, int to);
+
   // Connected, manifold, orientable and chi == 1: a topological disk once
   // pinch vertices are split.
   bool is_disk(int c) const { return manifold_[c] && euler_[c] == 1; }
@@ -65,6 +72,7 @@ class DiskClusters {
   MergeCheck weld_all(int a, int b, std::vector<int>* shared);
   MergeCheck weld_longest_arc(int a, int b, const std::vector<int>& shared);
   int euler_of(int c);
+  int local_euler(int f, int c) const;
   bool manifold_inside(int c);
   int fan_count(int v, int a, int b) const;
   bool in(int f, int a, int b) const { return face_cluster_[f] == a || face_cluster_[f] == b; }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <limits>
 #include <map>
@@ -150,6 +151,12 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
   result.report.scale = by_group.empty() ? 1.0 : scale;
 }
 
+double total_area(const Mesh& mesh) {
+  double area = 0;
+  for (int f = 0; f < mesh.face_count(); ++f) area += mesh.area_3d(f);
+  return area;
+}
+
 double median(std::vector<double> values) {
   std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
   return values[values.size() / 2];
@@ -206,12 +213,17 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   ChartGraph flat_graph = graph;
   flat_graph.self_seam = aggregation.kept_seam;
   std::vector<FlatChart> charts = flatten_all(mesh, topology, flat_graph, aggregation, options.slim, control, report);
+  clock.lap("flatten");
+  // Before tiny charts are enlarged: the refinement compares texel areas.
+  const RefineStats refined = refine_seams(mesh, topology, flat_graph.self_seam, face_group, options.refine, charts);
+  report.refine_faces_moved = refined.faces_moved;
+  report.refine_seam_removed = refined.seam_removed_3d / std::sqrt(total_area(welded));
   enlarge_tiny_charts(charts);
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
   for (const FlatChart& c : charts)
     result.charts.push_back({static_cast<int>(c.faces.size()), !c.kept_original, c.energy_initial, c.energy_final});
-  clock.lap("flatten");
+  clock.lap("refine");
 
   // Untextured faces keep their input UVs and page -1.
   result.corner_uv = mesh.corner_uv;

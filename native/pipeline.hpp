@@ -8,6 +8,7 @@
 #include "aggregate.hpp"
 #include "mesh.hpp"
 #include "pack.hpp"
+#include "refine_seams.hpp"
 #include "run_control.hpp"
 #include "slim.hpp"
 
@@ -15,6 +16,7 @@ namespace atlas {
 
 struct PipelineOptions {
   AggregateOptions aggregate;
+  RefineOptions refine;
   SlimOptions slim;
   PackOptions pack;  // texel_budget 0: the input's texel count per group, times density_scale^2
 };
@@ -28,6 +30,8 @@ struct PipelineReport {
   int charts_before = 0;       // UV charts of the input
   int charts_aggregated = 0;   // after aggregation, before overlap splits
   AggregationStops aggregate_stops;  // why the aggregation merged no further
+  int refine_faces_moved = 0;  // faces the seam refinement moved to a neighbouring chart
+  double refine_seam_removed = 0;  // seam length it removed / sqrt(area) (in seam_after already)
   int charts_after = 0;        // in the output
   int charts_solved = 0;       // flattened by SLIM (the rest kept their original UVs)
   int splits_not_disk = 0;     // charts split back, by reason (see FlattenStats)
