@@ -240,6 +240,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["splits_solver"] = r.splits_solver;
   d["splits_overlap"] = r.splits_overlap;
   d["splits_density"] = r.splits_density;
+  d["density_reflattened"] = r.density_reflattened;
   d["charts_scaffolded"] = r.charts_scaffolded;
   d["overlap_halved"] = r.overlap_halved;
   d["largest_chart_faces"] = r.largest_chart_faces;

@@ -278,32 +278,30 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology
   return out;
 }
 
-// Share of a chart's surface allowed to end with less than half its texel
-// density. The target is 1% of the whole surface; each chart may lose 2%,
-// because the loss concentrates in few charts: the three scans end at
-// 0.16-0.58%, and the Smithsonian scan with 417 charts instead of 470 at 1%.
-constexpr double kDensityLossPerChart = 0.02;
+// The 3D area of a flattened chart's faces that end with less than half their
+// original texel area (eq.: new UV area / original UV area < 1/2), and the
+// original chart that lost the most of it (-1 when none did). SLIM balances
+// distortion, it does not bound it: FlattenOptions::max_density_loss bounds the loss.
+struct DensityLoss {
+  double lost_area = 0, total_area = 0;
+  int culprit = -1;
+};
 
-// The original chart that lost the most texel density, when faces covering
-// over kDensityLossPerChart of the chart's surface end with less than half
-// their original texel area (eq.: new UV area / original UV area < 1/2); -1
-// when the chart keeps its detail. SLIM balances distortion, it does not
-// bound it: this bounds the loss.
-int density_culprit(const Mesh& mesh, const ChartGraph& graph, const LocalChart& local, const RowMatrixX2d& uv) {
+DensityLoss density_loss(const Mesh& mesh, const ChartGraph& graph, const LocalChart& local, const RowMatrixX2d& uv) {
   std::unordered_map<int, double> lost;
-  double lost_total = 0, area_total = 0;
+  DensityLoss out;
   for (size_t i = 0; i < local.faces.size(); ++i) {
     const int f = local.faces[i];
     const double area_3d = mesh.area_3d(f);
-    area_total += area_3d;
+    out.total_area += area_3d;
     const double before = std::abs(mesh.signed_area_uv(f));
     const double after = std::abs(signed_area(uv.row(local.triangles(i, 0)), uv.row(local.triangles(i, 1)),
                                               uv.row(local.triangles(i, 2))));
-    if (before > 0 && after < 0.5 * before) lost[graph.face_chart[f]] += area_3d, lost_total += area_3d;
+    if (before > 0 && after < 0.5 * before) lost[graph.face_chart[f]] += area_3d, out.lost_area += area_3d;
   }
-  if (lost_total <= kDensityLossPerChart * area_total) return -1;
-  return std::max_element(lost.begin(), lost.end(), [](const auto& a, const auto& b) { return a.second < b.second; })
-      ->first;
+  if (!lost.empty())
+    out.culprit = std::max_element(lost.begin(), lost.end(), [](const auto& a, const auto& b) { return a.second < b.second; })->first;
+  return out;
 }
 
 // True when some faces wind one way in UV and some the other (faces of zero
@@ -356,7 +354,7 @@ int smaller_chart(const ChartGraph& graph, int face_a, int face_b) {
 
 // One flattening attempt of the faces as a chart of their own: cut open to a
 // disk, solved, and refused if the solve failed, the boundary crosses itself
-// or texel density is lost (see density_culprit).
+// or texel density is lost (see density_loss).
 struct Attempt {
   std::optional<FlatChart> chart;             // set unless refused
   int FlattenStats::*refusal = nullptr;       // the counter of the reason, when refused
@@ -364,19 +362,22 @@ struct Attempt {
 };
 
 Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                      std::vector<int> faces, const SlimOptions& options, const RunControl& control,
+                      std::vector<int> faces, const FlattenOptions& options, const RunControl& control,
                       FlattenStats& stats) {
   LocalChart local = localize(mesh, topology, graph, std::move(faces));
   if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
-  const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
+  const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options.slim, control);
   stats.scaffolded += solution.scaffolded;
   if (!solution.failure.empty() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
   if (const auto crossing = boundary_crossing(local.triangles, solution.uv))
     return {std::nullopt, &FlattenStats::overlapped,
             smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second])};
-  if (const int culprit = density_culprit(mesh, graph, local, solution.uv); culprit >= 0)
-    return {std::nullopt, &FlattenStats::density_lost, culprit};
-  return {from_solution(local, solution)};
+  const DensityLoss loss = density_loss(mesh, graph, local, solution.uv);
+  if (loss.lost_area > options.max_density_loss * loss.total_area)
+    return {std::nullopt, &FlattenStats::density_lost, loss.culprit};
+  FlatChart chart = from_solution(local, solution);
+  chart.density_lost_area = loss.lost_area;
+  return {std::move(chart)};
 }
 
 // True when the faces' original UVs cover some part of them twice without a
@@ -397,7 +398,7 @@ bool original_boundary_crosses(const Mesh& mesh, const MeshTopology& topology, c
 // again. A single face cannot overlap itself, so this ends, and no face is
 // left flipped and no boundary crossing.
 void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                        const std::vector<int>& chart, const SlimOptions& options, const RunControl& control,
+                        const std::vector<int>& chart, const FlattenOptions& options, const RunControl& control,
                         std::vector<FlatChart>& done, FlattenStats& stats) {
   std::vector<std::vector<int>> pending = {chart};
   while (!pending.empty()) {
@@ -423,7 +424,7 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
 // a task: it is caught there and rethrown after the wait.
 std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
-                                               const std::vector<int>& members, const SlimOptions& options,
+                                               const std::vector<int>& members, const FlattenOptions& options,
                                                const RunControl& control, FlattenStats& stats) {
   std::vector<FlatChart> done;
   if (members.size() == 1) {

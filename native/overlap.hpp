@@ -30,6 +30,7 @@ struct FlatChart {
   std::vector<int> faces;      // mesh faces
   RowMatrixX2d corner_uv;      // 3 rows per face, texels, arbitrary placement
   bool kept_original = false;  // single original chart, UVs copied from the input
+  double density_lost_area = 0;  // 3D area of its faces left below half their texel density
   double energy_initial = 0, energy_final = 0;  // per unit reference area (0 when kept)
   double iteration_seconds = 0, factorize_seconds = 0;  // see ChartSolution
 };
@@ -50,6 +51,14 @@ struct FlattenStats {
   }
 };
 
+struct FlattenOptions {
+  SlimOptions slim;
+  // A flattened chart is split when faces covering more than this share of
+  // its surface end with less than half their texel density. 0 splits any
+  // chart that loses density anywhere.
+  double max_density_loss = 0.02;
+};
+
 // Flattens one aggregated chart (its original charts `members`), splitting on
 // overlap or solver failure until every piece is valid.
 // chart_faces[c] lists the faces of original chart c.
@@ -57,7 +66,7 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
                                                const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
                                                const std::vector<int>& members,
-                                               const SlimOptions& options, const RunControl& control,
+                                               const FlattenOptions& options, const RunControl& control,
                                                FlattenStats& stats);
 
 }  // namespace atlas

@@ -41,11 +41,75 @@ std::vector<std::vector<int>> faces_by_chart(const std::vector<int>& face_chart,
   return out;
 }
 
-// One aggregated chart per task, largest first so the long ones start early.
-// Exceptions (Cancelled included) cannot leave an OpenMP region: the first is
-// kept and rethrown after the loop.
+// The density rule (FlattenOptions::max_density_loss) at two levels: every
+// chart is first flattened allowing kLooseDensityLoss of its surface below
+// half density; while the whole surface then loses more than kDensityBudget,
+// the aggregated charts that lost most beyond kStrictDensityLoss are flattened
+// again under it. A chart-level rule alone split many charts whose loss the
+// surface could well afford.
+constexpr double kLooseDensityLoss = 0.05;
+constexpr double kStrictDensityLoss = 0.02;
+constexpr double kDensityBudget = 0.006;
+
+// Flattens the aggregated charts `which` into pieces[c], stats[c], one chart
+// per task, in the given order. Exceptions (Cancelled included) cannot leave
+// an OpenMP region: the first is kept and rethrown after the loop.
+void flatten_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                    const std::vector<std::vector<int>>& chart_faces, const Aggregation& aggregation,
+                    const std::vector<int>& which, const FlattenOptions& options, const RunControl& control,
+                    std::vector<std::vector<FlatChart>>& pieces, std::vector<FlattenStats>& stats) {
+  std::exception_ptr error;
+  std::atomic<int> finished{0};
+  std::atomic<bool> failed{false};
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int i = 0; i < static_cast<int>(which.size()); ++i) {
+    if (failed || control.cancelled()) continue;
+    try {
+      const int c = which[i];
+      stats[c] = {};
+      pieces[c] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[c], options,
+                                          control, stats[c]);
+      ++finished;
+      if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / which.size());
+    } catch (...) {
+#pragma omp critical
+      if (!error) error = std::current_exception();
+      failed = true;  // the other workers skip what they have not started
+    }
+  }
+  if (error) std::rethrow_exception(error);
+  control.throw_if_cancelled();
+}
+
+// The aggregated charts to flatten again under the strict rule: those whose
+// loss exceeds it, most excess first, until the rest of the loss fits the budget.
+std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<FlatChart>>& pieces) {
+  double lost = 0, area = 0;
+  std::vector<std::pair<double, int>> excess;
+  for (size_t c = 0; c < pieces.size(); ++c) {
+    double chart_lost = 0, chart_area = 0;
+    for (const FlatChart& piece : pieces[c]) {
+      chart_lost += piece.density_lost_area;
+      for (int f : piece.faces) chart_area += mesh.area_3d(f);
+    }
+    lost += chart_lost, area += chart_area;
+    if (chart_lost > kStrictDensityLoss * chart_area)
+      excess.push_back({chart_lost - kStrictDensityLoss * chart_area, static_cast<int>(c)});
+  }
+  std::sort(excess.rbegin(), excess.rend());
+  std::vector<int> out;
+  for (const auto& [amount, c] : excess) {
+    if (lost <= kDensityBudget * area) break;
+    lost -= amount;
+    out.push_back(c);
+  }
+  return out;
+}
+
+// Every aggregated chart flattened (split where it must be), largest first
+// so the long ones start early.
 std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                                   const Aggregation& aggregation, const SlimOptions& options,
+                                   const Aggregation& aggregation, const SlimOptions& slim,
                                    const RunControl& control, PipelineReport& report) {
   const auto chart_faces = faces_by_chart(graph.face_chart, graph.chart_count());
   std::vector<int> order(aggregation.chart_count());
@@ -59,34 +123,22 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
 
   std::vector<std::vector<FlatChart>> pieces(order.size());
   std::vector<FlattenStats> stats(order.size());
-  std::exception_ptr error;
-  std::atomic<int> finished{0};
-  std::atomic<bool> failed{false};
-#pragma omp parallel for schedule(dynamic, 1)
-  for (int i = 0; i < static_cast<int>(order.size()); ++i) {
-    if (failed || control.cancelled()) continue;
-    try {
-      pieces[i] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[order[i]],
-                                          options, control, stats[i]);
-      ++finished;
-      if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / order.size());
-    } catch (...) {
-#pragma omp critical
-      if (!error) error = std::current_exception();
-      failed = true;  // the other workers skip what they have not started
-    }
-  }
-  if (error) std::rethrow_exception(error);
-  control.throw_if_cancelled();
+  flatten_charts(mesh, topology, graph, chart_faces, aggregation, order, {slim, kLooseDensityLoss}, control, pieces,
+                 stats);
+  std::vector<int> again = over_budget(mesh, pieces);
+  std::sort(again.begin(), again.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
+  flatten_charts(mesh, topology, graph, chart_faces, aggregation, again, {slim, kStrictDensityLoss}, control, pieces,
+                 stats);
+  report.density_reflattened = static_cast<int>(again.size());
   std::vector<FlatChart> out;
-  for (size_t i = 0; i < pieces.size(); ++i) {
-    report.splits_not_disk += stats[i].not_disk;
-    report.splits_solver += stats[i].solver_failed;
-    report.splits_overlap += stats[i].overlapped;
-    report.splits_density += stats[i].density_lost;
-    report.charts_scaffolded += stats[i].scaffolded;
-    report.overlap_halved += stats[i].overlap_halved;
-    for (auto& c : pieces[i]) out.push_back(std::move(c));
+  for (size_t c = 0; c < pieces.size(); ++c) {
+    report.splits_not_disk += stats[c].not_disk;
+    report.splits_solver += stats[c].solver_failed;
+    report.splits_overlap += stats[c].overlapped;
+    report.splits_density += stats[c].density_lost;
+    report.charts_scaffolded += stats[c].scaffolded;
+    report.overlap_halved += stats[c].overlap_halved;
+    for (auto& piece : pieces[c]) out.push_back(std::move(piece));
   }
   return out;
 }

@@ -38,6 +38,7 @@ struct PipelineReport {
   int splits_solver = 0;
   int splits_overlap = 0;
   int splits_density = 0;
+  int density_reflattened = 0;  // aggregated charts flattened again under the strict density rule (see pipeline.cpp)
   int charts_scaffolded = 0;   // solved again inside a scaffold after their boundary crossed (not splits)
   int overlap_halved = 0;      // lone charts whose own UVs overlap (fold or cross), cut in two (see overlap.hpp)
   double seam_before = 0, seam_after = 0;  // seam length / sqrt(area)
