@@ -234,6 +234,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["aggregate_stops"] = stops_dict(r.aggregate_stops);
   d["refine_faces_moved"] = r.refine_faces_moved;
   d["refine_seam_removed"] = r.refine_seam_removed;
+  d["faces_detached"] = r.faces_detached;
   d["charts_after"] = r.charts_after;
   d["charts_solved"] = r.charts_solved;
   d["splits_not_disk"] = r.splits_not_disk;

@@ -13,6 +13,7 @@
 
 #include "charts.hpp"
 #include "cut_mesh.hpp"
+#include "geometry.hpp"
 #include "overlap.hpp"
 #include "reference_triangles.hpp"
 #include "topology.hpp"
@@ -203,6 +204,57 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
   result.report.scale = by_group.empty() ? 1.0 : scale;
 }
 
+// Sign of the exact determinant of face f's corners as float32 stores them.
+int stored_winding(const PipelineResult& result, int f) {
+  const PageSize& page = result.pages[result.face_page[f]];
+  Eigen::Vector2d corner[3];
+  for (int k = 0; k < 3; ++k)
+    corner[k] = {static_cast<double>(static_cast<float>(result.corner_uv(3 * f + k, 0))) * page.width,
+                 static_cast<double>(static_cast<float>(result.corner_uv(3 * f + k, 1))) * page.height};
+  const double area = signed_area(corner[0], corner[1], corner[2]);
+  return area > 0 ? 1 : area < 0 ? -1 : 0;
+}
+
+// Faces whose stored winding is the opposite of their chart's leave it, each
+// as a chart of its own: its 3D triangle laid flat at its original texel
+// density, and at least a texel across. Returns how many left.
+int detach_turned_faces(const Mesh& mesh, const PipelineResult& result, std::vector<FlatChart>& charts) {
+  std::vector<FlatChart> detached;
+  for (FlatChart& chart : charts) {
+    double winding = 0;  // of the placed chart, as packed
+    for (int f : chart.faces)
+      winding += signed_area(result.corner_uv.row(3 * f), result.corner_uv.row(3 * f + 1), result.corner_uv.row(3 * f + 2));
+    if (chart.faces.size() < 2 || winding == 0) continue;
+    for (size_t j = 0; j < chart.faces.size(); ++j) {
+      const int f = chart.faces[j];
+      if (stored_winding(result, f) * winding >= 0) continue;
+      const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1)),
+                            c = mesh.positions.row(mesh.triangles(f, 2));
+      const double ab = (b - a).norm(), area = mesh.area_3d(f);
+      if (ab <= 0 || area <= 0) continue;
+      FlatChart lone;
+      lone.faces = {f};
+      lone.corner_uv.resize(3, 2);
+      const double x = (c - a).dot(b - a) / ab;
+      lone.corner_uv << 0, 0, ab, 0, x, 2 * area / ab;
+      const double density = std::sqrt(std::abs(mesh.signed_area_uv(f)) / area);
+      lone.corner_uv *= density > 0 ? density : 1.0;
+      detached.push_back(std::move(lone));
+      // Out of its chart: the last face takes its rows.
+      const size_t last = chart.faces.size() - 1;
+      chart.faces[j] = chart.faces[last];
+      chart.corner_uv.middleRows(3 * j, 3) = chart.corner_uv.middleRows(3 * last, 3);
+      chart.faces.pop_back();
+      chart.corner_uv.conservativeResize(3 * static_cast<Eigen::Index>(last), 2);
+      --j;
+    }
+  }
+  enlarge_tiny_charts(detached);
+  const int count = static_cast<int>(detached.size());
+  for (FlatChart& lone : detached) charts.push_back(std::move(lone));
+  return count;
+}
+
 double total_area(const Mesh& mesh) {
   double area = 0;
   for (int f = 0; f < mesh.face_count(); ++f) area += mesh.area_3d(f);
@@ -271,17 +323,25 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   report.refine_faces_moved = refined.faces_moved;
   report.refine_seam_removed = refined.seam_removed_3d / std::sqrt(total_area(welded));
   enlarge_tiny_charts(charts);
+  clock.lap("refine");
+
+  // Untextured faces keep their input UVs and page -1. A face whose winding
+  // float32 storage turns over becomes a chart of its own and all is packed
+  // again: that happens to a face or two per scan, if at all.
+  for (;;) {
+    result.corner_uv = mesh.corner_uv;
+    result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
+    result.pages.clear();
+    pack_groups(mesh, face_group, charts, options.pack, control, result);
+    const int detached = detach_turned_faces(mesh, result, charts);
+    if (detached == 0) break;
+    report.faces_detached += detached;
+  }
+  report.texels_after = page_texels(result.pages, {});
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
   for (const FlatChart& c : charts)
     result.charts.push_back({static_cast<int>(c.faces.size()), !c.kept_original, c.energy_initial, c.energy_final});
-  clock.lap("refine");
-
-  // Untextured faces keep their input UVs and page -1.
-  result.corner_uv = mesh.corner_uv;
-  result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
-  pack_groups(mesh, face_group, charts, options.pack, control, result);
-  report.texels_after = page_texels(result.pages, {});
   clock.lap("pack");
 
   report.seam_after = seam_length_ratio(welded, welded_topology, result.corner_uv, result.face_page);

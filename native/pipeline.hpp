@@ -32,6 +32,7 @@ struct PipelineReport {
   AggregationStops aggregate_stops;  // why the aggregation merged no further
   int refine_faces_moved = 0;  // faces the seam refinement moved to a neighbouring chart
   double refine_seam_removed = 0;  // seam length it removed / sqrt(area) (in seam_after already)
+  int faces_detached = 0;      // faces made charts of their own because float32 storage turned them over
   int charts_after = 0;        // in the output
   int charts_solved = 0;       // flattened by SLIM (the rest kept their original UVs)
   int splits_not_disk = 0;     // charts split back, by reason (see FlattenStats)
