@@ -169,13 +169,14 @@ MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
 // not weld alone.
 MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& shared) {
   const int n = static_cast<int>(shared.size());
-  UnionFind arcs(n);
-  std::unordered_map<int, int> edge_at_vertex;
+  // Arcs are simple paths: two edges join at a vertex only when no other
+  // shared edge meets there (where two arcs touch at a vertex, they stay two).
+  std::unordered_map<int, std::vector<int>> edges_at_vertex;
   for (int i = 0; i < n; ++i)
-    for (int end = 0; end < 2; ++end) {
-      const auto [it, fresh] = edge_at_vertex.emplace(topology_.edge_vertices(shared[i], end), i);
-      if (!fresh) arcs.unite(i, it->second);
-    }
+    for (int end = 0; end < 2; ++end) edges_at_vertex[topology_.edge_vertices(shared[i], end)].push_back(i);
+  UnionFind arcs(n);
+  for (const auto& [vertex, edges] : edges_at_vertex)
+    if (edges.size() == 2) arcs.unite(edges[0], edges[1]);
   const std::vector<int> arc = arcs.dense_labels();
   const int arc_count = *std::max_element(arc.begin(), arc.end()) + 1;
   if (arc_count == 1) return refused(MergeRefusal::NotDisk);
@@ -275,3 +276,4 @@ int DiskClusters::merge(int a, int b, const MergeCheck& check) {
 }
 
 }  // namespace atlas
+
