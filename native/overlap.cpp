@@ -373,7 +373,7 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
     return {std::nullopt, &FlattenStats::overlapped,
             smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second])};
   const DensityLoss loss = density_loss(mesh, graph, local, solution.uv);
-  if (loss.lost_area > options.max_density_loss * loss.total_area)
+  if (loss.lost_area > options.max_density_loss * loss.total_area && loss.lost_area > options.density_loss_allowance)
     return {std::nullopt, &FlattenStats::density_lost, loss.culprit};
   FlatChart chart = from_solution(local, solution);
   chart.density_lost_area = loss.lost_area;

@@ -57,6 +57,10 @@ struct FlattenOptions {
   // its surface end with less than half their texel density. 0 splits any
   // chart that loses density anywhere.
   double max_density_loss = 0.02;
+  // 3D area a chart may leave below half density whatever its share: spares
+  // splitting small pieces (closed scan debris above all) whose loss the
+  // surface does not notice. 0: none.
+  double density_loss_allowance = 0;
 };
 
 // Flattens one aggregated chart (its original charts `members`), splitting on
