@@ -11,6 +11,8 @@ namespace {
 
 int prev_corner(int c) { return 3 * (c / 3) + (c % 3 + 2) % 3; }
 
+constexpr double kMinWeldedShare = 0.25;
+
 MergeCheck refused(MergeRefusal why) {
   MergeCheck out;
   out.refusal = why;
@@ -160,13 +162,13 @@ MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
   return refused(MergeRefusal::NotDisk);
 }
 
-// Arcs: the shared edges joined through common end vertices. All arcs but
-// one are marked seams for the time of one weld_all, which says whether the
-// union is then acceptable: two disks sharing k arcs make chi = 2 - k when
-// all are welded, and a disk when one is; a disk glued along one arc to a
-// chart with holes keeps its holes, and adds none. The longest arcs are
-// tried first, a few of them: an arc that touches another at a vertex may
-// not weld alone.
+// Arcs: maximal simple paths of shared edges. All arcs but one are marked
+// seams for the time of one weld_all, which says whether the union is then
+// acceptable (two disks sharing k arcs make chi = 2 - k when all are welded,
+// and a disk when one is). The longest arcs are tried first, a few of them,
+// and only arcs with at least kMinWeldedShare of the shared length: a union
+// that keeps most of its border with the other chart as a slit inside costs
+// more to flatten (and splits more often) than it saves.
 MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& shared) {
   const int n = static_cast<int>(shared.size());
   // Arcs are simple paths: two edges join at a vertex only when no other
@@ -186,18 +188,20 @@ MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& 
                       mesh_.positions.row(topology_.edge_vertices(shared[i], 1))).norm();
     length[arc[i]] += edge_length[i];
   }
+  const double shared_length = std::accumulate(edge_length.begin(), edge_length.end(), 0.0);
   std::vector<int> order(arc_count);
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int x, int y) { return length[x] > length[y]; });
   constexpr int kArcsTried = 3;
   for (int t = 0; t < std::min(arc_count, kArcsTried); ++t) {
+    if (length[order[t]] < kMinWeldedShare * shared_length) break;
     MergeCheck out;
     for (int i = 0; i < n; ++i)
       if (arc[i] != order[t]) out.left_open.push_back(shared[i]), out.open_length += edge_length[i];
     for (int e : out.left_open) seam_[e] = 1;
     const MergeCheck welded = weld_all(a, b, nullptr);
     for (int e : out.left_open) seam_[e] = 0;
-    if (welded && (welded.euler == 1 || welded.euler >= std::min(euler_[a], euler_[b]))) {
+    if (welded) {
       out.euler = welded.euler;
       return out;
     }

@@ -42,18 +42,16 @@ std::vector<std::vector<int>> faces_by_chart(const std::vector<int>& face_chart,
   return out;
 }
 
-// The density rule (FlattenOptions::max_density_loss) at two levels: every
-// chart is first flattened allowing kLooseDensityLoss of its surface below
-// half density, or kDensityAllowance of the whole surface; while the whole surface then loses more than kDensityBudget,
-// the aggregated charts that lost most beyond kStrictDensityLoss are flattened
-// again under it. A chart-level rule alone split many charts whose loss the
-// surface could well afford. The budget leaves the output guarantee (under
-// 1% of the surface) a fifth of it for what the estimate misses.
-constexpr double kLooseDensityLoss = 0.05;
+// The density rule (FlattenOptions::max_density_loss): every chart is first
+// flattened allowing kStrictDensityLoss of its surface below half density, or
+// kDensityAllowance of the whole surface (which spares splitting small
+// pieces, closed scan debris above all). While the whole surface then loses
+// more than kDensityBudget, the aggregated charts that lost most beyond the
+// rule are flattened again under it without the allowance, then under a half
+// and a quarter of it. The budget leaves the output guarantee (under 1% of
+// the surface) a fifth of it for what the estimate misses.
 constexpr double kStrictDensityLoss = 0.02;
 constexpr double kDensityBudget = 0.008;
-// Share of the surface each chart may lose at first whatever its own share
-// (FlattenOptions::density_loss_allowance).
 constexpr double kDensityAllowance = 2e-4;
 
 // Flattens the aggregated charts `which` into pieces[c], stats[c], one chart
@@ -86,9 +84,10 @@ void flatten_charts(const Mesh& mesh, const MeshTopology& topology, const ChartG
   control.throw_if_cancelled();
 }
 
-// The aggregated charts to flatten again under the strict rule: those whose
-// loss exceeds it, most excess first, until the rest of the loss fits the budget.
-std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<FlatChart>>& pieces) {
+// The aggregated charts to flatten again under the rule `level`: those whose
+// loss exceeds it, most excess first, until the rest of the loss fits the
+// budget. Empty when it fits already.
+std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<FlatChart>>& pieces, double level) {
   double lost = 0, area = 0;
   std::vector<std::pair<double, int>> excess;
   for (size_t c = 0; c < pieces.size(); ++c) {
@@ -98,8 +97,7 @@ std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<Fla
       for (int f : piece.faces) chart_area += mesh.area_3d(f);
     }
     lost += chart_lost, area += chart_area;
-    if (chart_lost > kStrictDensityLoss * chart_area)
-      excess.push_back({chart_lost - kStrictDensityLoss * chart_area, static_cast<int>(c)});
+    if (chart_lost > level * chart_area) excess.push_back({chart_lost - level * chart_area, static_cast<int>(c)});
   }
   std::sort(excess.rbegin(), excess.rend());
   std::vector<int> out;
@@ -132,12 +130,13 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
   for (int f = 0; f < mesh.face_count(); ++f)
     if (graph.face_chart[f] >= 0) area += mesh.area_3d(f);
   flatten_charts(mesh, topology, graph, chart_faces, aggregation, order,
-                 {slim, kLooseDensityLoss, kDensityAllowance * area}, control, pieces, stats);
-  std::vector<int> again = over_budget(mesh, pieces);
-  std::sort(again.begin(), again.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
-  flatten_charts(mesh, topology, graph, chart_faces, aggregation, again, {slim, kStrictDensityLoss}, control, pieces,
-                 stats);
-  report.density_reflattened = static_cast<int>(again.size());
+                 {slim, kStrictDensityLoss, kDensityAllowance * area}, control, pieces, stats);
+  for (double level = kStrictDensityLoss; level >= kStrictDensityLoss / 4; level /= 2) {
+    std::vector<int> again = over_budget(mesh, pieces, level);
+    std::sort(again.begin(), again.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
+    flatten_charts(mesh, topology, graph, chart_faces, aggregation, again, {slim, level}, control, pieces, stats);
+    report.density_reflattened += static_cast<int>(again.size());
+  }
   std::vector<FlatChart> out;
   for (size_t c = 0; c < pieces.size(); ++c) {
     report.splits_not_disk += stats[c].not_disk;
