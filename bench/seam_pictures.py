@@ -26,7 +26,7 @@ sys.path.insert(0, str(HERE))
 
 import _native  # noqa: E402
 import scan_io  # noqa: E402
-from run_benchmark import MODELS, _chart_boundary_edges  # noqa: E402
+from run_benchmark import MODELS, _chart_boundary_edges, _sheet  # noqa: E402
 
 
 def interior_seams(scan, uvs, face_page) -> np.ndarray:
@@ -86,26 +86,6 @@ def render(scan, seams: np.ndarray, frame: np.ndarray, size: int, colour) -> "Im
     return image
 
 
-def sheet(panels, captions, title: str, path: Path) -> None:
-    from PIL import Image, ImageDraw, ImageFont
-    size = panels[0].size[0]
-    gap, head = 12, 60
-    try:
-        font = ImageFont.load_default(size=17)
-    except TypeError:  # Pillow < 10.1
-        font = ImageFont.load_default()
-    cols = 2
-    rows = (len(panels) + cols - 1) // cols
-    out = Image.new("RGB", (cols * size + (cols + 1) * gap, rows * (size + head) + gap), (16, 16, 16))
-    d = ImageDraw.Draw(out)
-    d.text((gap, 6), title, fill=(255, 255, 255), font=font)
-    for i, (panel, caption) in enumerate(zip(panels, captions)):
-        x, y = gap + (i % cols) * (size + gap), (i // cols) * (size + head)
-        d.text((x, y + 34), caption, fill=(230, 230, 230), font=font)
-        out.paste(panel, (x, y + head))
-    out.save(path, optimize=True)
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", choices=[m for m, p in MODELS.items() if p], default="meshroom")
@@ -130,7 +110,7 @@ def main(argv=None) -> int:
             captions.append(f"{name}, {side}: {charts} charts, seam {seam:.1f}")
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / f"{args.model}_seams.png"
-    sheet(panels, captions, f"{args.model}: UV seams drawn on the model (seam = 3D length / sqrt(area))", path)
+    _sheet(panels, captions, path, f"{args.model}: UV seams drawn on the model (seam = 3D length / sqrt(area))")
     print(path)
     return 0
 

@@ -306,7 +306,7 @@ DensityLoss density_loss(const Mesh& mesh, const ChartGraph& graph, const LocalC
 
 // True when some faces wind one way in UV and some the other (faces of zero
 // UV area count for neither). A closed piece always does: its signed areas sum
-// to zero. Slivers count here, unlike in the metrics: enlarge_tiny_charts may
+// to zero. Slivers count here, as in the metrics: enlarge_tiny_charts may
 // make them visible.
 bool folds_over(const Mesh& mesh, const std::vector<int>& faces) {
   bool positive = false, negative = false;

@@ -40,7 +40,7 @@ struct FlattenStats {
   int not_disk = 0;            // handles left after cutting holes open
   int solver_failed = 0;       // SLIM reported a failure or left flipped faces
   int overlapped = 0;          // the new boundary crossed itself
-  int density_lost = 0;        // over 2% of the surface kept less than half its texels
+  int density_lost = 0;        // too much of the surface kept less than half its texels (FlattenOptions)
   int overlap_halved = 0;      // not a split of merged charts: lone charts whose own UVs overlap, cut in two
   int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
 

@@ -210,15 +210,25 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
   result.report.scale = by_group.empty() ? 1.0 : scale;
 }
 
-// Sign of the exact determinant of face f's corners as float32 stores them.
-int stored_winding(const PipelineResult& result, int f) {
+// Sign of the exact determinant of face f's corners as float32 stores them,
+// v either as is (Blender, OBJ) or, after that, as 1 - v (glTF): when the
+// two disagree, the one against `expected` wins.
+int stored_winding(const PipelineResult& result, int f, double expected) {
   const PageSize& page = result.pages[result.face_page[f]];
-  Eigen::Vector2d corner[3];
-  for (int k = 0; k < 3; ++k)
-    corner[k] = {static_cast<double>(static_cast<float>(result.corner_uv(3 * f + k, 0))) * page.width,
-                 static_cast<double>(static_cast<float>(result.corner_uv(3 * f + k, 1))) * page.height};
-  const double area = signed_area(corner[0], corner[1], corner[2]);
-  return area > 0 ? 1 : area < 0 ? -1 : 0;
+  int worst = expected > 0 ? 1 : -1;
+  for (bool flipped_v : {false, true}) {
+    Eigen::Vector2d corner[3];
+    for (int k = 0; k < 3; ++k) {
+      const double u = static_cast<float>(result.corner_uv(3 * f + k, 0));
+      const float v = static_cast<float>(result.corner_uv(3 * f + k, 1));  // as Blender holds it
+      const double stored_v = flipped_v ? 1.0 - static_cast<float>(1.0 - v) : v;
+      corner[k] = {u * page.width, stored_v * page.height};
+    }
+    const double area = signed_area(corner[0], corner[1], corner[2]);
+    const int winding = area > 0 ? 1 : area < 0 ? -1 : 0;
+    if (winding * expected < 0) worst = winding;
+  }
+  return worst;
 }
 
 // Faces whose stored winding is the opposite of their chart's leave it, each
@@ -233,7 +243,7 @@ int detach_turned_faces(const Mesh& mesh, const PipelineResult& result, std::vec
     if (chart.faces.size() < 2 || winding == 0) continue;
     for (size_t j = 0; j < chart.faces.size(); ++j) {
       const int f = chart.faces[j];
-      if (stored_winding(result, f) * winding >= 0) continue;
+      if (stored_winding(result, f, winding) * winding >= 0) continue;
       const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1)),
                             c = mesh.positions.row(mesh.triangles(f, 2));
       const double ab = (b - a).norm(), area = mesh.area_3d(f);
