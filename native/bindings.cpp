@@ -160,6 +160,8 @@ PipelineOptions pipeline_options(const py::object& obj) {
     } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = value.cast<double>();
     else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = value.cast<double>();
     else if (key == "max_chart_faces") o.aggregate.max_chart_faces = value.cast<int>();
+    else if (key == "partial_merges") o.aggregate.partial_merges = value.cast<bool>();
+    else if (key == "refine_min_area_ratio") o.refine.min_area_ratio = value.cast<double>();
     else if (key == "padding") o.pack.padding = value.cast<int>();
     else if (key == "fixed_page_size") o.pack.fixed_page_size = value.cast<int>();
     else if (key == "max_page_size") o.pack.max_page_size = value.cast<int>();
@@ -191,6 +193,8 @@ PipelineOptions pipeline_options(const py::object& obj) {
     throw py::value_error("max_pages must be 0 (automatic) or 1..4096");
   if (o.texels_per_unit != 0 && !(o.texels_per_unit >= 0.001 && o.texels_per_unit <= 1e9))
     throw py::value_error("texels_per_unit must be 0 (density_scale applies) or 0.001..1e9");
+  if (!(o.refine.min_area_ratio >= 0 && o.refine.min_area_ratio <= 1))
+    throw py::value_error("refine_min_area_ratio must be in [0, 1] (0: no seam refinement)");
   if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");
@@ -254,9 +258,13 @@ py::dict report_dict(const PipelineReport& r) {
   d["charts_before"] = r.charts_before;
   d["charts_aggregated"] = r.charts_aggregated;
   d["aggregate_stops"] = stops_dict(r.aggregate_stops);
+  d["refine_faces_moved"] = r.refine_faces_moved;
+  d["refine_seam_removed"] = r.refine_seam_removed;
+  d["faces_detached"] = r.faces_detached;
   d["charts_after"] = r.charts_after;
   d["charts_solved"] = r.charts_solved;
   for (const FlattenCounter& c : kFlattenCounters) d[c.name] = r.flatten.*c.field;
+  d["density_reflattened"] = r.density_reflattened;
   d["largest_chart_faces"] = r.largest_chart_faces;
   d["iteration_over_factorization"] = r.iteration_over_factorization;
   d["seam_before"] = r.seam_before;

@@ -53,6 +53,20 @@ void require_images(const std::vector<ImageView<T>>& images, const UvLayout& atl
 
 // ---- small helpers ---------------------------------------------------------
 
+// Winding of face f as its UVs are stored (float32 page units in Blender,
+// glTF and the OBJ writers): +1 counter-clockwise, -1 clockwise, 0 when the
+// stored corners are collinear. The sign of the exact determinant of the
+// rounded corners, scaled to texels: every face counts, slivers included.
+int stored_winding(const UvLayout& atlas, int f) {
+  const PageSize& page = (*atlas.pages)[(*atlas.face_page)[f]];
+  Eigen::Vector2d corner[3];
+  for (int k = 0; k < 3; ++k)
+    corner[k] = {static_cast<double>(static_cast<float>((*atlas.corner_uv)(3 * f + k, 0))) * page.width,
+                 static_cast<double>(static_cast<float>((*atlas.corner_uv)(3 * f + k, 1))) * page.height};
+  const double area = signed_area(corner[0], corner[1], corner[2]);
+  return area > 0 ? 1 : area < 0 ? -1 : 0;
+}
+
 double face_signed_area_uv(const UvLayout& atlas, int f) {
   return signed_area(atlas.uv_texels(f, 0), atlas.uv_texels(f, 1), atlas.uv_texels(f, 2));
 }
@@ -231,7 +245,7 @@ AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, cons
   for (int f = 0; f < faces; ++f) {
     const int chart = graph.face_chart[f];
     if (chart < 0) continue;
-    const int winding = uv_winding(atlas.uv_texels(f, 0), atlas.uv_texels(f, 1), atlas.uv_texels(f, 2));
+    const int winding = stored_winding(atlas, f);
     if (winding != 0 && (winding < 0) != graph.charts[chart].mirrored()) ++flipped;
   }
   m.flipped_faces = flipped;

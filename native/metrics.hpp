@@ -20,7 +20,7 @@ struct AtlasMeasures {
   long long page_texels = 0;       // sum of width * height over all pages of the layout
   long long covered_texels = 0;    // texels whose centre some triangle covers
   double occupancy = 0;            // covered / page texels
-  int flipped_faces = 0;           // wound against their chart in UV (slivers not counted, see uv_winding)
+  int flipped_faces = 0;           // wound against their chart in the float32 UVs as stored (every face; collinear ones have no winding)
   long long overlap_texels = 0;    // texels whose centre two or more triangles cover
 };
 

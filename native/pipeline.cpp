@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <limits>
 #include <map>
@@ -41,9 +42,66 @@ std::vector<std::vector<int>> faces_by_chart(const std::vector<int>& face_chart,
   return out;
 }
 
-// One aggregated chart per task, largest first so the long ones start early.
+// The density rule (FlattenOptions::max_density_loss): every chart is first
+// flattened allowing kStrictDensityLoss of its surface below half density, or
+// kDensityAllowance of the whole surface (which spares splitting small
+// pieces, closed scan debris above all). While the whole surface then loses
+// more than kDensityBudget, the aggregated charts that lost most beyond the
+// rule are flattened again under it without the allowance, then under a half
+// and a quarter of it. The budget leaves the output guarantee (under 1% of
+// the surface) a fifth of it for what the estimate misses.
+constexpr double kStrictDensityLoss = 0.02;
+constexpr double kDensityBudget = 0.008;
+constexpr double kDensityAllowance = 2e-4;
+
+// Flattens the aggregated charts `which` into pieces[c], stats[c], one chart
+// per task, in the given order.
+void flatten_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                    const std::vector<std::vector<int>>& chart_faces, const Aggregation& aggregation,
+                    const std::vector<int>& which, const FlattenOptions& options, const RunControl& control,
+                    std::vector<std::vector<FlatChart>>& pieces, std::vector<FlattenStats>& stats) {
+  std::atomic<int> finished{0};
+  parallel_for(static_cast<int>(which.size()), 1, [&](int i) {
+    control.throw_if_cancelled();
+    const int c = which[i];
+    stats[c] = {};
+    pieces[c] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[c], options, control,
+                                        stats[c]);
+    ++finished;
+    if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / which.size());
+  });
+  control.throw_if_cancelled();
+}
+
+// The aggregated charts to flatten again under the rule `level`: those whose
+// loss exceeds it, most excess first, until the rest of the loss fits the
+// budget. Empty when it fits already.
+std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<FlatChart>>& pieces, double level) {
+  double lost = 0, area = 0;
+  std::vector<std::pair<double, int>> excess;
+  for (size_t c = 0; c < pieces.size(); ++c) {
+    double chart_lost = 0, chart_area = 0;
+    for (const FlatChart& piece : pieces[c]) {
+      chart_lost += piece.density_lost_area;
+      for (int f : piece.faces) chart_area += mesh.area_3d(f);
+    }
+    lost += chart_lost, area += chart_area;
+    if (chart_lost > level * chart_area) excess.push_back({chart_lost - level * chart_area, static_cast<int>(c)});
+  }
+  std::sort(excess.rbegin(), excess.rend());
+  std::vector<int> out;
+  for (const auto& [amount, c] : excess) {
+    if (lost <= kDensityBudget * area) break;
+    lost -= amount;
+    out.push_back(c);
+  }
+  return out;
+}
+
+// Every aggregated chart flattened (split where it must be), largest first
+// so the long ones start early.
 std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                                   const Aggregation& aggregation, const SlimOptions& options,
+                                   const Aggregation& aggregation, const SlimOptions& slim,
                                    const RunControl& control, PipelineReport& report) {
   const auto chart_faces = faces_by_chart(graph.face_chart, graph.chart_count());
   std::vector<int> order(aggregation.chart_count());
@@ -57,19 +115,21 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
 
   std::vector<std::vector<FlatChart>> pieces(order.size());
   std::vector<FlattenStats> stats(order.size());
-  std::atomic<int> finished{0};
-  parallel_for(static_cast<int>(order.size()), 1, [&](int i) {
-    control.throw_if_cancelled();
-    pieces[i] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[order[i]], options,
-                                        control, stats[i]);
-    ++finished;
-    if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / order.size());
-  });
-  control.throw_if_cancelled();
+  double area = 0;
+  for (int f = 0; f < mesh.face_count(); ++f)
+    if (graph.face_chart[f] >= 0) area += mesh.area_3d(f);
+  flatten_charts(mesh, topology, graph, chart_faces, aggregation, order,
+                 {slim, kStrictDensityLoss, kDensityAllowance * area}, control, pieces, stats);
+  for (double level = kStrictDensityLoss; level >= kStrictDensityLoss / 4; level /= 2) {
+    std::vector<int> again = over_budget(mesh, pieces, level);
+    std::sort(again.begin(), again.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
+    flatten_charts(mesh, topology, graph, chart_faces, aggregation, again, {slim, level}, control, pieces, stats);
+    report.density_reflattened += static_cast<int>(again.size());
+  }
   std::vector<FlatChart> out;
-  for (size_t i = 0; i < pieces.size(); ++i) {
-    report.flatten += stats[i];
-    for (auto& c : pieces[i]) out.push_back(std::move(c));
+  for (size_t c = 0; c < pieces.size(); ++c) {
+    report.flatten += stats[c];
+    for (auto& piece : pieces[c]) out.push_back(std::move(piece));
   }
   return out;
 }
@@ -164,6 +224,73 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
   result.report.scale = by_group.empty() ? 1.0 : scale;
 }
 
+// Sign of the exact determinant of face f's corners as float32 stores them,
+// v either as is (Blender, OBJ) or, after that, as 1 - v (glTF): when the
+// two disagree, the one against `expected` wins.
+int stored_winding(const PipelineResult& result, int f, double expected) {
+  const PageSize& page = result.pages[result.face_page[f]];
+  int worst = expected > 0 ? 1 : -1;
+  for (bool flipped_v : {false, true}) {
+    Eigen::Vector2d corner[3];
+    for (int k = 0; k < 3; ++k) {
+      const double u = static_cast<float>(result.corner_uv(3 * f + k, 0));
+      const float v = static_cast<float>(result.corner_uv(3 * f + k, 1));  // as Blender holds it
+      const double stored_v = flipped_v ? 1.0 - static_cast<float>(1.0 - v) : v;
+      corner[k] = {u * page.width, stored_v * page.height};
+    }
+    const double area = signed_area(corner[0], corner[1], corner[2]);
+    const int winding = area > 0 ? 1 : area < 0 ? -1 : 0;
+    if (winding * expected < 0) worst = winding;
+  }
+  return worst;
+}
+
+// Faces whose stored winding is the opposite of their chart's leave it, each
+// as a chart of its own: its 3D triangle laid flat at its original texel
+// density, and at least a texel across. Returns how many left.
+int detach_turned_faces(const Mesh& mesh, const PipelineResult& result, std::vector<FlatChart>& charts) {
+  std::vector<FlatChart> detached;
+  for (FlatChart& chart : charts) {
+    double winding = 0;  // of the placed chart, as packed
+    for (int f : chart.faces)
+      winding += signed_area(result.corner_uv.row(3 * f), result.corner_uv.row(3 * f + 1), result.corner_uv.row(3 * f + 2));
+    if (chart.faces.size() < 2 || winding == 0) continue;
+    for (size_t j = 0; j < chart.faces.size(); ++j) {
+      const int f = chart.faces[j];
+      if (stored_winding(result, f, winding) * winding >= 0) continue;
+      const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1)),
+                            c = mesh.positions.row(mesh.triangles(f, 2));
+      const double ab = (b - a).norm(), area = mesh.area_3d(f);
+      if (ab <= 0 || area <= 0) continue;
+      FlatChart lone;
+      lone.faces = {f};
+      lone.corner_uv.resize(3, 2);
+      const double x = (c - a).dot(b - a) / ab;
+      lone.corner_uv << 0, 0, ab, 0, x, 2 * area / ab;
+      const double density = std::sqrt(std::abs(mesh.signed_area_uv(f)) / area);
+      lone.corner_uv *= density > 0 ? density : 1.0;
+      detached.push_back(std::move(lone));
+      // Out of its chart: the last face takes its rows.
+      const size_t last = chart.faces.size() - 1;
+      chart.faces[j] = chart.faces[last];
+      chart.corner_uv.middleRows(3 * j, 3) = chart.corner_uv.middleRows(3 * last, 3);
+      chart.faces.pop_back();
+      chart.corner_uv.conservativeResize(3 * static_cast<Eigen::Index>(last), 2);
+      --j;
+    }
+  }
+  enlarge_tiny_charts(detached);
+  const int count = static_cast<int>(detached.size());
+  for (FlatChart& lone : detached) charts.push_back(std::move(lone));
+  return count;
+}
+
+double total_area(const Mesh& mesh) {
+  double area = 0;
+  for (int f = 0; f < mesh.face_count(); ++f) area += mesh.area_3d(f);
+  return area;
+}
+
 double median(std::vector<double> values) {
   std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
   return values[values.size() / 2];
@@ -216,9 +343,32 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   report.aggregate_stops = aggregation.stops;
   clock.lap("aggregate");
 
-  std::vector<FlatChart> charts = flatten_all(mesh, topology, graph, aggregation, options.slim, control, report);
+  // The flattening keeps the arcs partial merges left open as seams.
+  ChartGraph flat_graph = graph;
+  flat_graph.self_seam = aggregation.kept_seam;
+  std::vector<FlatChart> charts = flatten_all(mesh, topology, flat_graph, aggregation, options.slim, control, report);
+  clock.lap("flatten");
+  // Before tiny charts are enlarged: the refinement compares texel areas.
+  const RefineStats refined = refine_seams(mesh, topology, flat_graph.self_seam, face_group, options.refine, charts);
+  report.refine_faces_moved = refined.faces_moved;
+  report.refine_seam_removed = refined.seam_removed_3d / std::sqrt(total_area(welded));
   enlarge_tiny_charts(charts);
   turn_solved_charts(charts);
+  clock.lap("refine");
+
+  // Untextured faces keep their input UVs and page -1. A face whose winding
+  // float32 storage turns over becomes a chart of its own and all is packed
+  // again: that happens to a face or two per scan, if at all.
+  for (;;) {
+    result.corner_uv = mesh.corner_uv;
+    result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
+    result.pages.clear();
+    pack_groups(mesh, face_group, charts, options, control, result);
+    const int detached = detach_turned_faces(mesh, result, charts);
+    if (detached == 0) break;
+    report.faces_detached += detached;
+  }
+  report.texels_after = page_texels(result.pages, {});
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
   result.face_chart = Eigen::VectorXi::Constant(mesh.face_count(), -1);
@@ -226,13 +376,6 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
     for (int f : c.faces) result.face_chart[f] = static_cast<int>(result.charts.size());
     result.charts.push_back({static_cast<int>(c.faces.size()), !c.kept_original, c.energy_initial, c.energy_final});
   }
-  clock.lap("flatten");
-
-  // Untextured faces keep their input UVs and page -1.
-  result.corner_uv = mesh.corner_uv;
-  result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
-  pack_groups(mesh, face_group, charts, options, control, result);
-  report.texels_after = page_texels(result.pages, {});
   clock.lap("pack");
 
   report.seam_after = seam_length_ratio(welded, welded_topology, result.corner_uv, result.face_page);

@@ -15,6 +15,7 @@ namespace atlas {
 
 struct PipelineOptions {
   AggregateOptions aggregate;
+  RefineOptions refine;
   SlimOptions slim;
   // max_pages 0: as many pages as the group's faces use in the input (at least
   // 1), or as many of max_page_size as hold the input's texels times
@@ -37,9 +38,13 @@ struct PipelineReport {
   int charts_before = 0;       // UV charts of the input
   int charts_aggregated = 0;   // after aggregation, before overlap splits
   AggregationStops aggregate_stops;  // why the aggregation merged no further
+  int refine_faces_moved = 0;  // faces the seam refinement moved to a neighbouring chart
+  double refine_seam_removed = 0;  // seam length it removed / sqrt(area) (in seam_after already)
+  int faces_detached = 0;      // faces made charts of their own because float32 storage turned them over
   int charts_after = 0;        // in the output
   int charts_solved = 0;       // flattened by SLIM (the rest kept their original UVs)
   FlattenStats flatten;        // charts split back by reason, scaffolded, halved (see kFlattenCounters)
+  int density_reflattened = 0;  // aggregated charts flattened again under the strict density rule (see pipeline.cpp)
   double seam_before = 0, seam_after = 0;  // seam length / sqrt(area)
   long long texels_before = 0, texels_after = 0;
   double packing_efficiency = 0;

@@ -32,6 +32,7 @@ struct Candidate {
   double area;     // tie-break: smaller first
   int a, b;
   unsigned version_a, version_b;
+  bool partial;    // weight counts only the arc a partial merge welds
   // std::priority_queue pops the largest, so "greater" means "later".
   bool operator<(const Candidate& o) const {
     if (island != o.island) return !island;
@@ -63,7 +64,7 @@ class Aggregator {
              const AggregateOptions& options)
       : options_(options),
         graph_(graph),
-        disks_(mesh, topology, graph.face_chart, graph.chart_count(), graph.self_seam),
+        disks_(mesh, topology, graph.face_chart, graph.chart_count(), graph.self_seam, options.partial_merges),
         clusters_(graph.chart_count()) {
     for (int f = 0; f < mesh.face_count(); ++f) {
       if (graph.face_chart[f] < 0) continue;
@@ -96,7 +97,13 @@ class Aggregator {
       if (clusters_[top.a].version != top.version_a || clusters_[top.b].version != top.version_b) continue;
       // Infeasible: dropped until one side changes, which pushes it again.
       if (const MergeCheck check = disks_.check_merge(top.a, top.b)) {
-        collapse(top.a, top.b, check.euler);
+        // A partial merge removes less seam than its weight assumed: it
+        // queues again at its real weight.
+        if (!check.left_open.empty() && !top.partial) {
+          push(top.a, top.b, check.open_length);
+          continue;
+        }
+        collapse(top.a, top.b, check);
         if ((start - alive_) % 256 == 0) control.progress("aggregate", double(start - alive_) / start);
       }
     }
@@ -105,6 +112,7 @@ class Aggregator {
   Aggregation result() {
     Aggregation out;
     out.stops = stops();
+    out.kept_seam = disks_.seams();
     std::vector<int> renumber(clusters_.size(), -1);
     out.face_chart.assign(graph_.face_chart.size(), -1);
     for (size_t f = 0; f < graph_.face_chart.size(); ++f) {
@@ -170,7 +178,9 @@ class Aggregator {
       if (c < n && link.mergeable) push(c, n);
   }
 
-  void push(int a, int b) {
+  // open_length < 0: a full merge; else a partial one leaving that much 3D
+  // length of the shared border open.
+  void push(int a, int b, double open_length = -1) {
     if (gate(a, b) != Gate::Open) return;
     const Cluster& ca = clusters_[a];
     const Cluster& cb = clusters_[b];
@@ -178,17 +188,26 @@ class Aggregator {
     // C1 is the smaller chart in the measure the weighting uses.
     const bool a_small = uv ? ca.area_uv <= cb.area_uv : ca.area_3d <= cb.area_3d;
     const Cluster& small = a_small ? ca : cb;
-    const Link& link = small.links.at(a_small ? b : a);
-    const bool island = link.length_3d >= small.perimeter_3d * (1 - 1e-6);
+    const Link link = welded_part(small.links.at(a_small ? b : a), open_length);
+    const bool island = open_length < 0 && link.length_3d >= small.perimeter_3d * (1 - 1e-6);
     const double w = uv ? weight_uv(small, link) : weight_surface(small, link);
-    queue_.push({island, w, uv ? small.area_uv : small.area_3d, a, b, ca.version, cb.version});
+    queue_.push({island, w, uv ? small.area_uv : small.area_3d, a, b, ca.version, cb.version, open_length >= 0});
   }
 
-  void collapse(int a, int b, int euler) {
-    const int keep = disks_.merge(a, b, euler), gone = keep == a ? b : a;
+  // The part of a border that a merge leaving open_length of it open welds;
+  // its UV lengths in proportion (open_length < 0: all of it).
+  static Link welded_part(Link link, double open_length) {
+    if (open_length <= 0 || link.length_3d <= 0) return link;
+    const double kept = std::max(0.0, 1.0 - open_length / link.length_3d);
+    link.length_3d *= kept, link.uv_self *= kept, link.uv_other *= kept;
+    return link;
+  }
+
+  void collapse(int a, int b, const MergeCheck& check) {
+    const int keep = disks_.merge(a, b, check), gone = keep == a ? b : a;
     Cluster& k = clusters_[keep];
     Cluster& g = clusters_[gone];
-    const Link shared = k.links.at(gone);
+    const Link shared = welded_part(k.links.at(gone), check.left_open.empty() ? -1 : check.open_length);
     k.area_3d += g.area_3d;
     k.area_uv += g.area_uv;
     k.normal_sum += g.normal_sum;

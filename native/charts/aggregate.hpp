@@ -30,6 +30,10 @@ struct AggregateOptions {
   // chart grows faster than its size (sparse Cholesky fill), and many
   // mid-sized charts keep both cores busy. 0 disables.
   int max_chart_faces = 20000;
+  // Two charts whose union would not be a disk (they touch along several
+  // arcs) merge along their longest shared arc, the others staying a seam
+  // inside the chart (see DiskClusters). false refuses such pairs.
+  bool partial_merges = true;
 };
 
 // Why the adjacent charts left at the end were not merged: one count per pair,
@@ -47,6 +51,9 @@ struct AggregationStops {
 struct Aggregation {
   std::vector<int> face_chart;                 // F, new chart per face, -1 untextured
   std::vector<std::vector<int>> members;       // new chart -> original charts in it
+  // Per edge: boundary on both sides. The graph's self seams plus the arcs
+  // that partial merges left open between two original charts of one chart.
+  std::vector<char> kept_seam;
   AggregationStops stops;
   int chart_count() const { return static_cast<int>(members.size()); }
 };

@@ -2,20 +2,34 @@
 
 #include <algorithm>
 #include <numeric>
+#include <unordered_map>
 
 #include "core/corners.hpp"
+#include "core/union_find.hpp"
 
 namespace atlas {
+namespace {
+
+constexpr double kMinWeldedShare = 0.25;
+
+MergeCheck refused(MergeRefusal why) {
+  MergeCheck out;
+  out.refusal = why;
+  return out;
+}
+
+}  // namespace
 
 DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-                           int cluster_count, std::vector<char> self_seam)
+                           int cluster_count, std::vector<char> self_seam, bool partial_merges)
     : mesh_(mesh),
       topology_(topology),
       face_cluster_(std::move(face_cluster)),
       faces_(cluster_count),
       euler_(cluster_count, 0),
       manifold_(cluster_count, 0),
-      self_seam_(std::move(self_seam)),
+      seam_(std::move(self_seam)),
+      partial_merges_(partial_merges),
       edge_stamp_(topology.edge_count(), 0),
       vertex_stamp_(mesh.vertex_count(), 0) {
   for (int f = 0; f < mesh.face_count(); ++f)
@@ -36,7 +50,7 @@ int DiskClusters::euler_of(int c) {
   for (int f : faces_[c])
     for (int k = 0; k < 3; ++k) {
       const int e = topology_.corner_edge[3 * f + k], v = mesh_.triangles(f, k);
-      if (self_seam_[e]) ++edges;
+      if (seam_[e]) ++edges;
       else if (edge_stamp_[e] != stamp_) edge_stamp_[e] = stamp_, ++edges;
       if (vertex_stamp_[v] != stamp_) vertex_stamp_[v] = stamp_, vertices += fan_count(v, c, c);
     }
@@ -50,13 +64,13 @@ bool DiskClusters::manifold_inside(int c) {
   for (int f : faces_[c])
     for (int k = 0; k < 3; ++k) {
       const int c0 = 3 * f + k, e = topology_.corner_edge[c0];
-      if (self_seam_[e]) continue;
+      if (seam_[e]) continue;
       int inside = 0;
       for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
         const int ci = topology_.edge_corners[i];
         if (face_cluster_[ci / 3] != c) continue;
         ++inside;
-        if (ci != c0 && mesh_.triangles(ci / 3, ci % 3) == mesh_.triangles(f, k)) return false;
+        if (ci != c0 && corner_vertex(mesh_.triangles, ci) == mesh_.triangles(f, k)) return false;
       }
       if (inside > 2 || (inside == 2 && topology_.edge_valence(e) != 2)) return false;
     }
@@ -97,7 +111,14 @@ int DiskClusters::fan_count(int v, int a, int b) const {
 }
 
 MergeCheck DiskClusters::check_merge(int a, int b) {
-  if (a == b || !manifold_[a] || !manifold_[b]) return {MergeRefusal::NonManifold};
+  if (a == b || !manifold_[a] || !manifold_[b]) return refused(MergeRefusal::NonManifold);
+  std::vector<int> shared;
+  MergeCheck full = weld_all(a, b, partial_merges_ ? &shared : nullptr);
+  if (full.refusal != MergeRefusal::NotDisk || shared.size() < 2) return full;
+  return weld_longest_arc(a, b, shared);
+}
+
+MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
   if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
   ++stamp_;
   int shared_edges = 0, fans_joined = 0;
@@ -110,10 +131,11 @@ MergeCheck DiskClusters::check_merge(int a, int b) {
           const int ci = topology_.edge_corners[i];
           if (face_cluster_[ci / 3] != b) continue;
           // Never merge across a non-manifold edge or a winding flip.
-          if (topology_.edge_valence(e) != 2 || mesh_.triangles(ci / 3, ci % 3) == v)
-            return {MergeRefusal::NonManifold};
-          if (self_seam_[e]) continue;
+          if (topology_.edge_valence(e) != 2 || corner_vertex(mesh_.triangles, ci) == v)
+            return refused(MergeRefusal::NonManifold);
+          if (seam_[e]) continue;
           ++shared_edges;
+          if (shared) shared->push_back(e);
         }
       }
       if (vertex_stamp_[v] != stamp_) {
@@ -124,26 +146,137 @@ MergeCheck DiskClusters::check_merge(int a, int b) {
         if (touches_b) fans_joined += fan_count(v, a, a) + fan_count(v, b, b) - fan_count(v, a, b);
       }
     }
-  if (shared_edges == 0) return {MergeRefusal::NotDisk};
+  if (shared_edges == 0) return refused(MergeRefusal::NotDisk);
   // Inclusion-exclusion with pinches split: every shared edge joins two faces'
   // sides into one, every fan that merges with another removes a vertex.
   const int euler = euler_[a] + euler_[b] - fans_joined + shared_edges;
   // A disk, or a step towards one: a chart with holes (chi < 1) absorbing an
   // island fills a hole and raises chi. Anything else adds a hole or a handle.
   // chi == 2 would close a sphere: no boundary left to flatten.
-  if (euler == 1 || (euler < 1 && euler > std::min(euler_[a], euler_[b]))) return {MergeRefusal::None, euler};
-  return {MergeRefusal::NotDisk};
+  if (euler == 1 || (euler < 1 && euler > std::min(euler_[a], euler_[b]))) {
+    MergeCheck out;
+    out.euler = euler;
+    return out;
+  }
+  return refused(MergeRefusal::NotDisk);
 }
 
-int DiskClusters::merge(int a, int b, int merged_euler) {
+// Arcs: maximal simple paths of shared edges. All arcs but one are marked
+// seams for the time of one weld_all, which says whether the union is then
+// acceptable (two disks sharing k arcs make chi = 2 - k when all are welded,
+// and a disk when one is). The longest arcs are tried first, a few of them,
+// and only arcs with at least kMinWeldedShare of the shared length: a union
+// that keeps most of its border with the other chart as a slit inside costs
+// more to flatten (and splits more often) than it saves.
+MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& shared) {
+  const int n = static_cast<int>(shared.size());
+  // Arcs are simple paths: two edges join at a vertex only when no other
+  // shared edge meets there (where two arcs touch at a vertex, they stay two).
+  std::unordered_map<int, std::vector<int>> edges_at_vertex;
+  for (int i = 0; i < n; ++i)
+    for (int end = 0; end < 2; ++end) edges_at_vertex[topology_.edge_vertices(shared[i], end)].push_back(i);
+  UnionFind arcs(n);
+  for (const auto& [vertex, edges] : edges_at_vertex)
+    if (edges.size() == 2) arcs.unite(edges[0], edges[1]);
+  const std::vector<int> arc = arcs.dense_labels();
+  const int arc_count = *std::max_element(arc.begin(), arc.end()) + 1;
+  if (arc_count == 1) return refused(MergeRefusal::NotDisk);
+  std::vector<double> length(arc_count, 0.0), edge_length(n);
+  for (int i = 0; i < n; ++i) {
+    edge_length[i] = (mesh_.positions.row(topology_.edge_vertices(shared[i], 0)) -
+                      mesh_.positions.row(topology_.edge_vertices(shared[i], 1))).norm();
+    length[arc[i]] += edge_length[i];
+  }
+  const double shared_length = std::accumulate(edge_length.begin(), edge_length.end(), 0.0);
+  std::vector<int> order(arc_count);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int x, int y) { return length[x] > length[y]; });
+  constexpr int kArcsTried = 3;
+  for (int t = 0; t < std::min(arc_count, kArcsTried); ++t) {
+    if (length[order[t]] < kMinWeldedShare * shared_length) break;
+    MergeCheck out;
+    for (int i = 0; i < n; ++i)
+      if (arc[i] != order[t]) out.left_open.push_back(shared[i]), out.open_length += edge_length[i];
+    for (int e : out.left_open) seam_[e] = 1;
+    const MergeCheck welded = weld_all(a, b, nullptr);
+    for (int e : out.left_open) seam_[e] = 0;
+    if (welded) {
+      out.euler = welded.euler;
+      return out;
+    }
+  }
+  return refused(MergeRefusal::NotDisk);
+}
+
+// chi of cluster c restricted to what face f can change: the fans of c at
+// f's vertices minus the edges of f that c uses (a seam once per side).
+int DiskClusters::local_euler(int f, int c) const {
+  int count = 0;
+  for (int k = 0; k < 3; ++k) {
+    count += fan_count(mesh_.triangles(f, k), c, c);
+    const int e = topology_.corner_edge[3 * f + k];
+    int uses = 0;
+    for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i)
+      uses += face_cluster_[topology_.edge_corners[i] / 3] == c;
+    count -= seam_[e] ? uses : std::min(uses, 1);
+  }
+  return count;
+}
+
+bool DiskClusters::move_keeps_topology(int f, int to) {
+  const int from = face_cluster_[f];
+  if (from < 0 || to < 0 || from == to || faces_[from].size() < 2 || !manifold_[from] || !manifold_[to]) return false;
+  int inside = 0, joined = 0;
+  for (int k = 0; k < 3; ++k) {
+    const int c = 3 * f + k, e = topology_.corner_edge[c];
+    if (seam_[e] || topology_.edge_valence(e) > 2) return false;
+    for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
+      const int ci = topology_.edge_corners[i];
+      if (ci == c) continue;
+      if (corner_vertex(mesh_.triangles, ci) == mesh_.triangles(f, k)) return false;  // winding flip
+      inside += face_cluster_[ci / 3] == from;
+      joined += face_cluster_[ci / 3] == to;
+    }
+  }
+  if (inside != 1 || joined == 0) return false;
+  int fans_before[2][3], fans_after[2][3];
+  for (int k = 0; k < 3; ++k)
+    fans_before[0][k] = fan_count(mesh_.triangles(f, k), from, from), fans_before[1][k] = fan_count(mesh_.triangles(f, k), to, to);
+  const int from_before = local_euler(f, from), to_before = local_euler(f, to);
+  face_cluster_[f] = to;
+  for (int k = 0; k < 3; ++k)
+    fans_after[0][k] = fan_count(mesh_.triangles(f, k), from, from), fans_after[1][k] = fan_count(mesh_.triangles(f, k), to, to);
+  const int from_after = local_euler(f, from), to_after = local_euler(f, to);
+  face_cluster_[f] = from;
+  // No new pinch: a chart that touches itself at a vertex is a disk once the
+  // vertex is split, but one that closes a ring round a hole that way
+  // flattens like an annulus, squeezing the inner side.
+  for (int c = 0; c < 2; ++c)
+    for (int k = 0; k < 3; ++k)
+      if (fans_after[c][k] > std::max(1, fans_before[c][k])) return false;
+  // chi = V - E + F: the face itself leaves one cluster and joins the other.
+  return from_after - 1 == from_before && to_after + 1 == to_before;
+}
+
+void DiskClusters::move(int f, int to) {
+  std::vector<int>& from = faces_[face_cluster_[f]];
+  *std::find(from.begin(), from.end(), f) = from.back();
+  from.pop_back();
+  faces_[to].push_back(f);
+  face_cluster_[f] = to;
+}
+
+int DiskClusters::merge(int a, int b, const MergeCheck& check) {
+  for (int e : check.left_open) seam_[e] = 1;
   if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
   for (int f : faces_[a]) face_cluster_[f] = b;
   faces_[b].insert(faces_[b].end(), faces_[a].begin(), faces_[a].end());
   faces_[a].clear();
   faces_[a].shrink_to_fit();
-  euler_[b] = merged_euler;
+  euler_[b] = check.euler;
   manifold_[a] = 0;
   return b;
 }
 
 }  // namespace atlas
+

@@ -21,6 +21,10 @@ enum class MergeRefusal { None, NonManifold, NotDisk };
 struct MergeCheck {
   MergeRefusal refusal = MergeRefusal::None;
   int euler = 0;  // of the union, when not refused
+  // A partial merge (see DiskClusters): the shared edges that stay a seam
+  // inside the union, and their 3D length. Empty for a full merge.
+  std::vector<int> left_open;
+  double open_length = 0;
   explicit operator bool() const { return refusal == MergeRefusal::None; }
 };
 
@@ -29,8 +33,13 @@ class DiskClusters {
   // face_cluster[f] in [0, cluster_count) or -1 for faces that take no part.
   // self_seam (per edge, see self_seams) marks edges where an original chart
   // meets itself at a UV seam: they stay boundary on both sides for good.
+  // partial_merges: when welding the whole shared border would not leave a
+  // disk, check_merge offers to weld only its longest arc (a maximal run of
+  // shared edges joined at vertices) and keep the other arcs as seams inside
+  // the union, as the thesis allows in 5.2 ("unless cuts are introduced").
+  // false: such pairs are refused.
   DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-               int cluster_count, std::vector<char> self_seam);
+               int cluster_count, std::vector<char> self_seam, bool partial_merges = false);
 
   // Euler characteristic chi = V - E + F of the union of a and b, counting a
   // vertex once per fan of faces around it (pinches are split), when the shared
@@ -38,22 +47,37 @@ class DiskClusters {
   // (chi == 1) or has fewer holes than the worse of the two (an island filling
   // a hole); the refusal otherwise. Clusters that did not start manifold never merge.
   MergeCheck check_merge(int a, int b);
-  // Merges the smaller cluster into the larger; returns the survivor.
-  int merge(int a, int b, int merged_euler);
+  // Merges the smaller cluster into the larger; returns the survivor. The
+  // check's left_open edges become seams the union keeps.
+  int merge(int a, int b, const MergeCheck& check);
+
+  // True when face f may leave its cluster for cluster `to` with both keeping
+  // their topology: f joins `to` across an edge, has exactly one neighbour
+  // left in its own cluster (so that cluster stays connected), touches no
+  // seam, and chi of both is unchanged (counted at f's vertices and edges).
+  bool move_keeps_topology(int f, int to);
+  void move(int f, int to);
 
   // Connected, manifold, orientable and chi == 1: a topological disk once
   // pinch vertices are split.
   bool is_disk(int c) const { return manifold_[c] && euler_[c] == 1; }
   const std::vector<int>& faces(int c) const { return faces_[c]; }
   int cluster_of(int f) const { return face_cluster_[f]; }
+  // Per edge: the self seams given, plus the arcs partial merges left open.
+  const std::vector<char>& seams() const { return seam_; }
 
  private:
+  // Outcome of welding every shared edge of a and b that is not a seam;
+  // shared (if given) receives those edges.
+  MergeCheck weld_all(int a, int b, std::vector<int>* shared);
+  MergeCheck weld_longest_arc(int a, int b, const std::vector<int>& shared);
   int euler_of(int c);
+  int local_euler(int f, int c) const;
   bool manifold_inside(int c);
   int fan_count(int v, int a, int b) const;
   bool in(int f, int a, int b) const { return face_cluster_[f] == a || face_cluster_[f] == b; }
   // Faces of a cluster are joined across e: manifold and not a seam the cluster keeps.
-  bool joins(int e) const { return topology_.edge_valence(e) == 2 && !self_seam_[e]; }
+  bool joins(int e) const { return topology_.edge_valence(e) == 2 && !seam_[e]; }
 
   const Mesh& mesh_;
   const MeshTopology& topology_;
@@ -61,7 +85,8 @@ class DiskClusters {
   std::vector<std::vector<int>> faces_;
   std::vector<int> euler_;
   std::vector<char> manifold_;
-  std::vector<char> self_seam_;  // per edge, see the constructor
+  std::vector<char> seam_;  // per edge: the self seams given, plus the arcs partial merges left open
+  bool partial_merges_;
   // Visit stamps, so each check touches only the smaller cluster's faces.
   std::vector<unsigned> edge_stamp_, vertex_stamp_;
   unsigned stamp_ = 0;

@@ -174,7 +174,7 @@ SubMesh sub_mesh(const Mesh& mesh, const std::vector<int>& faces) {
 // at a boundary crossing, so the crossing ends up between the groups) or else
 // the member farthest from the largest. Every group is strictly smaller than
 // the input, so the recursion ends.
-std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& graph,
+std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                                             const std::vector<std::vector<int>>& chart_faces,
                                             const std::vector<int>& members, int culprit) {
   const int m = static_cast<int>(members.size());
@@ -193,8 +193,12 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& 
   for (int i = 0; i < m; ++i)
     for (int f : chart_faces[members[i]]) faces.push_back(f), label.push_back(i);
   const SubMesh sub = sub_mesh(mesh, faces);
-  DiskClusters disks(sub.mesh, sub.topology, label, m,
-                     self_seams(sub.topology, sub.mesh.triangles, sub.mesh.corner_uv, sub.mesh.face_page, label));
+  // The graph's seams (partial merges' open arcs among them) stay open too.
+  std::vector<char> seams = self_seams(sub.topology, sub.mesh.triangles, sub.mesh.corner_uv, sub.mesh.face_page, label);
+  for (size_t i = 0; i < faces.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      if (graph.self_seam[topology.corner_edge[3 * faces[i] + k]]) seams[sub.topology.corner_edge[3 * i + k]] = 1;
+  DiskClusters disks(sub.mesh, sub.topology, label, m, std::move(seams));
 
   auto area = [&](int i) { return graph.charts[members[i]].area_uv; };
   const int culprit_index = culprit < 0 ? -1 : static_cast<int>(std::find(members.begin(), members.end(), culprit) - members.begin());
@@ -235,7 +239,7 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& 
       for (int n : neighbours[i]) {
         if (group_of[n] >= 0) continue;
         if (const MergeCheck check = disks.check_merge(cluster[g], n)) {
-          cluster[g] = disks.merge(cluster[g], n, check.euler);
+          cluster[g] = disks.merge(cluster[g], n, check);
           group_of[n] = g;
           groups[g].push_back(n);
           group_area[g] += area(n);
@@ -264,37 +268,35 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const ChartGraph& 
   return out;
 }
 
-// Share of a chart's surface allowed to end with less than half its texel
-// density. The target is 1% of the whole surface; each chart may lose 2%,
-// because the loss concentrates in few charts, so the whole stays well under
-// 1% while fewer charts are split (bench/README.md).
-constexpr double kDensityLossPerChart = 0.02;
+// The 3D area of a flattened chart's faces that end with less than half their
+// original texel area (eq.: new UV area / original UV area < 1/2), and the
+// original chart that lost the most of it (-1 when none did). SLIM balances
+// distortion, it does not bound it: FlattenOptions::max_density_loss bounds the loss.
+struct DensityLoss {
+  double lost_area = 0, total_area = 0;
+  int culprit = -1;
+};
 
-// The original chart that lost the most texel density, when faces covering
-// over kDensityLossPerChart of the chart's surface end with less than half
-// their original texel area (eq.: new UV area / original UV area < 1/2); -1
-// when the chart keeps its detail. SLIM balances distortion, it does not
-// bound it: this bounds the loss.
-int density_culprit(const Mesh& mesh, const ChartGraph& graph, const LocalChart& local, const RowMatrixX2d& uv) {
+DensityLoss density_loss(const Mesh& mesh, const ChartGraph& graph, const LocalChart& local, const RowMatrixX2d& uv) {
   std::unordered_map<int, double> lost;
-  double lost_total = 0, area_total = 0;
+  DensityLoss out;
   for (size_t i = 0; i < local.faces.size(); ++i) {
     const int f = local.faces[i];
     const double area_3d = mesh.area_3d(f);
-    area_total += area_3d;
+    out.total_area += area_3d;
     const double before = std::abs(mesh.signed_area_uv(f));
     const double after = std::abs(signed_area(uv.row(local.triangles(i, 0)), uv.row(local.triangles(i, 1)),
                                               uv.row(local.triangles(i, 2))));
-    if (before > 0 && after < 0.5 * before) lost[graph.face_chart[f]] += area_3d, lost_total += area_3d;
+    if (before > 0 && after < 0.5 * before) lost[graph.face_chart[f]] += area_3d, out.lost_area += area_3d;
   }
-  if (lost_total <= kDensityLossPerChart * area_total) return -1;
-  return std::max_element(lost.begin(), lost.end(), [](const auto& a, const auto& b) { return a.second < b.second; })
-      ->first;
+  if (!lost.empty())
+    out.culprit = std::max_element(lost.begin(), lost.end(), [](const auto& a, const auto& b) { return a.second < b.second; })->first;
+  return out;
 }
 
 // True when some faces wind one way in UV and some the other (faces of zero
 // UV area count for neither). A closed piece always does: its signed areas sum
-// to zero. Slivers count here, unlike in the metrics: enlarge_tiny_charts may
+// to zero. Slivers count here, as in the metrics: enlarge_tiny_charts may
 // make them visible.
 bool folds_over(const Mesh& mesh, const std::vector<int>& faces) {
   bool positive = false, negative = false;
@@ -342,7 +344,7 @@ int smaller_chart(const ChartGraph& graph, int face_a, int face_b) {
 
 // One flattening attempt of the faces as a chart of their own: cut open to a
 // disk, solved, and refused if the solve failed, the boundary crosses itself
-// or texel density is lost (see density_culprit).
+// or texel density is lost (see density_loss).
 struct Attempt {
   std::optional<FlatChart> chart;             // set unless refused
   int FlattenStats::*refusal = nullptr;       // the counter of the reason, when refused
@@ -350,19 +352,22 @@ struct Attempt {
 };
 
 Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                      std::vector<int> faces, const SlimOptions& options, const RunControl& control,
+                      std::vector<int> faces, const FlattenOptions& options, const RunControl& control,
                       FlattenStats& stats) {
   LocalChart local = localize(mesh, topology, graph, std::move(faces));
   if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
-  const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options, control);
+  const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options.slim, control);
   stats.scaffolded += solution.scaffolded;
   if (!solution.status.ok() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
   if (const auto crossing = boundary_crossing(local.triangles, solution.uv))
     return {std::nullopt, &FlattenStats::overlapped,
             smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second])};
-  if (const int culprit = density_culprit(mesh, graph, local, solution.uv); culprit >= 0)
-    return {std::nullopt, &FlattenStats::density_lost, culprit};
-  return {from_solution(local, solution)};
+  const DensityLoss loss = density_loss(mesh, graph, local, solution.uv);
+  if (loss.lost_area > options.max_density_loss * loss.total_area && loss.lost_area > options.density_loss_allowance)
+    return {std::nullopt, &FlattenStats::density_lost, loss.culprit};
+  FlatChart chart = from_solution(local, solution);
+  chart.density_lost_area = loss.lost_area;
+  return {std::move(chart)};
 }
 
 // True when the faces' original UVs cover some part of them twice without a
@@ -383,7 +388,7 @@ bool original_boundary_crosses(const Mesh& mesh, const MeshTopology& topology, c
 // again. A single face cannot overlap itself, so this ends, and no face is
 // left flipped and no boundary crossing.
 void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                        const std::vector<int>& chart, const SlimOptions& options, const RunControl& control,
+                        const std::vector<int>& chart, const FlattenOptions& options, const RunControl& control,
                         std::vector<FlatChart>& done, FlattenStats& stats) {
   std::vector<std::vector<int>> pending = {chart};
   while (!pending.empty()) {
@@ -409,7 +414,7 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
 // a task: it is caught there and rethrown after the wait.
 std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
-                                               const std::vector<int>& members, const SlimOptions& options,
+                                               const std::vector<int>& members, const FlattenOptions& options,
                                                const RunControl& control, FlattenStats& stats) {
   std::vector<FlatChart> done;
   if (members.size() == 1) {
@@ -424,7 +429,7 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
     return done;
   }
   ++(stats.*attempt.refusal);
-  const std::vector<std::vector<int>> pieces = split_members(mesh, graph, chart_faces, members, attempt.culprit);
+  const std::vector<std::vector<int>> pieces = split_members(mesh, topology, graph, chart_faces, members, attempt.culprit);
   std::vector<std::vector<FlatChart>> parts(pieces.size());
   std::vector<FlattenStats> part_stats(pieces.size());
   std::vector<std::exception_ptr> errors(pieces.size());

@@ -30,6 +30,7 @@ struct FlatChart {
   std::vector<int> faces;      // mesh faces
   RowMatrixX2d corner_uv;      // 3 rows per face, texels, arbitrary placement
   bool kept_original = false;  // single original chart, UVs copied from the input
+  double density_lost_area = 0;  // 3D area of its faces left below half their texel density
   double energy_initial = 0, energy_final = 0;  // per unit reference area (0 when kept)
   double iteration_seconds = 0, factorize_seconds = 0;  // see ChartSolution
 };
@@ -39,7 +40,7 @@ struct FlattenStats {
   int not_disk = 0;            // handles left after cutting holes open
   int solver_failed = 0;       // SLIM reported a failure or left flipped faces
   int overlapped = 0;          // the new boundary crossed itself
-  int density_lost = 0;        // over 2% of the surface kept less than half its texels
+  int density_lost = 0;        // too much of the surface kept less than half its texels (FlattenOptions)
   int overlap_halved = 0;      // not a split of merged charts: lone charts whose own UVs overlap, cut in two
   int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
 };
@@ -61,6 +62,18 @@ inline FlattenStats& operator+=(FlattenStats& sum, const FlattenStats& more) {
   return sum;
 }
 
+struct FlattenOptions {
+  SlimOptions slim;
+  // A flattened chart is split when faces covering more than this share of
+  // its surface end with less than half their texel density. 0 splits any
+  // chart that loses density anywhere.
+  double max_density_loss = 0.02;
+  // 3D area a chart may leave below half density whatever its share: spares
+  // splitting small pieces (closed scan debris above all) whose loss the
+  // surface does not notice. 0: none.
+  double density_loss_allowance = 0;
+};
+
 // Flattens one aggregated chart (its original charts `members`), splitting on
 // overlap or solver failure until every piece is valid.
 // chart_faces[c] lists the faces of original chart c.
@@ -68,7 +81,7 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
                                                const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
                                                const std::vector<int>& members,
-                                               const SlimOptions& options, const RunControl& control,
+                                               const FlattenOptions& options, const RunControl& control,
                                                FlattenStats& stats);
 
 }  // namespace atlas

@@ -1,0 +1,184 @@
+// Seam refinement: faces moved between flattened charts shorten the seam and
+// keep every chart a flip-free, non-overlapping disk that bakes the same.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+#include "bake/bake.hpp"
+#include "charts/chart_graph.hpp"
+#include "charts/disk_merge.hpp"
+#include "core/geometry.hpp"
+#include "flatten/disk_boundary.hpp"
+#include "flatten/flatten_chart.hpp"
+#include "flatten/refine_seams.hpp"
+#include "test_meshes.hpp"
+
+using namespace atlas;
+
+namespace {
+
+constexpr int kGrid = 8;
+
+// The unit grid split down x = 1/2, except that in the odd rows the triangle
+// of the left column that touches the border is given to the right chart: a
+// zig-zag border of teeth (kGrid / 2 - 1 of them, none on the mesh border),
+// each touching the left chart along two edges.
+Mesh zigzag_charts(std::vector<int>& chart) {
+  const Mesh grid = atlas::testing::grid_disk(kGrid);
+  chart.assign(grid.face_count(), 0);
+  for (int f = 0; f < grid.face_count(); ++f) {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    int on_border = 0;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = grid.positions.row(grid.triangles(f, k));
+      centre += p / 3;
+      on_border += std::abs(p.x() - 0.5) < 1e-12;
+    }
+    const int row = static_cast<int>(centre.y() * kGrid);
+    const bool tooth = centre.x() < 0.5 && on_border == 2 && row % 2 == 1 && row < kGrid - 1;
+    chart[f] = centre.x() > 0.5 || tooth ? 1 : 0;
+  }
+  return atlas::testing::with_chart_uvs(grid.positions, grid.triangles, chart);
+}
+
+// Every chart keeps its input UVs, in texels.
+std::vector<FlatChart> kept_charts(const Mesh& mesh, const std::vector<int>& chart, int count) {
+  std::vector<FlatChart> out(count);
+  for (int f = 0; f < mesh.face_count(); ++f) out[chart[f]].faces.push_back(f);
+  for (FlatChart& c : out) {
+    c.kept_original = true;
+    c.corner_uv.resize(3 * static_cast<Eigen::Index>(c.faces.size()), 2);
+    for (size_t i = 0; i < c.faces.size(); ++i)
+      for (int k = 0; k < 3; ++k) c.corner_uv.row(3 * i + k) = mesh.uv_texels(c.faces[i], k).transpose();
+  }
+  return out;
+}
+
+std::vector<int> labels(const Mesh& mesh, const std::vector<FlatChart>& charts) {
+  std::vector<int> label(mesh.face_count(), -1);
+  for (size_t c = 0; c < charts.size(); ++c)
+    for (int f : charts[c].faces) label[f] = static_cast<int>(c);
+  return label;
+}
+
+// 3D length of the edges between faces of different charts.
+double seam_length(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& label) {
+  double length = 0;
+  for (int e = 0; e < topology.edge_count(); ++e) {
+    if (topology.edge_valence(e) != 2) continue;
+    const int f0 = topology.edge_corners[topology.edge_offsets[e]] / 3;
+    const int f1 = topology.edge_corners[topology.edge_offsets[e] + 1] / 3;
+    if (label[f0] != label[f1])
+      length += (mesh.positions.row(topology.edge_vertices(e, 0)) - mesh.positions.row(topology.edge_vertices(e, 1))).norm();
+  }
+  return length;
+}
+
+// A flattened chart as a triangulation of its own: corners at one mesh
+// vertex with the same UV share a vertex.
+void welded(const Mesh& mesh, const FlatChart& chart, RowMatrixX3i& triangles, RowMatrixX2d& uv) {
+  std::map<std::tuple<int, double, double>, int> index;
+  std::vector<Eigen::Vector2d> points;
+  triangles.resize(static_cast<Eigen::Index>(chart.faces.size()), 3);
+  for (size_t i = 0; i < chart.faces.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector2d p = chart.corner_uv.row(3 * i + k).transpose();
+      const auto [it, fresh] =
+          index.emplace(std::make_tuple(mesh.triangles(chart.faces[i], k), p.x(), p.y()), static_cast<int>(points.size()));
+      if (fresh) points.push_back(p);
+      triangles(static_cast<Eigen::Index>(i), k) = it->second;
+    }
+  uv.resize(static_cast<Eigen::Index>(points.size()), 2);
+  for (size_t v = 0; v < points.size(); ++v) uv.row(v) = points[v].transpose();
+}
+
+void expect_flip_free_disks(const Mesh& mesh, const MeshTopology& topology, const std::vector<FlatChart>& charts) {
+  const std::vector<char> no_seams(topology.edge_count(), 0);
+  DiskClusters disks(mesh, topology, labels(mesh, charts), static_cast<int>(charts.size()), no_seams);
+  for (size_t c = 0; c < charts.size(); ++c) {
+    EXPECT_TRUE(disks.is_disk(static_cast<int>(c))) << "chart " << c;
+    RowMatrixX3i triangles;
+    RowMatrixX2d uv;
+    welded(mesh, charts[c], triangles, uv);
+    std::vector<int> loop;
+    const SolveStatus disk = disk_boundary_loop(triangles, static_cast<int>(uv.rows()), loop);
+    EXPECT_TRUE(disk.ok()) << "chart " << c << ": " << disk.detail;
+    EXPECT_FALSE(boundary_self_intersects(triangles, uv)) << "chart " << c;
+    int positive = 0, negative = 0;
+    for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+      const double a = signed_area(uv.row(triangles(f, 0)), uv.row(triangles(f, 1)), uv.row(triangles(f, 2)));
+      positive += a > 0, negative += a < 0;
+    }
+    EXPECT_TRUE(positive == 0 || negative == 0) << "chart " << c << ": " << positive << " vs " << negative;
+  }
+}
+
+}  // namespace
+
+TEST(RefineSeams, ZigZagBorderGetsShorterAndChartsStayFlipFreeDisks) {
+  std::vector<int> chart;
+  const Mesh mesh = zigzag_charts(chart);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
+  const double before = seam_length(mesh, topology, chart);
+  ASSERT_GT(before, 1.0 + 1e-9);  // longer than the straight border
+  const RefineStats stats =
+      refine_seams(mesh, topology, std::vector<char>(topology.edge_count(), 0), {}, RefineOptions{}, charts);
+  const double after = seam_length(mesh, topology, labels(mesh, charts));
+  EXPECT_EQ(stats.faces_moved, kGrid / 2 - 1);
+  EXPECT_NEAR(after, 1.0, 1e-9);  // straight: every tooth went back
+  EXPECT_NEAR(before - after, stats.seam_removed_3d, 1e-9);
+  expect_flip_free_disks(mesh, topology, charts);
+}
+
+TEST(RefineSeams, DisabledByZeroAreaRatio) {
+  std::vector<int> chart;
+  const Mesh mesh = zigzag_charts(chart);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
+  RefineOptions off;
+  off.min_area_ratio = 0;
+  EXPECT_EQ(refine_seams(mesh, topology, std::vector<char>(topology.edge_count(), 0), {}, off, charts).faces_moved, 0);
+}
+
+TEST(RefineSeams, FaceMovedToAnotherChartBakesToTheSameColours) {
+  std::vector<int> chart;
+  const Mesh mesh = zigzag_charts(chart);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
+  refine_seams(mesh, topology, std::vector<char>(topology.edge_count(), 0), {}, RefineOptions{}, charts);
+  // A smooth old page, so bilinear sampling at the same surface point agrees.
+  const int size = mesh.pages[0].width;
+  std::vector<std::uint8_t> old_texels(static_cast<size_t>(size) * size * 3);
+  for (int y = 0; y < size; ++y)
+    for (int x = 0; x < size; ++x) {
+      std::uint8_t* t = &old_texels[(static_cast<size_t>(y) * size + x) * 3];
+      t[0] = static_cast<std::uint8_t>(x / 4), t[1] = static_cast<std::uint8_t>(y / 4), t[2] = static_cast<std::uint8_t>((x + y) / 8);
+    }
+  // The refined charts on the old page (they keep its texel coordinates).
+  RowMatrixX2d new_uv(3 * mesh.face_count(), 2);
+  std::vector<int> moved;
+  for (size_t c = 0; c < charts.size(); ++c)
+    for (size_t i = 0; i < charts[c].faces.size(); ++i) {
+      const int f = charts[c].faces[i];
+      new_uv.middleRows(3 * f, 3) = charts[c].corner_uv.middleRows(3 * i, 3) / size;
+      if (chart[f] != static_cast<int>(c)) moved.push_back(f);
+    }
+  ASSERT_FALSE(moved.empty());
+  const Eigen::VectorXi page = Eigen::VectorXi::Zero(mesh.face_count());
+  const UvLayout old_layout = layout_of(mesh), new_layout{&new_uv, &page, &mesh.pages};
+  const ImageView<std::uint8_t> view{old_texels.data(), size, size, 3, old_texels.size()};
+  const auto baked = bake_map<std::uint8_t>(old_layout, {view}, new_layout, {}, RunControl());
+  auto texel = [&](const std::vector<std::uint8_t>& texels, const Eigen::Vector2d& uv, int channel) {
+    const int x = static_cast<int>(uv.x() * size), y = static_cast<int>(uv.y() * size);
+    return static_cast<int>(texels[(static_cast<size_t>(y) * size + x) * 3 + channel]);
+  };
+  for (int f : moved) {
+    const Eigen::Vector2d old_centre = (mesh.corner_uv.middleRows(3 * f, 3).colwise().sum() / 3).transpose();
+    const Eigen::Vector2d new_centre = (new_uv.middleRows(3 * f, 3).colwise().sum() / 3).transpose();
+    EXPECT_GT((old_centre - new_centre).norm() * size, 10.0);  // it really moved on the page
+    for (int channel = 0; channel < 3; ++channel)
+      EXPECT_NEAR(texel(baked[0].texels, new_centre, channel), texel(old_texels, old_centre, channel), 1) << "face " << f;
+  }
+}

@@ -1,0 +1,242 @@
+#include "flatten/refine_seams.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <queue>
+
+#include "charts/disk_merge.hpp"
+#include "core/geometry.hpp"
+
+namespace atlas {
+namespace {
+
+using Point = Eigen::Vector2d;
+
+// Twice the signed area of (a, b, c): > 0 when c lies left of a -> b.
+double orient(const Point& a, const Point& b, const Point& c) {
+  return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+}
+
+bool within_box(const Point& a, const Point& b, const Point& c) {
+  return c.x() >= std::min(a.x(), b.x()) && c.x() <= std::max(a.x(), b.x()) && c.y() >= std::min(a.y(), b.y()) &&
+         c.y() <= std::max(a.y(), b.y());
+}
+
+// Segments pq and rs cross or touch.
+bool segments_meet(const Point& p, const Point& q, const Point& r, const Point& s) {
+  const double d1 = orient(p, q, r), d2 = orient(p, q, s), d3 = orient(r, s, p), d4 = orient(r, s, q);
+  if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) return true;
+  return (d1 == 0 && within_box(p, q, r)) || (d2 == 0 && within_box(p, q, s)) || (d3 == 0 && within_box(r, s, p)) ||
+         (d4 == 0 && within_box(r, s, q));
+}
+
+// p inside triangle abc or on its edges, either winding.
+bool in_triangle(const Point& a, const Point& b, const Point& c, const Point& p) {
+  const double d1 = orient(a, b, p), d2 = orient(b, c, p), d3 = orient(c, a, p);
+  return (d1 >= 0 && d2 >= 0 && d3 >= 0) || (d1 <= 0 && d2 <= 0 && d3 <= 0);
+}
+
+// Corner k of face f starts the edge triangles(f,k) -> triangles(f,(k+1)%3).
+struct Corner {
+  int face, k;
+};
+
+// A candidate move of face f into chart `to`: its edges k1 and k2 face the
+// chart, across them lie faces g1 and g2, edge k3 faces its own chart.
+struct Move {
+  int face = -1, to = -1, k1 = -1, k2 = -1, k3 = -1, g1 = -1, g2 = -1;
+  double gain = 0;
+  Point uv[3];  // the face's new corner UVs, in texels of the chart `to`
+};
+
+std::vector<int> chart_labels(int face_count, const std::vector<FlatChart>& charts) {
+  std::vector<int> label(face_count, -1);
+  for (size_t c = 0; c < charts.size(); ++c)
+    for (int f : charts[c].faces) label[f] = static_cast<int>(c);
+  return label;
+}
+
+class Refiner {
+ public:
+  Refiner(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
+          const std::vector<int>& face_group, const RefineOptions& options, std::vector<FlatChart>& charts)
+      : mesh_(mesh),
+        topology_(topology),
+        seam_(seam),
+        face_group_(face_group),
+        options_(options),
+        charts_(charts),
+        disks_(mesh, topology, chart_labels(mesh.face_count(), charts), static_cast<int>(charts.size()), seam),
+        slot_(mesh.face_count(), -1),
+        boundary_(charts.size()) {
+    for (const FlatChart& chart : charts)
+      for (size_t j = 0; j < chart.faces.size(); ++j) slot_[chart.faces[j]] = static_cast<int>(j);
+    for (size_t c = 0; c < charts.size(); ++c)
+      for (int f : charts[c].faces)
+        for (int k = 0; k < 3; ++k)
+          if (is_boundary(f, k)) boundary_[c].push_back({f, k});
+  }
+
+  RefineStats run() {
+    std::queue<int> pending;
+    for (int f = 0; f < mesh_.face_count(); ++f)
+      if (disks_.cluster_of(f) >= 0) pending.push(f);
+    for (; !pending.empty(); pending.pop()) {
+      Move m;
+      if (!find_move(pending.front(), m)) continue;
+      apply(m);
+      ++stats_.faces_moved;
+      stats_.seam_removed_3d += m.gain;
+      // The face behind it may now be a tooth of the same border.
+      const int behind = across(m.face, m.k3);
+      if (behind >= 0) pending.push(behind);
+    }
+    return stats_;
+  }
+
+ private:
+  int chart(int f) const { return disks_.cluster_of(f); }
+  int edge(int f, int k) const { return topology_.corner_edge[3 * f + k]; }
+  int vertex(int f, int k) const { return mesh_.triangles(f, k); }
+  int across(int f, int k) const {
+    const int e = edge(f, k);
+    if (topology_.edge_valence(e) != 2) return -1;
+    const int g0 = topology_.edge_corners[topology_.edge_offsets[e]] / 3;
+    const int g1 = topology_.edge_corners[topology_.edge_offsets[e] + 1] / 3;
+    return g0 == f ? g1 : g0;
+  }
+  double length(int f, int k) const {
+    return (mesh_.positions.row(vertex(f, k)) - mesh_.positions.row(vertex(f, (k + 1) % 3))).norm();
+  }
+  // UV of mesh vertex v (a corner of f) in f's chart.
+  Point uv(int f, int v) const {
+    return charts_[chart(f)].corner_uv.row(3 * slot_[f] + mesh_.corner_of(f, v)).transpose();
+  }
+  // Edge k of f is on its chart's boundary in UV: a mesh border, a seam, a
+  // neighbour in another chart or one that puts the edge elsewhere.
+  bool is_boundary(int f, int k) const {
+    const int g = across(f, k);
+    if (g < 0 || seam_[edge(f, k)] || chart(g) != chart(f)) return true;
+    const int a = vertex(f, k), b = vertex(f, (k + 1) % 3);
+    return uv(f, a) != uv(g, a) || uv(f, b) != uv(g, b);
+  }
+
+  bool find_move(int f, Move& m) const {
+    const int from = chart(f);
+    if (from < 0) return false;
+    for (int k3 = 0; k3 < 3; ++k3) {
+      const int k1 = (k3 + 1) % 3, k2 = (k3 + 2) % 3;
+      const int g1 = across(f, k1), g2 = across(f, k2);
+      if (g1 < 0 || g2 < 0 || g1 == g2 || chart(g1) != chart(g2) || chart(g1) == from || chart(g1) < 0) continue;
+      if (!face_group_.empty() && face_group_[g1] != face_group_[f]) continue;
+      m = {f, chart(g1), k1, k2, k3, g1, g2, 0, {}};
+      if (place(m) && fits(m) && disks_.move_keeps_topology(f, m.to)) return true;
+    }
+    return false;
+  }
+
+  // The new corner UVs from the two neighbours, which must agree at the
+  // shared vertex; the seam removed; orientation and texel area.
+  bool place(Move& m) const {
+    const int f = m.face, apex = vertex(f, m.k2);  // edge k1 ends and edge k2 starts at the apex
+    if (uv(m.g1, apex) != uv(m.g2, apex)) return false;
+    m.uv[m.k1] = uv(m.g1, vertex(f, m.k1));
+    m.uv[m.k2] = uv(m.g1, apex);
+    m.uv[m.k3] = uv(m.g2, vertex(f, m.k3));
+    const bool k3_was_seam = is_boundary(f, m.k3);
+    m.gain = length(f, m.k1) + length(f, m.k2) - (k3_was_seam ? 0.0 : length(f, m.k3));
+    if (!(m.gain > 1e-9 * (length(f, m.k1) + length(f, m.k2)))) return false;
+    const int g1 = m.g1;
+    const double chart_winding = signed_area(uv(g1, vertex(g1, 0)), uv(g1, vertex(g1, 1)), uv(g1, vertex(g1, 2)));
+    const double area = signed_area(m.uv[0], m.uv[1], m.uv[2]);
+    // A hundredth of a texel at least, so float32 storage keeps the winding.
+    const double needed = std::max(0.01, options_.min_area_ratio * std::abs(mesh_.signed_area_uv(f)));
+    return area * chart_winding > 0 && std::abs(area) >= needed;
+  }
+
+  // The face lies outside the chart next to the two boundary edges it
+  // fills; it overlaps the chart only if some boundary edge reaches into it,
+  // through its new boundary edge or from one of its corners.
+  bool fits(const Move& m) const {
+    const Point& a = m.uv[m.k3];  // the new boundary edge runs between a and b
+    const Point& b = m.uv[m.k1];
+    const Point& apex = m.uv[m.k2];
+    for (const Corner& s : boundary_[m.to]) {
+      const int e = edge(s.face, s.k);
+      if (e == edge(m.face, m.k1) || e == edge(m.face, m.k2)) continue;  // the two edges the face fills
+      const Point p = uv(s.face, vertex(s.face, s.k)), q = uv(s.face, vertex(s.face, (s.k + 1) % 3));
+      const bool at_a = p == a || q == a, at_b = p == b || q == b;
+      if (at_a || at_b) {
+        const Point& far = (p == a || p == b) ? q : p;
+        if (far != a && far != b && in_triangle(a, b, apex, far)) return false;
+        if (at_a && at_b) return false;  // the chart already has an edge a-b: the face would close a hole
+        continue;
+      }
+      if (segments_meet(a, b, p, q) || in_triangle(a, b, apex, p)) return false;
+    }
+    return true;
+  }
+
+  void remove_boundary(int c, int f, int k) {
+    auto& list = boundary_[c];
+    for (size_t i = 0; i < list.size(); ++i)
+      if (list[i].face == f && (k < 0 || list[i].k == k)) list[i] = list.back(), list.pop_back(), --i;
+  }
+
+  void apply(const Move& m) {
+    const int f = m.face, from = chart(f);
+    const int behind = across(f, m.k3);
+    const bool behind_joined = behind >= 0 && chart(behind) == from && !is_boundary(f, m.k3);
+    remove_boundary(from, f, -1);
+    remove_boundary(m.to, m.g1, corner_on(m.g1, edge(f, m.k1)));
+    remove_boundary(m.to, m.g2, corner_on(m.g2, edge(f, m.k2)));
+    // Out of the old chart: the last face takes its rows.
+    FlatChart& old_chart = charts_[from];
+    const int j = slot_[f], last = static_cast<int>(old_chart.faces.size()) - 1;
+    old_chart.faces[j] = old_chart.faces[last];
+    old_chart.corner_uv.middleRows(3 * j, 3) = old_chart.corner_uv.middleRows(3 * last, 3);
+    slot_[old_chart.faces[j]] = j;
+    old_chart.faces.pop_back();
+    old_chart.corner_uv.conservativeResize(3 * last, 2);
+    // Into the new one, at the end.
+    FlatChart& new_chart = charts_[m.to];
+    const Eigen::Index rows = new_chart.corner_uv.rows();
+    new_chart.corner_uv.conservativeResize(rows + 3, 2);
+    for (int k = 0; k < 3; ++k) new_chart.corner_uv.row(rows + k) = m.uv[k].transpose();
+    slot_[f] = static_cast<int>(new_chart.faces.size());
+    new_chart.faces.push_back(f);
+    disks_.move(f, m.to);
+    boundary_[m.to].push_back({f, m.k3});
+    if (behind_joined) boundary_[from].push_back({behind, corner_on(behind, edge(f, m.k3))});
+  }
+
+  // The corner of face g that starts edge e.
+  int corner_on(int g, int e) const {
+    for (int k = 0; k < 3; ++k)
+      if (edge(g, k) == e) return k;
+    return -1;
+  }
+
+  const Mesh& mesh_;
+  const MeshTopology& topology_;
+  const std::vector<char>& seam_;
+  const std::vector<int>& face_group_;
+  const RefineOptions& options_;
+  std::vector<FlatChart>& charts_;
+  mutable DiskClusters disks_;  // its move check marks faces for a moment
+  std::vector<int> slot_;  // row of each face in its chart
+  std::vector<std::vector<Corner>> boundary_;  // per chart, its boundary edges in UV
+  RefineStats stats_;
+};
+
+}  // namespace
+
+RefineStats refine_seams(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
+                         const std::vector<int>& face_group, const RefineOptions& options,
+                         std::vector<FlatChart>& charts) {
+  if (options.min_area_ratio <= 0) return {};
+  Refiner refiner(mesh, topology, seam, face_group, options, charts);
+  return refiner.run();
+}
+
+}  // namespace atlas

@@ -1,0 +1,39 @@
+// Seam refinement: once the charts are flattened, a face that
+// touches a neighbouring chart along two of its edges (a tooth of a zig-zag
+// border) moves over to it when that shortens the seam, at the place the
+// neighbour's flattening already gives its three corners. No chart is solved
+// again: a move is made only when the face then lies inside the neighbour's
+// flattening without a flip, an overlap or a loss of texel density, so the
+// output guarantees hold as they did. Each face is still baked from its own
+// original UV triangle, wherever it goes.
+#pragma once
+#include <vector>
+
+#include "core/mesh.hpp"
+#include "core/topology.hpp"
+#include "flatten/flatten_chart.hpp"
+
+namespace atlas {
+
+struct RefineOptions {
+  // A moved face keeps at least this share of its original texel area (the
+  // density rule's half); 0 disables the refinement.
+  double min_area_ratio = 0.5;
+};
+
+struct RefineStats {
+  int faces_moved = 0;
+  double seam_removed_3d = 0;  // total 3D length of seam the moves removed
+};
+
+// charts: the flattened charts (faces and texel corner UVs, see FlatChart),
+// changed in place. seam (per edge): edges that stay boundary on both sides
+// (ChartGraph::self_seam); faces on them do not move. face_group as for
+// defragment (may be empty). Moves are made greedily until none shortens
+// the seam: each removes |e1| + |e2| - |e3| of seam, e1 and e2 the edges
+// towards the new chart and e3 the one towards the old, so this ends.
+RefineStats refine_seams(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
+                         const std::vector<int>& face_group, const RefineOptions& options,
+                         std::vector<FlatChart>& charts);
+
+}  // namespace atlas
