@@ -141,39 +141,66 @@ RunControl control_from(const py::object& progress, const py::object& cancel) {
   return RunControl(report, cancel.cast<CancelToken&>().flag);
 }
 
+// An option's value as T, or ValueError naming the option, its range and the
+// value: never pybind's "Unable to cast" RuntimeError for 2**40 or "abc".
+template <class T>
+T option_value(const py::handle& value, const std::string& key, const char* range) {
+  constexpr bool integral = std::is_integral_v<T>;
+  // Integers (numpy's too) for every option; any real number for a float one. No bools, no text.
+  const bool is_text = py::isinstance<py::str>(value) || py::isinstance<py::bytes>(value);
+  const bool is_number = !py::isinstance<py::bool_>(value) && !is_text &&
+                         (PyIndex_Check(value.ptr()) || (!integral && PyNumber_Check(value.ptr())));
+  if (is_number) {
+    try {
+      const auto number = py::reinterpret_borrow<py::object>(value);
+      if constexpr (integral) return py::int_(number).cast<T>();
+      else return py::float_(number).cast<T>();
+    } catch (const py::error_already_set&) {
+    } catch (const py::cast_error&) {
+    }
+  }
+  throw py::value_error(key + " must be " + (integral ? "an integer " : "a number ") + range + ", got " +
+                        std::string(py::repr(value)));
+}
+
 PipelineOptions pipeline_options(const py::object& obj) {
   PipelineOptions o;
   if (obj.is_none()) return o;
+  if (!py::isinstance<py::dict>(obj)) throw py::value_error("options must be a dict of option name to value");
+  // The ranges of addon/atlas_defrag/options.py (python_tests/test_options.py checks both agree).
   for (const auto& [key_obj, value] : obj.cast<py::dict>()) {
+    if (!py::isinstance<py::str>(key_obj)) throw py::value_error("option names must be strings");
     const std::string key = key_obj.cast<std::string>();
-    if (key == "target_charts") o.aggregate.target_charts = value.cast<int>();
+    if (key == "target_charts") o.aggregate.target_charts = option_value<int>(value, key, "0 (automatic) or >= 1");
     else if (key == "weighting") {
-      const std::string w = value.cast<std::string>();
+      const std::string w = py::isinstance<py::str>(value) ? value.cast<std::string>() : std::string(py::repr(value));
       if (w != "uv" && w != "3d") throw py::value_error("weighting must be 'uv' or '3d', got '" + w + "'");
       o.aggregate.weighting = w == "uv" ? Weighting::UV : Weighting::Surface;
-    } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = value.cast<double>();
-    else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = value.cast<double>();
-    else if (key == "max_chart_faces") o.aggregate.max_chart_faces = value.cast<int>();
-    else if (key == "padding") o.pack.padding = value.cast<int>();
-    else if (key == "fixed_page_size") o.pack.fixed_page_size = value.cast<int>();
-    else if (key == "max_page_size") o.pack.max_page_size = value.cast<int>();
-    else if (key == "density_scale") o.pack.density_scale = value.cast<double>();
-    else if (key == "texel_budget") o.pack.texel_budget = value.cast<long long>();
-    else if (key == "max_iterations") o.slim.max_iterations = value.cast<int>();
+    } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = option_value<double>(value, key, ">= 0");
+    else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = option_value<double>(value, key, "0..1");
+    else if (key == "max_chart_faces") o.aggregate.max_chart_faces = option_value<int>(value, key, "0 (no cap) or >= 1");
+    else if (key == "padding") o.pack.padding = option_value<int>(value, key, "0..64 texels");
+    else if (key == "fixed_page_size") o.pack.fixed_page_size = option_value<int>(value, key, "0 (automatic) or 64..16384 texels");
+    else if (key == "max_page_size") o.pack.max_page_size = option_value<int>(value, key, "64..16384 texels");
+    else if (key == "density_scale") o.pack.density_scale = option_value<double>(value, key, "0.01..16");
+    else if (key == "texel_budget") o.pack.texel_budget = option_value<long long>(value, key, "0 (automatic) or >= 16");
+    else if (key == "max_iterations") o.slim.max_iterations = option_value<int>(value, key, ">= 0");
     else throw py::value_error("unknown option '" + key + "'");
   }
   if (o.pack.padding < 0 || o.pack.padding > 64) throw py::value_error("padding must be 0..64 texels");
-  // The ranges of addon/atlas_defrag/options.py (python_tests/test_options.py checks both agree).
   if (o.pack.max_page_size < 64 || o.pack.max_page_size > 16384)
     throw py::value_error("max_page_size must be 64..16384 texels");
   if (o.pack.fixed_page_size != 0 && (o.pack.fixed_page_size < 64 || o.pack.fixed_page_size > o.pack.max_page_size))
     throw py::value_error("fixed_page_size must be 0 (automatic) or 64..max_page_size texels");
   if (!(o.pack.density_scale >= 0.01 && o.pack.density_scale <= 16))
     throw py::value_error("density_scale must be 0.01..16");
-  if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be >= 0");
+  if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be 0 (automatic) or >= 1");
+  if (!(o.aggregate.min_chart_fraction >= 0)) throw py::value_error("min_chart_fraction must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");
   if (o.aggregate.max_chart_faces < 0) throw py::value_error("max_chart_faces must be >= 0 (0: no cap)");
+  if (o.pack.texel_budget < 0) throw py::value_error("texel_budget must be 0 (automatic) or >= 16");
+  if (o.slim.max_iterations < 0) throw py::value_error("max_iterations must be >= 0");
   return o;
 }
 
@@ -230,6 +257,7 @@ py::dict report_dict(const PipelineReport& r) {
   py::dict seconds;
   for (const StageTime& t : r.seconds) seconds[py::str(t.stage)] = t.seconds;
   py::dict d;
+  d["duplicate_faces"] = r.duplicate_faces;
   d["charts_before"] = r.charts_before;
   d["charts_aggregated"] = r.charts_aggregated;
   d["aggregate_stops"] = stops_dict(r.aggregate_stops);
