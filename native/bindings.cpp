@@ -12,6 +12,7 @@
 
 #include "bake/bake.hpp"
 #include "charts/chart_graph.hpp"
+#include "charts/degenerate_faces.hpp"
 #include "metrics.hpp"
 #include "pipeline.hpp"
 
@@ -379,14 +380,32 @@ py::list bake_typed(LayoutArrays& old_l, const py::list& images, const LayoutArr
   return result;
 }
 
+// Keeps the faces whose new triangle (page and corner UVs) no earlier face
+// draws, in both layouts: stacked copies bake their texels once.
+void drop_repeated_faces(LayoutArrays& old_l, LayoutArrays& new_l) {
+  const std::vector<int> kept = first_of_equal_faces(new_l.corner_uv, new_l.face_page);
+  if (static_cast<Eigen::Index>(kept.size()) == new_l.face_page.size()) return;
+  for (LayoutArrays* l : {&old_l, &new_l}) {
+    RowMatrixX2d uv(3 * kept.size(), 2);
+    Eigen::VectorXi page(kept.size());
+    for (size_t i = 0; i < kept.size(); ++i) {
+      uv.middleRows(3 * i, 3) = l->corner_uv.middleRows(3 * kept[i], 3);
+      page[i] = l->face_page[kept[i]];
+    }
+    l->corner_uv = std::move(uv);
+    l->face_page = std::move(page);
+  }
+}
+
 py::list bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
                  const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
                  bool normal_map, int padding, const py::object& progress, const py::object& cancel) {
   const Eigen::Index faces = checked<double>(old_uvs, "old_uvs", {3, 2}, "(F, 3, 2)").shape(0);
   LayoutArrays old_l = layout_arrays(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
-  const LayoutArrays new_l =
+  LayoutArrays new_l =
       layout_arrays(new_uvs, new_face_page, faces, "new_uvs", "new_face_page", page_sizes(out_sizes, "out_sizes"));
   if (padding < 0 || padding > 64) throw py::value_error("padding must be 0..64 texels");
+  drop_repeated_faces(old_l, new_l);
   const BakeOptions options{normal_map, padding};
   const RunControl control = control_from(progress, cancel);
   if (is_uint8_images(images, "images")) return bake_typed<std::uint8_t>(old_l, images, new_l, options, control);

@@ -62,7 +62,9 @@ def compute(read: read_bpy.ReadResult, settings: Settings, progress=None, cancel
     try:
         return job.run(read.job, settings.options, progress=progress, cancel=cancel, native=native)
     except MemoryError as exc:
-        raise DefragError("Out of memory: try a smaller page size or maximum page size") from exc
+        faces = len(read.job.mesh.triangles)
+        raise DefragError(f"Out of memory while computing the new atlas of {faces:,} faces: free memory, "
+                          "or lower density_scale or max_page_size if the output pages are large") from exc
 
 
 def _set_mode(obj, mode: str) -> None:

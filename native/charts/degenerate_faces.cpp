@@ -49,6 +49,26 @@ DuplicateFaces find_duplicate_faces(const Mesh& mesh, const std::vector<int>& fa
   return out;
 }
 
+std::vector<int> first_of_equal_faces(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page) {
+  const int n = static_cast<int>(face_page.size());
+  auto key = [&](int f) {
+    std::array<double, 7> k{static_cast<double>(face_page[f])};
+    for (int i = 0; i < 6; ++i) k[1 + i] = corner_uv(3 * f + i / 2, i % 2);
+    return k;
+  };
+  std::vector<int> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    const auto ka = key(a), kb = key(b);
+    return ka != kb ? ka < kb : a < b;
+  });
+  std::vector<int> kept;
+  for (int i = 0; i < n; ++i)
+    if (i == 0 || key(order[i]) != key(order[i - 1])) kept.push_back(order[i]);
+  std::sort(kept.begin(), kept.end());
+  return kept;
+}
+
 Mesh mesh_of_faces(const Mesh& mesh, const std::vector<int>& faces) {
   Mesh out;
   out.positions = mesh.positions;

@@ -34,6 +34,12 @@ struct DuplicateFaces {
 // or both untextured. The first in index order is kept. O(F log F).
 DuplicateFaces find_duplicate_faces(const Mesh& mesh, const std::vector<int>& face_group);
 
+// The faces that draw a triangle no earlier face draws: the same page and
+// bit-identical corner UVs (3F x 2 rows) make a repeat. Ascending. The copies
+// the pipeline gave the UVs of the face they repeat cover its texels again:
+// baking them once is enough. O(F log F).
+std::vector<int> first_of_equal_faces(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page);
+
 // mesh restricted to faces (all vertices kept).
 Mesh mesh_of_faces(const Mesh& mesh, const std::vector<int>& faces);
 
