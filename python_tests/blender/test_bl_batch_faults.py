@@ -216,3 +216,23 @@ def test_a_python3_without_numpy_on_path_does_not_break_blender(tmp_path):
                            H.model_path("tetra")], capture_output=True, text=True, timeout=900, env=env)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert (out / "teTra-Mk5-miniature-model.glb").is_file()
+
+
+def test_ctrl_c_in_the_many_models_form_stops_every_model(tmp_path):
+    """SIGINT to the parent alone: it passes it on to the Blender running,
+    starts no other and exits 130, leaving no output."""
+    out_dir = tmp_path / "out"
+    env = dict(os.environ, BLENDER=BLENDER)
+    scan = H.model_path("smithsonian")
+    proc = subprocess.Popen([sys.executable, str(BATCH), "--out-dir", str(out_dir), "--jobs", "1", scan, scan],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.monotonic() + 300
+    while not any(p.name.startswith(".atlas_defrag_") for p in out_dir.glob(".*")) and proc.poll() is None:
+        assert time.monotonic() < deadline, "the run never started"
+        time.sleep(0.05)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stdout[-2000:] + stderr[-2000:]
+    assert "0 done" in stdout and "2 interrupted" in stdout, stdout
+    assert [p for p in _left_in(out_dir) if not p.endswith(".report.json")] == []
