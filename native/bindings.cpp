@@ -12,6 +12,7 @@
 
 #include "bake/bake.hpp"
 #include "charts/chart_graph.hpp"
+#include "charts/degenerate_faces.hpp"
 #include "metrics.hpp"
 #include "pipeline.hpp"
 
@@ -147,42 +148,69 @@ bool bool_option(const py::handle& value, const std::string& key) {
   return value.cast<bool>();
 }
 
+// An option's value as T, or ValueError naming the option, its range and the
+// value: never pybind's "Unable to cast" RuntimeError for 2**40 or "abc".
+template <class T>
+T option_value(const py::handle& value, const std::string& key, const char* range) {
+  constexpr bool integral = std::is_integral_v<T>;
+  // Integers (numpy's too) for every option; any real number for a float one. No bools, no text.
+  const bool is_text = py::isinstance<py::str>(value) || py::isinstance<py::bytes>(value);
+  const bool is_number = !py::isinstance<py::bool_>(value) && !is_text &&
+                         (PyIndex_Check(value.ptr()) || (!integral && PyNumber_Check(value.ptr())));
+  if (is_number) {
+    try {
+      const auto number = py::reinterpret_borrow<py::object>(value);
+      if constexpr (integral) return py::int_(number).cast<T>();
+      else return py::float_(number).cast<T>();
+    } catch (const py::error_already_set&) {
+    } catch (const py::cast_error&) {
+    }
+  }
+  throw py::value_error(key + " must be " + (integral ? "an integer " : "a number ") + range + ", got " +
+                        std::string(py::repr(value)));
+}
+
+PageSides page_sides_option(const py::handle& value, const std::string& key) {
+  const std::string v = py::isinstance<py::str>(value) ? value.cast<std::string>() : std::string(py::repr(value));
+  if (v == "tight") return PageSides::Tight;
+  if (v == "multiple_of_4") return PageSides::MultipleOf4;
+  if (v == "power_of_two") return PageSides::PowerOfTwo;
+  throw py::value_error(key + " must be 'tight', 'multiple_of_4' or 'power_of_two', got '" + v + "'");
+}
+
 PipelineOptions pipeline_options(const py::object& obj) {
   PipelineOptions o;
   if (obj.is_none()) return o;
+  if (!py::isinstance<py::dict>(obj)) throw py::value_error("options must be a dict of option name to value");
+  // The ranges of addon/atlas_defrag/options.py (python_tests/test_options.py checks both agree).
   for (const auto& [key_obj, value] : obj.cast<py::dict>()) {
+    if (!py::isinstance<py::str>(key_obj)) throw py::value_error("option names must be strings");
     const std::string key = key_obj.cast<std::string>();
-    if (key == "target_charts") o.aggregate.target_charts = value.cast<int>();
+    if (key == "target_charts") o.aggregate.target_charts = option_value<int>(value, key, "0 (automatic) or >= 1");
     else if (key == "weighting") {
-      const std::string w = value.cast<std::string>();
+      const std::string w = py::isinstance<py::str>(value) ? value.cast<std::string>() : std::string(py::repr(value));
       if (w != "uv" && w != "3d") throw py::value_error("weighting must be 'uv' or '3d', got '" + w + "'");
       o.aggregate.weighting = w == "uv" ? Weighting::UV : Weighting::Surface;
-    } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = value.cast<double>();
-    else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = value.cast<double>();
-    else if (key == "max_chart_faces") o.aggregate.max_chart_faces = value.cast<int>();
-    else if (key == "partial_merges") o.aggregate.partial_merges = value.cast<bool>();
-    else if (key == "refine_min_area_ratio") o.refine.min_area_ratio = value.cast<double>();
-    else if (key == "padding") o.pack.padding = value.cast<int>();
-    else if (key == "fixed_page_size") o.pack.fixed_page_size = value.cast<int>();
-    else if (key == "max_page_size") o.pack.max_page_size = value.cast<int>();
-    else if (key == "density_scale") o.pack.density_scale = value.cast<double>();
-    else if (key == "texel_budget") o.pack.texel_budget = value.cast<long long>();
-    else if (key == "max_iterations") o.slim.max_iterations = value.cast<int>();
-    else if (key == "max_pages") o.pack.max_pages = value.cast<int>();
+    } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = option_value<double>(value, key, ">= 0");
+    else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = option_value<double>(value, key, "0..1");
+    else if (key == "max_chart_faces") o.aggregate.max_chart_faces = option_value<int>(value, key, "0 (no cap) or >= 1");
+    else if (key == "partial_merges") o.aggregate.partial_merges = bool_option(value, key);
+    else if (key == "refine_min_area_ratio") o.refine.min_area_ratio = option_value<double>(value, key, "0..1");
+    else if (key == "padding") o.pack.padding = option_value<int>(value, key, "0..64 texels");
+    else if (key == "fixed_page_size") o.pack.fixed_page_size = option_value<int>(value, key, "0 (automatic) or 64..16384 texels");
+    else if (key == "max_page_size") o.pack.max_page_size = option_value<int>(value, key, "64..16384 texels");
+    else if (key == "density_scale") o.pack.density_scale = option_value<double>(value, key, "0.01..16");
+    else if (key == "texel_budget") o.pack.texel_budget = option_value<long long>(value, key, "0 (automatic) or >= 16");
+    else if (key == "max_iterations") o.slim.max_iterations = option_value<int>(value, key, ">= 0");
+    else if (key == "max_pages") o.pack.max_pages = option_value<int>(value, key, "0 (automatic) or 1..4096");
     else if (key == "square_pages") o.pack.square_pages = bool_option(value, key);
     else if (key == "texels_at_most_input") o.texels_at_most_input = bool_option(value, key);
-    else if (key == "texels_per_unit") o.texels_per_unit = value.cast<double>();
-    else if (key == "page_sides") {
-      const std::string v = value.cast<std::string>();
-      if (v == "tight") o.pack.page_sides = PageSides::Tight;
-      else if (v == "multiple_of_4") o.pack.page_sides = PageSides::MultipleOf4;
-      else if (v == "power_of_two") o.pack.page_sides = PageSides::PowerOfTwo;
-      else throw py::value_error("page_sides must be 'tight', 'multiple_of_4' or 'power_of_two', got '" + v + "'");
-    }
+    else if (key == "texels_per_unit")
+      o.texels_per_unit = option_value<double>(value, key, "0 (density_scale applies) or 0.001..1e9");
+    else if (key == "page_sides") o.pack.page_sides = page_sides_option(value, key);
     else throw py::value_error("unknown option '" + key + "'");
   }
   if (o.pack.padding < 0 || o.pack.padding > 64) throw py::value_error("padding must be 0..64 texels");
-  // The ranges of addon/atlas_defrag/options.py (python_tests/test_options.py checks both agree).
   if (o.pack.max_page_size < 64 || o.pack.max_page_size > 16384)
     throw py::value_error("max_page_size must be 64..16384 texels");
   if (o.pack.fixed_page_size != 0 && (o.pack.fixed_page_size < 64 || o.pack.fixed_page_size > o.pack.max_page_size))
@@ -195,10 +223,13 @@ PipelineOptions pipeline_options(const py::object& obj) {
     throw py::value_error("texels_per_unit must be 0 (density_scale applies) or 0.001..1e9");
   if (!(o.refine.min_area_ratio >= 0 && o.refine.min_area_ratio <= 1))
     throw py::value_error("refine_min_area_ratio must be in [0, 1] (0: no seam refinement)");
-  if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be >= 0");
+  if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be 0 (automatic) or >= 1");
+  if (!(o.aggregate.min_chart_fraction >= 0)) throw py::value_error("min_chart_fraction must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");
   if (o.aggregate.max_chart_faces < 0) throw py::value_error("max_chart_faces must be >= 0 (0: no cap)");
+  if (o.pack.texel_budget < 0) throw py::value_error("texel_budget must be 0 (automatic) or >= 16");
+  if (o.slim.max_iterations < 0) throw py::value_error("max_iterations must be >= 0");
   return o;
 }
 
@@ -255,6 +286,7 @@ py::dict report_dict(const PipelineReport& r) {
   py::dict seconds;
   for (const StageTime& t : r.seconds) seconds[py::str(t.stage)] = t.seconds;
   py::dict d;
+  d["duplicate_faces"] = r.duplicate_faces;
   d["charts_before"] = r.charts_before;
   d["charts_aggregated"] = r.charts_aggregated;
   d["aggregate_stops"] = stops_dict(r.aggregate_stops);
@@ -382,15 +414,33 @@ py::list bake_typed(LayoutArrays& old_l, const py::list& images, const LayoutArr
   return result;
 }
 
+// Keeps the faces whose new triangle (page and corner UVs) no earlier face
+// draws, in both layouts: stacked copies bake their texels once.
+void drop_repeated_faces(LayoutArrays& old_l, LayoutArrays& new_l) {
+  const std::vector<int> kept = first_of_equal_faces(new_l.corner_uv, new_l.face_page);
+  if (static_cast<Eigen::Index>(kept.size()) == new_l.face_page.size()) return;
+  for (LayoutArrays* l : {&old_l, &new_l}) {
+    RowMatrixX2d uv(3 * kept.size(), 2);
+    Eigen::VectorXi page(kept.size());
+    for (size_t i = 0; i < kept.size(); ++i) {
+      uv.middleRows(3 * i, 3) = l->corner_uv.middleRows(3 * kept[i], 3);
+      page[i] = l->face_page[kept[i]];
+    }
+    l->corner_uv = std::move(uv);
+    l->face_page = std::move(page);
+  }
+}
+
 py::object bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
                    const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
                    bool normal_map, int padding, const py::object& progress, const py::object& cancel,
                    bool with_stats) {
   const Eigen::Index faces = checked<double>(old_uvs, "old_uvs", {3, 2}, "(F, 3, 2)").shape(0);
   LayoutArrays old_l = layout_arrays(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
-  const LayoutArrays new_l =
+  LayoutArrays new_l =
       layout_arrays(new_uvs, new_face_page, faces, "new_uvs", "new_face_page", page_sizes(out_sizes, "out_sizes"));
   if (padding < 0 || padding > 64) throw py::value_error("padding must be 0..64 texels");
+  drop_repeated_faces(old_l, new_l);
   const BakeOptions options{normal_map, padding};
   const RunControl control = control_from(progress, cancel);
   BakeStats stats;

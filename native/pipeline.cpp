@@ -11,11 +11,15 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <sstream>
+#include <string>
 
+#include "charts/degenerate_faces.hpp"
 #include "core/geometry.hpp"
 #include "core/parallel_for.hpp"
 #include "core/topology.hpp"
 #include "core/uv_layout.hpp"
+#include "pack/page_filling.hpp"
 #include "pack/smallest_box_turn.hpp"
 
 namespace atlas {
@@ -169,6 +173,26 @@ double texel_density(const Mesh& mesh, const std::vector<FlatChart>& charts, con
   return surface_area > 0 && texel_area > 0 ? std::sqrt(texel_area / surface_area) : 0;
 }
 
+// pack_charts with the budget derived from the source texels: a refusal then
+// names the input that causes it, as the user never set texel_budget.
+PackResult pack_in_source_budget(const std::vector<RowMatrixX2d>& uv, const PackOptions& options,
+                                 long long source_texels, const RunControl& control) {
+  std::ostringstream msg;
+  msg << "the source texture of these faces holds only " << source_texels << " texels";
+  if (options.texel_budget < kSideQuantum * kSideQuantum)
+    throw InputError(msg.str() + ", too few for any output page (" + std::to_string(kSideQuantum) + "x" +
+                     std::to_string(kSideQuantum) + " at least): use a larger image, a higher density_scale "
+                     "or a fixed_page_size");
+  try {
+    return pack_charts(uv, options, control);
+  } catch (const ChartsDoNotFit&) {
+    msg << ", too few for its " << uv.size() << " charts with " << options.padding
+        << " texels of padding around each (charts collapsed to points or slivers need a texel or more "
+           "each): use a smaller padding, a higher density_scale or a fixed_page_size";
+    throw InputError(msg.str());
+  }
+}
+
 // Packs each face group on pages of its own and writes the placed UVs.
 void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std::vector<FlatChart>& charts,
                  const PipelineOptions& pipeline, const RunControl& control, PipelineResult& result) {
@@ -189,6 +213,7 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
       const double density = texel_density(mesh, charts, members);
       if (density > 0) options.density_scale = pipeline.texels_per_unit / density;
     }
+    const bool source_budget = pipeline.texels_at_most_input && options.texel_budget <= 0;
     if (options.fixed_page_size <= 0) {
       // The input's texels at the density asked for.
       const double wanted = static_cast<double>(page_texels(mesh.pages, used)) * options.density_scale *
@@ -200,10 +225,11 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
             4096, std::max<double>(static_cast<double>(std::count(used.begin(), used.end(), 1)),
                                    std::ceil(wanted / max_page))));
       options.max_pages = std::max(1, options.max_pages);
-      if (pipeline.texels_at_most_input && options.texel_budget <= 0)
-        options.texel_budget = static_cast<long long>(wanted);
+      if (source_budget) options.texel_budget = static_cast<long long>(wanted);
     }
-  const PackResult packed = pack_charts(uv, options, control);
+    const PackResult packed = source_budget && options.fixed_page_size <= 0
+                                  ? pack_in_source_budget(uv, options, page_texels(mesh.pages, used), control)
+                                  : pack_charts(uv, options, control);
     const int first_page = static_cast<int>(result.pages.size());
     for (size_t i = 0; i < members.size(); ++i) {
       const FlatChart& chart = charts[members[i]];
@@ -314,10 +340,8 @@ void summarize_energy(const std::vector<FlatChart>& charts, PipelineReport& repo
   }
 }
 
-}  // namespace
-
-PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group, const PipelineOptions& options,
-                          const RunControl& control) {
+PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& face_group,
+                                   const PipelineOptions& options, const RunControl& control) {
   PipelineResult result;
   PipelineReport& report = result.report;
   StageClock clock(report);
@@ -381,6 +405,42 @@ PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group
   report.seam_after = seam_length_ratio(welded, welded_topology, result.corner_uv, result.face_page);
   control.progress("pack", 1.0);
   return result;
+}
+
+// The result on the kept faces of dup spread over all faces of mesh: a copy
+// takes the new UVs and page of the face it repeats, corner for corner
+// (an untextured copy keeps its own UVs).
+PipelineResult with_copies(PipelineResult kept, const Mesh& mesh, const DuplicateFaces& dup) {
+  std::vector<int> kept_index(mesh.face_count(), -1);
+  for (size_t i = 0; i < dup.kept.size(); ++i) kept_index[dup.kept[i]] = static_cast<int>(i);
+  PipelineResult out = std::move(kept);
+  RowMatrixX2d uv = mesh.corner_uv;
+  Eigen::VectorXi page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
+  Eigen::VectorXi chart = Eigen::VectorXi::Constant(mesh.face_count(), -1);
+  for (int f = 0; f < mesh.face_count(); ++f) {
+    const int i = kept_index[dup.original[f]];
+    page[f] = out.face_page[i];
+    chart[f] = out.face_chart[i];
+    if (page[f] < 0) continue;
+    for (int k = 0; k < 3; ++k) uv.row(3 * f + k) = out.corner_uv.row(3 * i + (dup.shift[f] + k) % 3);
+  }
+  out.corner_uv = std::move(uv);
+  out.face_page = std::move(page);
+  out.face_chart = std::move(chart);
+  out.report.duplicate_faces = dup.copies();
+  return out;
+}
+
+}  // namespace
+
+PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group, const PipelineOptions& options,
+                          const RunControl& control) {
+  const DuplicateFaces dup = find_duplicate_faces(welded, face_group);
+  if (dup.copies() == 0) return defragment_distinct(welded, face_group, options, control);
+  std::vector<int> kept_group;
+  if (!face_group.empty())
+    for (int f : dup.kept) kept_group.push_back(face_group[f]);
+  return with_copies(defragment_distinct(mesh_of_faces(welded, dup.kept), kept_group, options, control), welded, dup);
 }
 
 }  // namespace atlas

@@ -35,7 +35,8 @@ struct StageTime {
 };
 
 struct PipelineReport {
-  int charts_before = 0;       // UV charts of the input
+  int duplicate_faces = 0;     // faces repeating another, given its UVs (see degenerate_faces.hpp)
+  int charts_before = 0;       // UV charts of the input, copies left out
   int charts_aggregated = 0;   // after aggregation, before overlap splits
   AggregationStops aggregate_stops;  // why the aggregation merged no further
   int refine_faces_moved = 0;  // faces the seam refinement moved to a neighbouring chart

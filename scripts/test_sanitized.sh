@@ -15,4 +15,4 @@ ctest --test-dir build-asan --output-on-failure -j"$(nproc)"
 # __cxa_throw is there for ASan to intercept when the module throws.
 LD_PRELOAD="$(g++ -print-file-name=libasan.so) $(g++ -print-file-name=libstdc++.so)" \
   ATLAS_BUILD_DIR="$PWD/build-asan" PYTHONPATH="$PWD/build-asan/addon" \
-  .venv/bin/python -m pytest python_tests/test_native.py python_tests/test_options.py -q -p no:cacheprovider
+  .venv/bin/python -m pytest python_tests/test_native.py python_tests/test_options.py python_tests/test_degenerate_input.py -q -p no:cacheprovider

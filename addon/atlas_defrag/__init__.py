@@ -50,7 +50,8 @@ def defragment(obj, **options) -> dict:
     Keyword options: those of options.SCHEMA (README, *Options*), and uv_map
     (default: the active UV map), storage ('PACK' or 'SAVE'), image_dir (with
     'SAVE'), duplicate_materials, progress (callable(stage, fraction)), cancel
-    (a _native.CancelToken).
+    (a _native.CancelToken), wait_in_main_thread (the native work on a thread
+    of its own, so that signal handlers run meanwhile: see api.defragment).
 
     The report has charts_before/after, seam_before/after, seconds, the new
     UV map, images and materials, and warnings. Raises DefragError with the

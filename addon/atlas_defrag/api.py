@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Optional
@@ -32,7 +34,8 @@ class Settings:
                 storage=storage, image_dir=kw.pop("image_dir", None),
                 duplicate_materials=bool(kw.pop("duplicate_materials", False)))
         if kw:
-            raise TypeError("unknown option(s): " + ", ".join(sorted(kw)))
+            known = sorted(BY_NAME) + ["duplicate_materials", "image_dir", "storage", "uv_map"]
+            raise DefragError("unknown option(s): " + ", ".join(sorted(kw)) + " (known: " + ", ".join(known) + ")")
         s.validate()
         return s
 
@@ -59,7 +62,9 @@ def compute(read: read_bpy.ReadResult, settings: Settings, progress=None, cancel
     try:
         return job.run(read.job, settings.options, progress=progress, cancel=cancel, native=native)
     except MemoryError as exc:
-        raise DefragError("Out of memory: try a smaller page size or maximum page size") from exc
+        faces = len(read.job.mesh.triangles)
+        raise DefragError(f"Out of memory while computing the new atlas of {faces:,} faces: free memory, "
+                          "or lower density_scale or max_page_size if the output pages are large") from exc
 
 
 def _set_mode(obj, mode: str) -> None:
@@ -92,7 +97,7 @@ def finish(obj, read: read_bpy.ReadResult, result: job.JobResult, settings: Sett
     return report
 
 
-def defragment(obj, progress=None, cancel=None, **options) -> dict:
+def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **options) -> dict:
     """Defragments obj's texture atlas synchronously; returns the report dict.
 
     Options: those of options.SCHEMA, and uv_map (default: active), storage
@@ -100,15 +105,57 @@ def defragment(obj, progress=None, cancel=None, **options) -> dict:
     (and a warning) says when charts lost texel density to fit max_page_size,
     max_pages or the input's texel count. Raises DefragError (a subclass of
     Exception) with the reason; on any error nothing is changed.
+    wait_in_main_thread: the native work runs on a thread of its own while
+    this thread waits in short steps, free to run signal handlers (the batch
+    entry's SIGINT cancels the token).
     """
-    settings = Settings.from_kwargs(**options)
-    t0 = time.perf_counter()
-    read = prepare(obj, settings)
-    t_read = time.perf_counter() - t0
-    result = compute(read, settings, progress=progress, cancel=cancel)
-    report = finish(obj, read, result, settings)
+    with as_defrag_error():
+        settings = Settings.from_kwargs(**options)
+        t0 = time.perf_counter()
+        read = prepare(obj, settings)
+        t_read = time.perf_counter() - t0
+        if wait_in_main_thread:
+            result = _on_worker_thread(compute, read, settings, progress=progress, cancel=cancel)
+        else:
+            result = compute(read, settings, progress=progress, cancel=cancel)
+        report = finish(obj, read, result, settings)
     report["seconds"]["read"] = t_read
     return report
+
+
+def _on_worker_thread(fn, *args, **kwargs):
+    """fn(*args, **kwargs) on another thread, joined in 50 ms steps; its
+    exception is raised here."""
+    outcome = {}
+
+    def work():
+        try:
+            outcome["value"] = fn(*args, **kwargs)
+        except BaseException as exc:  # handed to the waiting thread
+            outcome["error"] = exc
+
+    worker = threading.Thread(target=work, name="atlas_defrag", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(0.05)
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["value"]
+
+
+@contextlib.contextmanager
+def as_defrag_error():
+    """Raises what escapes the block as DefragError, the cause kept
+    (__cause__): a wrong argument type, a file that cannot be written."""
+    try:
+        yield
+    except DefragError:
+        raise
+    except OSError as exc:
+        where = f" ({exc.filename})" if exc.filename else ""
+        raise DefragError(f"Could not read or write a file{where}: {exc.strerror or exc}") from exc
+    except (TypeError, ValueError) as exc:
+        raise DefragError(f"Bad argument: {exc}") from exc
 
 
 def plain(value):

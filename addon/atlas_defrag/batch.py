@@ -27,9 +27,11 @@ import importlib.util
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -235,12 +237,18 @@ def export_model(path: str, objects) -> None:
         raise BatchError(f"unsupported output format '{ext}' (use {', '.join(OUTPUT_EXTS)})")
 
 
-def run_one(args) -> dict:
-    """Imports args.input, defragments every textured mesh, exports args.output."""
+def run_one(args, cancel=None) -> dict:
+    """Imports args.input, defragments every textured mesh, exports args.output.
+
+    Everything is written into a scratch folder beside the output, checked,
+    then moved into place, the model file last: a failed or cancelled run
+    leaves no file behind, and an existing OUT always means a finished run."""
     pkg = _package()
     t0 = time.perf_counter()
     src, dst = os.path.abspath(args.input), os.path.abspath(args.output)
     objects = _import_input(src, dst)
+    inputs = _input_files(src)
+    _refuse_overwriting(inputs, _model_files(dst))
     t_import = time.perf_counter() - t0
     meshes = [o for o in objects if o.type == "MESH"]
     texture = args.texture or (_ply_texture(src) if src.lower().endswith(".ply") else None)
@@ -251,15 +259,89 @@ def run_one(args) -> dict:
     tmp = tempfile.mkdtemp(prefix=".atlas_defrag_", dir=out_dir)
     report = {"input": src, "output": dst, "objects": [], "warnings": []}
     try:
-        _defragment_meshes(pkg, args, meshes, tmp, report)
+        _defragment_meshes(pkg, args, meshes, tmp, report, cancel)
+        _name_images_after(os.path.splitext(os.path.basename(dst))[0], tmp)
         t_export = time.perf_counter()
-        _export_and_move(objects, tmp, dst)
+        _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),
+                         lambda: _stop_if_cancelled(pkg, cancel))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     report["seconds"] = {"import": t_import, "export": time.perf_counter() - t_export,
                          "total": time.perf_counter() - t0}
     report["status"] = "ok"
     return report
+
+
+def _real(path: str) -> str:
+    return os.path.normcase(os.path.realpath(path))
+
+
+def _model_files(dst: str) -> set:
+    """The files the export writes besides images: the model and, for OBJ, its MTL."""
+    files = {dst}
+    if dst.lower().endswith(".obj"):
+        files.add(os.path.splitext(dst)[0] + ".mtl")
+    return files
+
+
+def _input_files(src: str) -> set:
+    """src and the files it names that the import reads: an OBJ's MTL
+    libraries, a glTF's buffers and images."""
+    files = {src}
+    folder = os.path.dirname(src)
+    try:
+        if src.lower().endswith(".obj"):
+            with open(src, "r", encoding="utf-8", errors="replace") as f:
+                for line in f:
+                    if line.startswith("mtllib"):
+                        files.update(os.path.join(folder, n) for n in line.split()[1:])
+        elif src.lower().endswith(".gltf"):
+            with open(src, "r", encoding="utf-8") as f:
+                gltf = json.load(f)
+            for item in gltf.get("buffers", []) + gltf.get("images", []):
+                uri = item.get("uri", "")
+                if uri and not uri.startswith("data:"):
+                    files.add(os.path.join(folder, uri))
+    except (OSError, ValueError):
+        pass  # the importer reports what it cannot read
+    return files
+
+
+def _input_files_of_scene() -> set:
+    """The image files the imported materials read."""
+    import bpy
+    return {bpy.path.abspath(img.filepath) for img in bpy.data.images
+            if img.source == "FILE" and img.filepath}
+
+
+def _refuse_overwriting(inputs: set, outputs) -> None:
+    """BatchError when an output would replace an input file (model, MTL, texture)."""
+    real_inputs = {_real(p): p for p in inputs}
+    for out in outputs:
+        if _real(out) in real_inputs:
+            raise BatchError(f"the output would overwrite the input file {real_inputs[_real(out)]}: "
+                             "choose another output path or folder")
+
+
+def _name_images_after(stem: str, folder: str) -> None:
+    """Renames the images saved in folder to '<stem>_<name>' (and the bpy images
+    pointing at them), so that models written into one folder never share an
+    image file: every Meshroom scan names its texture texture_1001.png."""
+    import bpy
+    real = _real(folder)
+    for img in bpy.data.images:
+        path = bpy.path.abspath(img.filepath) if img.filepath else ""
+        if not path or _real(os.path.dirname(path)) != real:
+            continue
+        name = os.path.basename(path)
+        new = os.path.join(folder, f"{stem}_{name}")
+        k = 1
+        while os.path.exists(new):
+            base, ext = os.path.splitext(name)
+            new = os.path.join(folder, f"{stem}_{base}.{k:03d}{ext}")
+            k += 1
+        os.replace(path, new)
+        img.filepath = new
 
 
 def _import_input(src: str, dst: str):
@@ -280,7 +362,7 @@ def _give_missing_textures(pkg, meshes, texture: str) -> None:
             _give_texture(o, texture)
 
 
-def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict) -> None:
+def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict, cancel=None) -> None:
     """Each mesh once (linked duplicates share it); its report into report['objects']."""
     done_meshes = set()
     errors = []
@@ -290,10 +372,12 @@ def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict) -> None:
         if o.data.name in done_meshes:
             continue
         try:
-            r = pkg.defragment(o, uv_map=args.uv_map, storage="SAVE", image_dir=image_dir,
-                               duplicate_materials=any(s.material and s.material.name in shared
-                                                       for s in o.material_slots),
-                               **options)
+            r = pkg.defragment(
+                o, cancel=cancel, wait_in_main_thread=True, uv_map=args.uv_map, storage="SAVE", image_dir=image_dir,
+                duplicate_materials=any(s.material and s.material.name in shared for s in o.material_slots),
+                **options)
+        except pkg.DefragCancelled:
+            raise
         except pkg.DefragError as exc:
             errors.append(f"{o.name}: {exc}")
             continue
@@ -316,28 +400,156 @@ def _shared_materials(meshes) -> set:
     return {name for name, count in users.items() if count > 1}
 
 
-def _export_and_move(objects, tmp: str, dst: str) -> None:
-    """Exports into tmp, then moves the files beside dst: images next to an
-    OBJ (a glTF carries them), the model file last, so that an existing OUT
-    always means a finished run."""
+def _stop_if_cancelled(pkg, cancel) -> None:
+    if cancel is not None and cancel.cancelled:
+        raise pkg.DefragCancelled("cancelled")
+
+
+def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) -> None:
+    """Exports into tmp, checks every file there, calls before_moving (which
+    may raise), then moves them beside dst: images next to an OBJ (a glTF
+    carries them), the model file last."""
     out_dir = os.path.dirname(dst) or "."
     tmp_out = os.path.join(tmp, os.path.basename(dst))
     export_model(tmp_out, objects)
     is_obj = dst.lower().endswith(".obj")
-    for name in sorted(os.listdir(tmp)):
-        if name == os.path.basename(dst):
-            continue
-        if is_obj or name.lower().endswith(".bin"):
+    moving = [name for name in sorted(os.listdir(tmp))
+              if name != os.path.basename(dst) and (is_obj or name.lower().endswith(".bin"))]
+    _verify_outputs(tmp, os.path.basename(dst), moving,
+                    sum(len(o.data.polygons) for o in objects if o.type == "MESH"))
+    _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
+    before_moving()
+    moved = []
+    try:
+        for name in moving:
             os.replace(os.path.join(tmp, name), os.path.join(out_dir, name))
-    os.replace(tmp_out, dst)
+            moved.append(os.path.join(out_dir, name))
+        os.replace(tmp_out, dst)
+    except BaseException:
+        for path in moved:
+            _remove_quietly(path)
+        raise
+
+
+def _remove_quietly(path: str) -> None:
+    try:
+        os.remove(path)
+    except OSError:
+        pass
+
+
+def _verify_outputs(folder: str, model: str, others, polygons: int) -> None:
+    """BatchError unless every written file is whole: exporters report success
+    on a full disk and leave truncated or empty files."""
+    for name in [model] + list(others):
+        path = os.path.join(folder, name)
+        problem = _file_problem(path, polygons if name == model else None)
+        if problem:
+            raise BatchError(f"writing {name} failed ({problem}): is the disk full?")
+    if model.lower().endswith(".obj"):
+        _verify_obj_references(folder, model, [n for n in others if not n.lower().endswith(".mtl")])
+
+
+def _file_problem(path: str, polygons) -> str:
+    """What is wrong with one written file, or '' when it looks whole."""
+    if not os.path.isfile(path):
+        return "missing"
+    if os.path.getsize(path) == 0:
+        return "empty"
+    ext = os.path.splitext(path)[1].lower()
+    with open(path, "rb") as f:
+        data = f.read()
+    if ext == ".png" and not (data.startswith(b"\x89PNG\r\n\x1a\n") and data[-8:-4] == b"IEND"):
+        return "not a complete PNG"
+    if ext == ".exr" and not data.startswith(b"\x76\x2f\x31\x01"):
+        return "not an OpenEXR file"
+    if ext == ".glb":
+        import struct
+        if len(data) < 12 or data[:4] != b"glTF" or struct.unpack_from("<I", data, 8)[0] != len(data):
+            return "shorter than its header says"
+    if ext == ".gltf":
+        try:
+            json.loads(data)
+        except ValueError:
+            return "not complete JSON"
+    if ext == ".mtl" and b"newmtl" not in data:
+        return "no material in it"
+    if ext == ".obj" and polygons is not None:
+        faces = sum(1 for line in data.splitlines() if line.startswith(b"f "))
+        if faces != polygons or not data.endswith(b"\n"):
+            return f"{faces} of {polygons} faces"
+    return ""
+
+
+def _verify_obj_references(folder: str, model: str, images) -> None:
+    """The OBJ's material libraries are there and name every image written
+    beside it (a cut-short MTL loses the last ones). Other names the MTL
+    carries over from the input (even broken ones) are not checked."""
+    with open(os.path.join(folder, model), "rb") as f:
+        libs = [ln.split(None, 1)[1].strip().decode("utf-8", "replace")
+                for ln in f if ln.startswith(b"mtllib")]
+    named = set()
+    for lib in libs:
+        lib_path = os.path.join(folder, lib)
+        if not os.path.isfile(lib_path):
+            raise BatchError(f"writing {model} failed: its material library {lib} is missing")
+        with open(lib_path, "rb") as f:
+            named.update(ln.split()[-1].decode("utf-8", "replace") for ln in f
+                         if ln.strip().startswith(b"map_") and len(ln.split()) > 1)
+    unnamed = sorted(set(images) - named)
+    if unnamed:
+        raise BatchError(f"writing {model} failed: its materials do not name {', '.join(unnamed)}: "
+                         "is the disk full?")
 
 
 def _write_report(path, report):
     if not path:
         return
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, "w") as f:
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
         json.dump(report, f, indent=2, sort_keys=True)
+    os.replace(tmp, path)
+
+
+def _report_path_problem(path) -> str:
+    """Why the report could not be written there, checked before the work ('' if it can)."""
+    if not path:
+        return ""
+    path = os.path.abspath(path)
+    if os.path.isdir(path):
+        return f"--report {path} is a folder"
+    folder = os.path.dirname(path)
+    probe = folder
+    while probe and not os.path.exists(probe):
+        probe = os.path.dirname(probe)
+    if not os.path.isdir(probe):
+        return f"--report {path}: {probe} is not a folder"
+    if not os.access(probe, os.W_OK | os.X_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
+        return f"--report {path} is not writable"
+    return ""
+
+
+class _Interrupt:
+    """SIGINT cancels the token (the native work stops within milliseconds)
+    instead of killing the process midway; restored on exit."""
+
+    def __init__(self, token):
+        self.token = token
+        self.previous = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self.previous = signal.signal(signal.SIGINT, lambda *_: self.token.cancel())
+        return self
+
+    def __exit__(self, *exc):
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
+        return False
+
+
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 
 
 def main_single(argv) -> int:
@@ -346,19 +558,27 @@ def main_single(argv) -> int:
         args = p.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
+    problem = _report_path_problem(args.report)
+    if problem:
+        print(f"atlas_defrag: error: {problem}", file=sys.stderr)
+        return 2
     if args.skip_existing and os.path.exists(args.output):
         print(f"atlas_defrag: skipped, {args.output} exists")
         return 0
+    token = importlib.import_module(_package().__name__ + "._native").CancelToken()
     try:
-        report = run_one(args)
-    except Exception as exc:  # every failure: reason on stderr, exit 1
-        msg = str(exc) if isinstance(exc, BatchError) or type(exc).__name__ == "DefragError" \
+        with _Interrupt(token):
+            report = run_one(args, token)
+    except Exception as exc:  # every failure: reason on stderr, exit 1 (130 when interrupted)
+        cancelled = type(exc).__name__ == "DefragCancelled" or token.cancelled
+        msg = "interrupted (SIGINT): nothing was written" if cancelled else \
+            str(exc) if isinstance(exc, BatchError) or type(exc).__name__ == "DefragError" \
             else f"{type(exc).__name__}: {exc}"
         print(f"atlas_defrag: error: {args.input}: {msg}", file=sys.stderr)
         _write_report(args.report, {"input": os.path.abspath(args.input),
                                     "output": os.path.abspath(args.output),
-                                    "status": "error", "error": msg})
-        return 1
+                                    "status": "cancelled" if cancelled else "error", "error": msg})
+        return EXIT_INTERRUPTED if cancelled else 1
     _write_report(args.report, report)
     for w in report["warnings"] + [w for o in report["objects"] for w in o.get("warnings", [])]:
         print(f"atlas_defrag: warning: {w}", file=sys.stderr)
@@ -407,18 +627,28 @@ def main_multi(argv) -> int:
         print("atlas_defrag: error: no input models", file=sys.stderr)
         return 2
     os.makedirs(args.out_dir, exist_ok=True)
-    command = [_blender_exe(args.blender), "--background", "--factory-startup", "--python-exit-code", "1",
+    blender = _blender_exe(args.blender)
+    command = [blender, "--background", "--factory-startup", "--python-exit-code", "1",
                "--python", os.path.abspath(__file__), "--"]
-    passthrough = _passthrough(args)
+    runner = _Runner(command, _passthrough(args), _blender_env(blender))
     jobs = _output_names(files, args.out_dir, args.format)
-    failed = 0
-    with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        for f, out, status, err in pool.map(lambda job: _run_one_blender(command, passthrough, *job), jobs):
-            print(f"atlas_defrag: {status}: {f} -> {out}" + (f"\n  {err}" if err else ""),
-                  file=sys.stderr if status == "failed" else sys.stdout)
-            failed += status == "failed"
-    print(f"atlas_defrag: {len(jobs) - failed} done, {failed} failed")
-    return 1 if failed else 0
+    counts = {"ok": 0, "skipped": 0, "failed": 0, "interrupted": 0}
+    previous = signal.signal(signal.SIGINT, lambda *_: runner.interrupt()) \
+        if threading.current_thread() is threading.main_thread() else None
+    try:
+        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+            for f, out, status, err in pool.map(lambda job: runner.run(*job), jobs):
+                print(f"atlas_defrag: {status}: {f} -> {out}" + (f"\n  {err}" if err else ""),
+                      file=sys.stderr if status in ("failed", "interrupted") else sys.stdout)
+                counts[status] += 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    print(f"atlas_defrag: {counts['ok']} done, {counts['skipped']} skipped (output exists), "
+          f"{counts['failed']} failed" + (f", {counts['interrupted']} interrupted" if runner.stopping else ""))
+    if runner.stopping:
+        return EXIT_INTERRUPTED
+    return 1 if counts["failed"] else 0
 
 
 def _passthrough(args) -> list:
@@ -437,28 +667,74 @@ def _passthrough(args) -> list:
 
 
 def _output_names(files, out_dir: str, fmt: str) -> list:
-    """(input, output, report) per file; equal stems get _2, _3, ..."""
-    stems = {}
+    """(input, output, report) per file, every output name distinct: a stem
+    already taken (by an earlier file's stem or its _2 form) gets the next free
+    _2, _3, ... The same inputs in the same order always get the same names."""
+    taken = set()
     jobs = []
     for f in files:
-        stem = os.path.splitext(os.path.basename(f))[0]
-        stems[stem] = stems.get(stem, 0) + 1
-        if stems[stem] > 1:
-            stem = f"{stem}_{stems[stem]}"
+        base = os.path.splitext(os.path.basename(f))[0]
+        stem, k = base, 1
+        while stem.lower() in taken:
+            k += 1
+            stem = f"{base}_{k}"
+        taken.add(stem.lower())
         jobs.append((f, os.path.join(out_dir, f"{stem}.{fmt}"), os.path.join(out_dir, f"{stem}.report.json")))
     return jobs
 
 
-def _run_one_blender(command, passthrough, f, out, rep):
-    """(input, output, status, error line): one Blender process for one model."""
-    if os.path.exists(out):
-        return f, out, "skipped", ""
-    proc = subprocess.run(command + [f, out, "--report", rep] + passthrough,
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    if proc.returncode == 0:
-        return f, out, "ok", ""
-    err = [ln for ln in proc.stderr.splitlines() if "atlas_defrag: error" in ln]
-    return f, out, "failed", (err[-1] if err else proc.stderr.strip()[-500:])
+def _blender_env(blender: str) -> dict:
+    """The environment for Blender: no Python variables of this interpreter,
+    and Blender's own folder first on PATH. A Blender linked against the
+    system Python takes its prefix from the first python3 on PATH: a virtualenv
+    or pyenv python3 there would hide the system numpy."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONHOME", "PYTHONPATH", "VIRTUAL_ENV", "PYTHONSTARTUP", "PYTHONUSERBASE")}
+    exe = shutil.which(blender)
+    if exe:
+        env["PATH"] = os.pathsep.join([os.path.dirname(os.path.realpath(exe)), env.get("PATH", "")])
+    return env
+
+
+class _Runner:
+    """One Blender process per model; interrupt() stops starting new ones and
+    passes SIGINT on to those running (each cancels and cleans up)."""
+
+    def __init__(self, command, passthrough, env):
+        self.command, self.passthrough, self.env = command, passthrough, env
+        self.stopping = False
+        self.running = set()
+        self.lock = threading.Lock()
+
+    def interrupt(self):
+        with self.lock:
+            self.stopping = True
+            for proc in self.running:
+                proc.send_signal(signal.SIGINT)
+
+    def run(self, f, out, rep):
+        """(input, output, status, error line)."""
+        if os.path.exists(out):
+            return f, out, "skipped", ""
+        with self.lock:
+            if self.stopping:
+                return f, out, "interrupted", "not started"
+            proc = subprocess.Popen(self.command + [f, out, "--report", rep] + self.passthrough,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=self.env)
+            self.running.add(proc)
+        try:
+            _, stderr = proc.communicate()
+        finally:
+            with self.lock:
+                self.running.discard(proc)
+        if proc.returncode == 0:
+            return f, out, "ok", ""
+        err = [ln for ln in stderr.splitlines() if "atlas_defrag: error" in ln]
+        err = err[-1] if err else stderr.strip()[-500:]
+        if "No module named 'numpy'" in stderr:
+            err += " (Blender found a python3 without numpy on PATH: run Blender's own Python or set --blender)"
+        status = "interrupted" if self.stopping or proc.returncode == EXIT_INTERRUPTED else "failed"
+        return f, out, status, err
 
 
 def main(argv=None) -> int:

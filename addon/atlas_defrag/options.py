@@ -43,7 +43,7 @@ class Option(NamedTuple):
 
 SCHEMA: Tuple[Option, ...] = (
     Option("target_charts", int, 0, "Target Charts", "Number of charts to aim for",
-           low=1, automatic="no target: charts merge while the disk, curvature and size rules allow",
+           low=1, high=2 ** 31 - 1, automatic="no target: charts merge while the disk, curvature and size rules allow",
            manual_default=50),
     Option("weighting", str, "3d", "Weighting", "Seam length that decides which charts merge first",
            choices=(Choice("uv", "UV", "Merge by seam length measured in the texture"),

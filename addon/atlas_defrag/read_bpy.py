@@ -66,6 +66,7 @@ def check_object(obj, uv_map: Optional[str] = None):
     if obj is None or getattr(obj, "type", None) != "MESH":
         raise DefragError("No active mesh: select a mesh object and make it active")
     me = obj.data
+    _refuse_linked(obj)
     if len(me.uv_layers) == 0:
         raise DefragError(f"Mesh '{me.name}' has no UV map: unwrap it or import it with its UVs")
     if uv_map:
@@ -79,6 +80,21 @@ def check_object(obj, uv_map: Optional[str] = None):
             f"Mesh '{me.name}' already has {len(me.uv_layers)} UV maps, the most Blender allows: "
             "remove one to make room for the new map")
     return layer
+
+
+def _refuse_linked(obj) -> None:
+    """DefragError for an object, mesh or material linked from a library:
+    Blender keeps no change to linked data (the new UV map would be all zero
+    and vanish on reload). A library override of the object alone does not
+    make its mesh local either."""
+    blocks = [("Object", obj), ("Mesh", obj.data)] + \
+        [("Material", s.material) for s in obj.material_slots if s.material is not None]
+    for kind, block in blocks:
+        if getattr(block, "library", None) is not None:
+            raise DefragError(
+                f"{kind} '{block.name}' is linked from the library '{block.library.filepath}' and cannot be "
+                "changed: make it local first (Object > Relations > Make Local > "
+                "Selected Objects, Data and Materials)")
 
 
 def _render_uv_name(me) -> str:

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <unordered_map>
 
+#include "charts/degenerate_faces.hpp"
 #include "core/corners.hpp"
 #include "core/union_find.hpp"
 
@@ -67,13 +68,13 @@ void accumulate_boundaries(const Mesh& mesh, const MeshTopology& topology, const
       const int ci = topology.edge_corners[i], chart_i = g.face_chart[ci / 3];
       if (chart_i < 0) continue;
       bool outside = (end - begin) != 2 || g.self_seam[e];
-      for (int j = begin; j < end; ++j)
+      for (int j = begin; !outside && j < end; ++j)
         if (j != i && g.face_chart[topology.edge_corners[j] / 3] != chart_i) outside = true;
       if (outside) {
         g.charts[chart_i].perimeter_3d += edge_length_3d(mesh, ci);
         g.charts[chart_i].perimeter_uv += edge_length_uv(mesh, ci);
       }
-      for (int j = i + 1; j < end; ++j) {
+      for (int j = i + 1; j < end && !is_fan_edge(topology, e); ++j) {
         const int cj = topology.edge_corners[j], chart_j = g.face_chart[cj / 3];
         if (chart_j < 0 || chart_j == chart_i) continue;
         if (!face_group.empty() && face_group[ci / 3] != face_group[cj / 3]) continue;

@@ -1,6 +1,6 @@
 // The chart graph (thesis 5.2): charts are the faces connected across mesh
 // edges whose UVs agree at both ends on the same page; two charts are adjacent
-// when they share a mesh edge.
+// when they share a mesh edge that is no fan edge (see degenerate_faces.hpp).
 #pragma once
 #include <vector>
 

@@ -152,7 +152,7 @@ Packing largest_fitting_packing(TryScale try_scale, double start, double cap, do
     }
     s = next;
   }
-  if (!fitting) throw InputError(too_small);
+  if (!fitting) throw ChartsDoNotFit(too_small);
   return std::move(*fitting);
 }
 

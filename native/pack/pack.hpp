@@ -8,6 +8,12 @@
 
 namespace atlas {
 
+// The charts, grown by their padding, fit the texel budget or the page count
+// at no scale: the caller can say what in its input causes it.
+struct ChartsDoNotFit : InputError {
+  using InputError::InputError;
+};
+
 // How page sides are rounded once the charts are placed.
 enum class PageSides {
   Tight,        // the texels used, nothing more

@@ -132,7 +132,7 @@ def test_settings_validation(pkg):
         pkg.api.Settings.from_kwargs(weighting="xyz")
     with pytest.raises(pkg.DefragError, match="padding"):
         pkg.api.Settings.from_kwargs(padding=-1)
-    with pytest.raises(TypeError, match="unknown"):
+    with pytest.raises(pkg.DefragError, match="unknown"):  # not a raw TypeError (issue 15)
         pkg.api.Settings.from_kwargs(bogus=1)
 
 

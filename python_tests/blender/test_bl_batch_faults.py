@@ -1,0 +1,238 @@
+# SPDX-License-Identifier: MIT
+"""The batch entry under faults (issue 15): a full disk, outputs that would
+overwrite inputs, name collisions between models, an unwritable report,
+Ctrl-C, and a python3 without numpy on PATH."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import blhelp as H
+from blenv import ADDON_PARENT, BLENDER, require_native, run_blender
+
+BATCH = ADDON_PARENT / "atlas_defrag" / "batch.py"
+
+# Runs the batch entry with one writer broken the way a full disk breaks it.
+# Blender's OBJ exporter reports success and leaves the file cut short and the
+# MTL empty; the PNG writer raises ENOSPC after writing part of the file.
+FAULTY = '''
+import errno, os, sys
+sys.path.insert(0, {parent!r})
+from atlas_defrag import batch, png_files
+fault = os.environ["ATLAS_FAULT"]
+if fault == "obj":
+    export = batch.export_model
+    def cut_short(path, objects):
+        export(path, objects)
+        size = os.path.getsize(path)
+        with open(path, "r+b") as f:
+            f.truncate(size // 10)
+        open(os.path.splitext(path)[0] + ".mtl", "w").close()
+    batch.export_model = cut_short
+elif fault == "png":
+    def half_then_full(files):
+        for path, pixels in files:
+            with open(path, "wb") as f:
+                f.write(png_files.encode_png(pixels)[:100])
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), path)
+    png_files.write_pngs = half_then_full
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+code = batch.main(argv)
+sys.stdout.flush()
+sys.exit(code)
+'''
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _native_built():
+    require_native()
+
+
+def _faulty_script(tmp_path):
+    path = tmp_path / "faulty_batch.py"
+    path.write_text(FAULTY.format(parent=str(ADDON_PARENT)))
+    return path
+
+
+def _left_in(folder: Path):
+    return sorted(p.name for p in folder.iterdir()) if folder.exists() else []
+
+
+@pytest.mark.parametrize("runner, fault", [("blender34", "obj"), ("bpy45", "png")])
+def test_a_full_disk_leaves_nothing_and_fails(tmp_path, runner, fault):
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    script = _faulty_script(tmp_path)
+    args = [H.model_path("tetra"), out_dir / "tetra.obj", "--report", tmp_path / "r.json"]
+    env = dict(os.environ, ATLAS_FAULT=fault)
+    if runner == "blender34":
+        proc = run_blender(["--python", str(script), "--"] + [str(a) for a in args], env={"ATLAS_FAULT": fault})
+    else:
+        proc = subprocess.run([sys.executable, str(script)] + [str(a) for a in args], capture_output=True,
+                              text=True, timeout=900, env=env)
+    assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "wrote" not in proc.stdout
+    expected = "is the disk full" if fault == "obj" else "No space left on device"
+    assert expected in proc.stderr, proc.stderr[-2000:]
+    assert _left_in(out_dir) == []  # no model, no half PNG, no .atlas_defrag_* folder
+    assert '"status": "error"' in (tmp_path / "r.json").read_text()
+
+
+# The tetra scan's output: a 1.3 MB PNG, then a 1.2 MB OBJ. On 1 MB the PNG
+# writer fails; on 1.5 MB the PNG fits and Blender's OBJ exporter runs out of
+# room, yet reports success.
+@pytest.mark.parametrize("size", ["1m", "1536k"])
+def test_a_small_tmpfs_fills_up_and_leaves_nothing(tmp_path, size):
+    """The real thing, where a tmpfs can be mounted (root, not in every CI)."""
+    mount = tmp_path / "small"
+    mount.mkdir()
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a tmpfs needs root")
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mount)], capture_output=True)
+    if done.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here: " + done.stderr.decode(errors="replace").strip())
+    try:
+        proc = subprocess.run([sys.executable, str(BATCH), H.model_path("tetra"), str(mount / "tetra.obj")],
+                              capture_output=True, text=True, timeout=900)
+        assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
+        assert _left_in(mount) == []
+    finally:
+        subprocess.run(["umount", str(mount)], check=False)
+
+
+def _copy_tetra(folder: Path) -> Path:
+    src = Path(H.model_path("tetra")).parent
+    shutil.copytree(src, folder)
+    for p in folder.rglob("*"):
+        os.chmod(p, 0o755 if p.is_dir() else 0o644)
+    return folder / "teTra-Mk5-miniature-model.obj"
+
+
+def _digest(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_outputs_that_would_overwrite_inputs_are_refused(tmp_path):
+    model = _copy_tetra(tmp_path / "tetra")
+    before = _digest(model.parent)
+    # The model itself; an output whose MTL is the input's (mtllib 3Ddata.mtl).
+    for out in (model, model.parent / "3Ddata.obj"):
+        proc = subprocess.run([sys.executable, str(BATCH), str(model), str(out)], capture_output=True, text=True,
+                              timeout=900)
+        assert proc.returncode == 1 and "would overwrite the input file" in proc.stderr, proc.stderr[-2000:]
+    assert _digest(model.parent) == before
+
+
+def _maps(obj_path: Path):
+    text = obj_path.read_text()
+    lib = next(ln.split(None, 1)[1].strip() for ln in text.splitlines() if ln.startswith("mtllib"))
+    mtl = (obj_path.parent / lib).read_text()
+    return [ln.split()[-1] for ln in mtl.splitlines() if ln.strip().startswith("map_Kd")]
+
+
+def test_many_models_of_one_name_get_their_own_files(tmp_path):
+    """a/X.obj, b/X.obj and c/X_2.obj into one folder as OBJ: three models,
+    three sets of images (all three textures have the same name)."""
+    names = [("a", "X"), ("b", "X"), ("c", "X_2")]
+    inputs = []
+    for folder, stem in names:
+        model = _copy_tetra(tmp_path / folder)
+        target = model.with_name(stem + ".obj")
+        model.rename(target)
+        inputs.append(str(target))
+    out = tmp_path / "out"
+    env = dict(os.environ, BLENDER=BLENDER)
+    cmd = [sys.executable, str(BATCH), "--out-dir", str(out), "--format", "obj", "--jobs", "2"] + inputs
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=1800, env=env)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "3 done, 0 skipped" in proc.stdout, proc.stdout
+    models = sorted(p.name for p in out.glob("*.obj"))
+    assert models == ["X.obj", "X_2.obj", "X_2_2.obj"], models
+    maps = {m: _maps(out / m) for m in models}
+    flat = [name for ms in maps.values() for name in ms]
+    assert len(flat) == len(set(flat)), maps  # no image shared between models
+    for m, ms in maps.items():
+        assert ms and all((out / n).is_file() and n.startswith(m[:-4] + "_") for n in ms), (m, ms)
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0 and "0 done, 3 skipped" in proc.stdout, proc.stdout + proc.stderr
+
+
+def test_an_unwritable_report_path_fails_before_the_work(tmp_path):
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("not a folder")
+    out = tmp_path / "o.glb"
+    t = time.perf_counter()
+    proc = subprocess.run([sys.executable, str(BATCH), H.model_path("tetra"), str(out),
+                           "--report", str(blocker / "r.json")], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2 and "--report" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    assert not out.exists()
+    assert time.perf_counter() - t < 60
+
+
+@pytest.mark.parametrize("runner", ["blender34", "bpy45"])
+def test_ctrl_c_cancels_and_exits_130(tmp_path, runner):
+    out_dir = tmp_path / "out"
+    args = [H.model_path("smithsonian"), str(out_dir / "scan.obj"), "--report", str(tmp_path / "r.json")]
+    if runner == "blender34":
+        cmd = [BLENDER, "--background", "--factory-startup", "--python-exit-code", "1", "--python", str(BATCH), "--"]
+    else:
+        cmd = [sys.executable, str(BATCH)]
+    proc = subprocess.Popen(cmd + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # The scratch folder appears once the model is imported: the native work runs next.
+    deadline = time.monotonic() + 300
+    while not any(p.name.startswith(".atlas_defrag_") for p in out_dir.glob(".*")) and proc.poll() is None:
+        assert time.monotonic() < deadline, "the run never started"
+        time.sleep(0.05)
+    time.sleep(1.0)
+    t = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stdout[-2000:] + stderr[-2000:]
+    assert time.monotonic() - t < 30
+    assert "interrupted" in stderr, stderr[-2000:]
+    assert _left_in(out_dir) == []
+    assert '"status": "cancelled"' in (tmp_path / "r.json").read_text()
+
+
+def test_a_python3_without_numpy_on_path_does_not_break_blender(tmp_path):
+    """python3 batch.py --out-dir from a virtualenv: Blender must not take its
+    Python from that python3 (which has no numpy)."""
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
+    env = dict(os.environ, BLENDER=BLENDER, PATH=f"{venv / 'bin'}{os.pathsep}{os.environ['PATH']}",
+               VIRTUAL_ENV=str(venv))
+    out = tmp_path / "out"
+    proc = subprocess.run([str(venv / "bin" / "python3"), str(BATCH), "--out-dir", str(out), "--jobs", "1",
+                           H.model_path("tetra")], capture_output=True, text=True, timeout=900, env=env)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert (out / "teTra-Mk5-miniature-model.glb").is_file()
+
+
+def test_ctrl_c_in_the_many_models_form_stops_every_model(tmp_path):
+    """SIGINT to the parent alone: it passes it on to the Blender running,
+    starts no other and exits 130, leaving no output."""
+    out_dir = tmp_path / "out"
+    env = dict(os.environ, BLENDER=BLENDER)
+    scan = H.model_path("smithsonian")
+    proc = subprocess.Popen([sys.executable, str(BATCH), "--out-dir", str(out_dir), "--jobs", "1", scan, scan],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.monotonic() + 300
+    while not any(p.name.startswith(".atlas_defrag_") for p in out_dir.glob(".*")) and proc.poll() is None:
+        assert time.monotonic() < deadline, "the run never started"
+        time.sleep(0.05)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stdout[-2000:] + stderr[-2000:]
+    assert "0 done" in stdout and "2 interrupted" in stdout, stdout
+    assert [p for p in _left_in(out_dir) if not p.endswith(".report.json")] == []
