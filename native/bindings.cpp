@@ -12,6 +12,7 @@
 
 #include "bake/bake.hpp"
 #include "charts/chart_graph.hpp"
+#include "io/obj_file.hpp"
 #include "metrics.hpp"
 #include "pipeline.hpp"
 
@@ -297,6 +298,39 @@ py::dict chart_graph_py(const py::object& positions, const py::object& triangles
   return out;
 }
 
+// A row-major Eigen matrix as a new (rows, cols) numpy array.
+template <class Matrix>
+py::array rows_array(const Matrix& m) {
+  using T = typename Matrix::Scalar;
+  return py::array_t<T>({static_cast<py::ssize_t>(m.rows()), static_cast<py::ssize_t>(m.cols())}, m.data());
+}
+
+// Names from a file as str; bytes that are not UTF-8 become U+FFFD, as
+// Python's errors="replace" reads them.
+py::list file_names(const std::vector<std::string>& names) {
+  py::list out;
+  for (const std::string& name : names)
+    out.append(py::reinterpret_steal<py::str>(PyUnicode_DecodeUTF8(name.data(), static_cast<py::ssize_t>(name.size()), "replace")));
+  return out;
+}
+
+py::dict read_obj_py(const std::string& path) {
+  obj::ObjFile f;
+  {
+    py::gil_scoped_release release;
+    f = obj::read_obj(path);
+  }
+  py::dict out;
+  out["positions"] = rows_array(f.positions);
+  out["texcoords"] = rows_array(f.texcoords);
+  out["triangles"] = rows_array(f.triangles);
+  out["texcoord_index"] = rows_array(f.texcoord_index);
+  out["face_material"] = py::array_t<int>(f.face_material.size(), f.face_material.data());
+  out["materials"] = file_names(f.materials);
+  out["material_libraries"] = file_names(f.material_libraries);
+  return out;
+}
+
 // Images as (H, W, C) arrays, row 0 at v = 0; all of one dtype T. The arrays
 // are returned too so their buffers outlive the views.
 template <class T>
@@ -484,6 +518,13 @@ and energy_final (symmetric Dirichlet per unit reference area, 4 = isometric).)"
 images: one (H,W,C) uint8 or float32 array per old page, row 0 at v = 0 (Blender's
 order). Returns one array per entry of out_sizes (width, height), same dtype.
 normal_map re-orients tangent-space XY per face.)");
+
+  m.def("read_obj", &read_obj_py, py::arg("path"),
+        R"(Reads a Wavefront OBJ file: dict(positions (V,3) float64, texcoords (T,2) float64,
+triangles (F,3) int32 0-based, texcoord_index (F,3) int32 (-1 on a face without UVs),
+face_material (F,) int32 into materials (-1: none), materials (usemtl names),
+material_libraries (mtllib names)). Polygons are fan-triangulated. ValueError
+naming the line on malformed input.)");
 
   m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),

@@ -1,0 +1,31 @@
+// Wavefront OBJ geometry as plain arrays, for the command-line entry (the
+// add-on reads meshes through Blender). Only what a textured scan needs:
+// positions, texture coordinates, faces (fan-triangulated) and the material
+// each face uses; normals, groups, lines and points are skipped.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "core/mesh.hpp"
+
+namespace atlas::obj {
+
+struct ObjFile {
+  RowMatrixX3d positions;                      // V x 3, the x y z of each `v` line (a colour after them is ignored)
+  RowMatrixX2d texcoords;                      // T x 2, the u v of each `vt` line (w is ignored)
+  RowMatrixX3i triangles;                      // F x 3, 0-based vertex of each corner
+  RowMatrixX3i texcoord_index;                 // F x 3, 0-based texcoord of each corner; -1 on all three
+                                               // corners of a face that lacks one on any corner
+  Eigen::VectorXi face_material;               // F, index into materials; -1 before the first usemtl
+  std::vector<std::string> materials;          // usemtl names, in order of first use
+  std::vector<std::string> material_libraries; // mtllib arguments, in file order
+};
+
+// Reads the file. Polygons become fans (0, i, i + 1); a face of fewer than
+// three corners is dropped. Negative indices count back from the last
+// element defined before the face, as the format says. Throws InputError
+// naming the line for a malformed number or an index outside the file's
+// elements, and for a file that cannot be read.
+ObjFile read_obj(const std::string& path);
+
+}  // namespace atlas::obj
