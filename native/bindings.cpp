@@ -331,6 +331,21 @@ py::dict read_obj_py(const std::string& path) {
   return out;
 }
 
+void write_obj_py(const std::string& path, const std::string& library, const py::object& positions,
+                  const py::object& triangles, const py::object& uvs, const py::object& face_material,
+                  const std::vector<std::string>& materials) {
+  const auto p = checked<double>(positions, "positions", {3}, "(V, 3)");
+  const auto t = checked<int>(triangles, "triangles", {3}, "(F, 3)");
+  const auto u = checked<double>(uvs, "uvs", {3, 2}, "(F, 3, 2)");
+  const auto m = checked<long long>(face_material, "face_material", {}, "(F,)");
+  const RowMatrixX3d points = to_matrix<RowMatrixX3d>(p, p.shape(0), 3);
+  const RowMatrixX3i faces = to_matrix<RowMatrixX3i>(t, t.shape(0), 3);
+  const RowMatrixX2d corner_uv = to_matrix<RowMatrixX2d>(u, 3 * u.shape(0), 2);
+  const Eigen::VectorXi material = int_values(m, "face_material");
+  py::gil_scoped_release release;
+  obj::write_obj(path, library, points, faces, corner_uv, material, materials);
+}
+
 // Images as (H, W, C) arrays, row 0 at v = 0; all of one dtype T. The arrays
 // are returned too so their buffers outlive the views.
 template <class T>
@@ -525,6 +540,12 @@ triangles (F,3) int32 0-based, texcoord_index (F,3) int32 (-1 on a face without 
 face_material (F,) int32 into materials (-1: none), materials (usemtl names),
 material_libraries (mtllib names)). Polygons are fan-triangulated. ValueError
 naming the line on malformed input.)");
+
+  m.def("write_obj", &write_obj_py, py::arg("path"), py::arg("library"), py::arg("positions"),
+        py::arg("triangles"), py::arg("uvs"), py::arg("face_material"), py::arg("materials"),
+        R"(Writes a Wavefront OBJ file: `mtllib library`, positions (V,3), one vt per face corner
+of uvs (F,3,2), and faces grouped by face_material (F,) in ascending order, each group
+after `usemtl materials[m]`. Numbers as %.9g.)");
 
   m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),

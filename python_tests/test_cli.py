@@ -85,3 +85,15 @@ def test_gltf_with_files_beside_it_reads_as_the_glb(scans, scan_path, tmp_path):
         assert np.array_equal(getattr(split, name), getattr(glb, name)), name
     assert [sorted(m) for m in split.maps] == [sorted(m) for m in glb.maps]
     assert all(split.maps[0][role] == glb.maps[0][role] for role in glb.maps[0])
+
+
+def test_cli_without_metrics_writes_the_same_files(scan_path, tool_env, tmp_path):
+    source = scan_path("tetra")
+    runs = [subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path / name), *flags],
+                           capture_output=True, text=True, timeout=300, env=tool_env)
+            for name, flags in (("full", []), ("quick", ["--no-metrics"]))]
+    assert all(r.returncode == 0 for r in runs), [r.stderr for r in runs]
+    assert "PSNR" in runs[0].stdout and "PSNR" not in runs[1].stdout and "charts" in runs[1].stdout
+    full, quick = sorted((tmp_path / "full").iterdir()), sorted((tmp_path / "quick").iterdir())
+    assert [f.name for f in full] == [f.name for f in quick]
+    assert all(a.read_bytes() == b.read_bytes() for a, b in zip(full, quick))

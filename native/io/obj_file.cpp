@@ -140,6 +140,46 @@ void read_line(std::string_view line, int number, Lists& lists) {
   }
 }
 
+// Lines are formatted into a buffer flushed in large blocks.
+class TextOut {
+ public:
+  explicit TextOut(const std::string& path) : file_(std::fopen(path.c_str(), "wb"), &std::fclose), path_(path) {
+    if (!file_) throw InputError("cannot write " + path);
+  }
+  TextOut& text(std::string_view s) {
+    buffer_.append(s);
+    return flush_if_full();
+  }
+  TextOut& number(double value) {  // %.9g
+    char digits[32];
+    const auto end = std::to_chars(digits, digits + sizeof digits, value, std::chars_format::general, 9).ptr;
+    buffer_.append(digits, end);
+    return *this;
+  }
+  TextOut& integer(long long value) {
+    char digits[24];
+    buffer_.append(digits, std::to_chars(digits, digits + sizeof digits, value).ptr);
+    return *this;
+  }
+  void close() {
+    flush();
+    if (std::fclose(file_.release()) != 0) throw InputError("cannot write " + path_);
+  }
+
+ private:
+  TextOut& flush_if_full() {
+    if (buffer_.size() > (1 << 20)) flush();
+    return *this;
+  }
+  void flush() {
+    if (std::fwrite(buffer_.data(), 1, buffer_.size(), file_.get()) != buffer_.size())
+      throw InputError("cannot write " + path_);
+    buffer_.clear();
+  }
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file_;
+  std::string path_, buffer_;
+};
+
 template <class Matrix, class T>
 Matrix rows_of(const std::vector<T>& values) {
   return Eigen::Map<const Matrix>(values.data(), static_cast<Eigen::Index>(values.size() / Matrix::ColsAtCompileTime),
@@ -169,6 +209,38 @@ ObjFile read_obj(const std::string& path) {
   out.face_material = Eigen::Map<const Eigen::VectorXi>(lists.face_material.data(),
                                                         static_cast<Eigen::Index>(lists.face_material.size()));
   return std::move(out);
+}
+
+void write_obj(const std::string& path, const std::string& library, const RowMatrixX3d& positions,
+               const RowMatrixX3i& triangles, const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_material,
+               const std::vector<std::string>& materials) {
+  if (corner_uv.rows() != 3 * triangles.rows() || face_material.size() != triangles.rows())
+    throw InputError("write_obj: corner_uv must hold 3 rows and face_material 1 entry per face");
+  if (triangles.size() && (triangles.minCoeff() < 0 || triangles.maxCoeff() >= positions.rows()))
+    throw InputError("write_obj: triangles refer to vertices that do not exist");
+  std::vector<std::vector<int>> faces_of(materials.size());
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    if (face_material[f] < 0 || face_material[f] >= static_cast<int>(materials.size()))
+      throw InputError("write_obj: face_material refers to a material that is not named");
+    faces_of[face_material[f]].push_back(static_cast<int>(f));
+  }
+  TextOut out(path);
+  out.text("mtllib ").text(library).text("\n");
+  for (Eigen::Index v = 0; v < positions.rows(); ++v)
+    out.text("v ").number(positions(v, 0)).text(" ").number(positions(v, 1)).text(" ").number(positions(v, 2)).text("\n");
+  for (Eigen::Index c = 0; c < corner_uv.rows(); ++c)
+    out.text("vt ").number(corner_uv(c, 0)).text(" ").number(corner_uv(c, 1)).text("\n");
+  for (size_t m = 0; m < materials.size(); ++m) {
+    if (faces_of[m].empty()) continue;
+    out.text("usemtl ").text(materials[m]).text("\n");
+    for (const int f : faces_of[m]) {
+      out.text("f");
+      for (int k = 0; k < 3; ++k)  // 1-based; corner k of face f is texcoord 3f + k
+        out.text(" ").integer(triangles(f, k) + 1).text("/").integer(3LL * f + k + 1);
+      out.text("\n");
+    }
+  }
+  out.close();
 }
 
 }  // namespace atlas::obj

@@ -1,5 +1,5 @@
-// Wavefront OBJ geometry as plain arrays, for the command-line entry (the
-// add-on reads meshes through Blender). Only what a textured scan needs:
+// Wavefront OBJ geometry as plain arrays, read and written for the
+// command-line entry (the add-on goes through Blender). Only what a textured scan needs:
 // positions, texture coordinates, faces (fan-triangulated) and the material
 // each face uses; normals, groups, lines and points are skipped.
 #pragma once
@@ -27,5 +27,15 @@ struct ObjFile {
 // naming the line for a malformed number or an index outside the file's
 // elements, and for a file that cannot be read.
 ObjFile read_obj(const std::string& path);
+
+// Writes positions (V x 3), one `vt` per face corner (corner_uv, 3F x 2) and
+// the faces, grouped by material in ascending order, each group after
+// `usemtl materials[m]` (face_material, F, indexes materials), after a line
+// `mtllib library`. Numbers keep 9 significant digits (%.9g): float32 UVs
+// and positions survive the round trip. Throws InputError if the file
+// cannot be written.
+void write_obj(const std::string& path, const std::string& library, const RowMatrixX3d& positions,
+               const RowMatrixX3i& triangles, const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_material,
+               const std::vector<std::string>& materials);
 
 }  // namespace atlas::obj
