@@ -13,6 +13,7 @@
 #include "bake/bake.hpp"
 #include "charts/chart_graph.hpp"
 #include "charts/degenerate_faces.hpp"
+#include "io/obj_file.hpp"
 #include "metrics.hpp"
 #include "pipeline.hpp"
 
@@ -360,6 +361,54 @@ py::dict chart_graph_py(const py::object& positions, const py::object& triangles
   return out;
 }
 
+// A row-major Eigen matrix as a new (rows, cols) numpy array.
+template <class Matrix>
+py::array rows_array(const Matrix& m) {
+  using T = typename Matrix::Scalar;
+  return py::array_t<T>({static_cast<py::ssize_t>(m.rows()), static_cast<py::ssize_t>(m.cols())}, m.data());
+}
+
+// Names from a file as str; bytes that are not UTF-8 become U+FFFD, as
+// Python's errors="replace" reads them.
+py::list file_names(const std::vector<std::string>& names) {
+  py::list out;
+  for (const std::string& name : names)
+    out.append(py::reinterpret_steal<py::str>(PyUnicode_DecodeUTF8(name.data(), static_cast<py::ssize_t>(name.size()), "replace")));
+  return out;
+}
+
+py::dict read_obj_py(const std::string& path) {
+  obj::ObjFile f;
+  {
+    py::gil_scoped_release release;
+    f = obj::read_obj(path);
+  }
+  py::dict out;
+  out["positions"] = rows_array(f.positions);
+  out["texcoords"] = rows_array(f.texcoords);
+  out["triangles"] = rows_array(f.triangles);
+  out["texcoord_index"] = rows_array(f.texcoord_index);
+  out["face_material"] = py::array_t<int>(f.face_material.size(), f.face_material.data());
+  out["materials"] = file_names(f.materials);
+  out["material_libraries"] = file_names(f.material_libraries);
+  return out;
+}
+
+void write_obj_py(const std::string& path, const std::string& library, const py::object& positions,
+                  const py::object& triangles, const py::object& uvs, const py::object& face_material,
+                  const std::vector<std::string>& materials) {
+  const auto p = checked<double>(positions, "positions", {3}, "(V, 3)");
+  const auto t = checked<int>(triangles, "triangles", {3}, "(F, 3)");
+  const auto u = checked<double>(uvs, "uvs", {3, 2}, "(F, 3, 2)");
+  const auto m = checked<long long>(face_material, "face_material", {}, "(F,)");
+  const RowMatrixX3d points = to_matrix<RowMatrixX3d>(p, p.shape(0), 3);
+  const RowMatrixX3i faces = to_matrix<RowMatrixX3i>(t, t.shape(0), 3);
+  const RowMatrixX2d corner_uv = to_matrix<RowMatrixX2d>(u, 3 * u.shape(0), 2);
+  const Eigen::VectorXi material = int_values(m, "face_material");
+  py::gil_scoped_release release;
+  obj::write_obj(path, library, points, faces, corner_uv, material, materials);
+}
+
 // Images as (H, W, C) arrays, row 0 at v = 0; all of one dtype T. The arrays
 // are returned too so their buffers outlive the views.
 template <class T>
@@ -616,6 +665,19 @@ normal_map re-orients tangent-space XY per face. with_stats: returns (images,
 dict(covered_texels, copied_texels, copied_share)), copied texels being taken
 unresampled from the old texel they land on (faces moved by whole texels and
 quarter turns only).)");
+
+  m.def("read_obj", &read_obj_py, py::arg("path"),
+        R"(Reads a Wavefront OBJ file: dict(positions (V,3) float64, texcoords (T,2) float64,
+triangles (F,3) int32 0-based, texcoord_index (F,3) int32 (-1 on a face without UVs),
+face_material (F,) int32 into materials (-1: none), materials (usemtl names),
+material_libraries (mtllib names)). Polygons are fan-triangulated. ValueError
+naming the line on malformed input.)");
+
+  m.def("write_obj", &write_obj_py, py::arg("path"), py::arg("library"), py::arg("positions"),
+        py::arg("triangles"), py::arg("uvs"), py::arg("face_material"), py::arg("materials"),
+        R"(Writes a Wavefront OBJ file: `mtllib library`, positions (V,3), one vt per face corner
+of uvs (F,3,2), and faces grouped by face_material (F,) in ascending order, each group
+after `usemtl materials[m]`. Numbers as %.9g.)");
 
   m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),

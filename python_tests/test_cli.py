@@ -31,3 +31,69 @@ def test_cli_output_loads_back_flip_free_with_the_colours_kept(native, scans, sc
     fidelity = native.compare_colors(scan.positions, scan.triangles, scan.uvs, scan.face_page, old,
                                      written.uvs, written.face_page, new, samples=100000)
     assert fidelity["psnr_db"] > 38
+
+
+def test_obj_reader_triangulates_polygons_and_resolves_relative_indices(native, tmp_path):
+    path = tmp_path / "quad.obj"
+    path.write_text("mtllib a b.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0 0.5 0.5 0.5\n"
+                    "vt 0 0\nvt 1 0\nvt 1 1 0\nvt 0 1\nusemtl first\nf 1/1 2/2 3/3 4/4\n"
+                    "usemtl second one\nf -4/-4/1 -2/-2/1 -1/-1/1\nf 1//1 2//1 3//1  # no UVs\nf 1 2\n")
+    obj = native.read_obj(str(path))
+    assert obj["triangles"].tolist() == [[0, 1, 2], [0, 2, 3], [0, 2, 3], [0, 1, 2]]
+    assert obj["texcoord_index"].tolist() == [[0, 1, 2], [0, 2, 3], [0, 2, 3], [-1, -1, -1]]
+    assert obj["face_material"].tolist() == [0, 0, 1, 1]
+    assert obj["materials"] == ["first", "second one"] and obj["material_libraries"] == ["a b.mtl"]
+    assert obj["positions"].shape == (4, 3) and obj["texcoords"][2].tolist() == [1.0, 1.0]
+
+
+def test_obj_reader_names_the_line_of_a_bad_index_or_number(native, tmp_path):
+    import pytest
+
+    path = tmp_path / "bad.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 4\n")
+    with pytest.raises(ValueError, match="line 4: vertex index 4"):
+        native.read_obj(str(path))
+    path.write_text("v 0 0 x\n")
+    with pytest.raises(ValueError, match="line 1: expected a number"):
+        native.read_obj(str(path))
+    with pytest.raises(ValueError, match="cannot open"):
+        native.read_obj(str(tmp_path / "missing.obj"))
+
+
+def test_gltf_with_files_beside_it_reads_as_the_glb(scans, scan_path, tmp_path):
+    """The Smithsonian GLB split into .gltf + .bin + image files reads back the same."""
+    import json
+    import struct
+
+    import scan_io
+
+    data = scan_path("smithsonian").read_bytes()
+    json_len = struct.unpack_from("<I", data, 12)[0]
+    gltf = json.loads(data[20:20 + json_len])
+    binary = data[28 + json_len:28 + json_len + struct.unpack_from("<I", data, 20 + json_len)[0]]
+    for i, image in enumerate(gltf["images"]):
+        view = gltf["bufferViews"][image.pop("bufferView")]
+        start = view.get("byteOffset", 0)
+        (tmp_path / f"image {i}.png").write_bytes(binary[start:start + view["byteLength"]])
+        image["uri"] = f"image%20{i}.png"
+    (tmp_path / "scan.bin").write_bytes(binary)
+    gltf["buffers"][0]["uri"] = "scan.bin"
+    (tmp_path / "scan.gltf").write_text(json.dumps(gltf))
+
+    glb, split = scans("smithsonian"), scan_io.load(tmp_path / "scan.gltf")
+    for name in ("positions", "triangles", "uvs", "face_page", "page_sizes"):
+        assert np.array_equal(getattr(split, name), getattr(glb, name)), name
+    assert [sorted(m) for m in split.maps] == [sorted(m) for m in glb.maps]
+    assert all(split.maps[0][role] == glb.maps[0][role] for role in glb.maps[0])
+
+
+def test_cli_without_metrics_writes_the_same_files(scan_path, tool_env, tmp_path):
+    source = scan_path("tetra")
+    runs = [subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path / name), *flags],
+                           capture_output=True, text=True, timeout=300, env=tool_env)
+            for name, flags in (("full", []), ("quick", ["--no-metrics"]))]
+    assert all(r.returncode == 0 for r in runs), [r.stderr for r in runs]
+    assert "PSNR" in runs[0].stdout and "PSNR" not in runs[1].stdout and "charts" in runs[1].stdout
+    full, quick = sorted((tmp_path / "full").iterdir()), sorted((tmp_path / "quick").iterdir())
+    assert [f.name for f in full] == [f.name for f in quick]
+    assert all(a.read_bytes() == b.read_bytes() for a, b in zip(full, quick))

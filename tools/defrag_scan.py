@@ -1,11 +1,12 @@
 """Defragments a scan's atlas without Blender and prints what changed.
 
-    PYTHONPATH=build/addon .venv/bin/python tools/defrag_scan.py IN.obj|IN.glb OUT_DIR [options]
+    PYTHONPATH=build/addon .venv/bin/python tools/defrag_scan.py IN.obj|IN.gltf|IN.glb OUT_DIR [options]
 
 Runs the add-on's job (atlas_defrag.job.run, the same layout and bake as in
 Blender), writes OUT_DIR/<name>.obj + .mtl + one PNG per page and map, and
-prints charts, seam length, texels, PSNR and seconds per stage. The options
-are those of the add-on (--help lists them). This entry exists for machines
+prints charts, seam length, texels, PSNR and seconds per stage (--no-metrics
+skips flips, overlap, density loss and PSNR). The other options are those of
+the add-on (--help lists them). This entry exists for machines
 and pipelines without Blender.
 """
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -32,17 +34,10 @@ def progress_line(stage: str, fraction: float) -> None:
         print(f"\r  {stage:<10} {fraction:6.1%}", end="", file=sys.stderr, flush=True)
 
 
-def write_rows(fh, line_format: str, rows: np.ndarray, chunk: int = 1 << 16) -> None:
-    """One line per row, a chunk of rows per %-format call: several times
-    faster than np.savetxt, which formats row by row."""
-    for start in range(0, len(rows), chunk):
-        block = rows[start:start + chunk]
-        fh.write((line_format * len(block)) % tuple(block.ravel().tolist()))
-
-
 def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: list[dict]) -> None:
     """One vt per face corner keeps the writer trivial; importers weld them back.
-    The maps' PNGs are encoded side by side (png_files, as the add-on does)."""
+    The OBJ text is written natively (_native.write_obj) while the maps' PNGs
+    are encoded side by side (png_files, as the add-on does)."""
     stem = path.stem
     images = []
     with open(path.with_suffix(".mtl"), "w") as mtl:
@@ -54,17 +49,12 @@ def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: li
                 key = {"base_color": "map_Kd", "normal": "norm", "occlusion": "map_ao"}.get(role)
                 if key:
                     mtl.write(f"{key} {name}\n")
-    png_files.write_pngs(images)
-    with open(path, "w") as obj:
-        obj.write(f"mtllib {stem}.mtl\n")
-        write_rows(obj, "v %.9g %.9g %.9g\n", scan.positions)
-        write_rows(obj, "vt %.9g %.9g\n", uvs.reshape(-1, 2))
-        corners = np.arange(3 * len(scan.triangles)).reshape(-1, 3) + 1
-        for page in np.unique(face_page):
-            faces = np.nonzero(face_page == page)[0]
-            obj.write(f"usemtl page{page}\n" if page >= 0 else "usemtl untextured\n")
-            rows = np.stack([scan.triangles[faces] + 1, corners[faces]], axis=2).reshape(len(faces), 6)
-            write_rows(obj, "f %d/%d %d/%d %d/%d\n", rows)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        pngs = pool.submit(png_files.write_pngs, images)
+        # Material 0 is "untextured" (page -1), material p + 1 is page p.
+        _native.write_obj(str(path), f"{stem}.mtl", scan.positions, scan.triangles, uvs, face_page + 1,
+                          ["untextured"] + [f"page{p}" for p in range(len(maps))])
+        pngs.result()
 
 
 def job_input(scan) -> job.JobInput:
@@ -100,10 +90,24 @@ def colours(inp: job.JobInput, result: job.JobResult):
     return old, new
 
 
+def quality(scan, inp: job.JobInput, result: job.JobResult):
+    """(measure, compare_colors) of the new atlas against the scan's: flips,
+    texels covered twice, density loss and colour PSNR."""
+    m = _native.measure(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
+                        result.uvs, result.face_page, result.page_sizes)
+    old_colour, new_colour = colours(inp, result)
+    fidelity = _native.compare_colors(scan.positions, scan.triangles, scan.uvs, scan.face_page, old_colour,
+                                      result.uvs, result.face_page, new_colour)
+    return m, fidelity
+
+
 def parse_args(argv):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("input", type=Path)
     parser.add_argument("output", type=Path)
+    parser.add_argument("--no-metrics", action="store_true",
+                        help="skip the quality figures (flips, texels covered twice, density loss, PSNR); "
+                             "by default they are measured while the files are written")
     options.add_arguments(parser)
     return parser.parse_args(argv)
 
@@ -122,14 +126,14 @@ def main(argv=None) -> int:
         return 1
     if sys.stderr.isatty():
         print(file=sys.stderr)
-    m = _native.measure(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
-                        result.uvs, result.face_page, result.page_sizes)
-    old_colour, new_colour = colours(inp, result)
-    fidelity = _native.compare_colors(scan.positions, scan.triangles, scan.uvs, scan.face_page, old_colour,
-                                      result.uvs, result.face_page, new_colour)
     args.output.mkdir(parents=True, exist_ok=True)
-    write_obj(args.output / f"{args.input.stem}_defrag.obj", scan, result.uvs, result.face_page,
-              page_maps(result))
+    # The metrics run natively without the GIL, beside the writing (Python
+    # formatting the OBJ text, zlib the PNGs).
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        measured = None if args.no_metrics else pool.submit(quality, scan, inp, result)
+        write_obj(args.output / f"{args.input.stem}_defrag.obj", scan, result.uvs, result.face_page,
+                  page_maps(result))
+        m, fidelity = measured.result() if measured else (None, None)
     print(f"{args.input.name}: {len(scan.triangles)} faces")
     print_report(result, m, fidelity, t_load)
     print(f"  written to    {args.output}")
@@ -153,12 +157,13 @@ def print_report(result: job.JobResult, m: dict, fidelity: dict, t_load: float) 
           f"(packing efficiency {r['packing_efficiency']:.1%}, scale {r['scale']:.3f}"
           f"{', SHRUNK below the density asked for' if r['shrunk'] else ''}; pages {result.page_sizes.tolist()})")
     print(f"  copied        {r['copied_share']:.1%} of the covered texels taken unresampled from the old atlas")
-    print(f"  flipped       {m['old']['flipped_faces']} -> {m['new']['flipped_faces']}; "
-          f"texels shared by two triangles {m['old']['overlap_texels']} -> {m['new']['overlap_texels']}")
-    print(f"  density loss  {m['map']['density_loss_area_share']:.2%} of the area below half its texel density")
-    print(f"  colour        PSNR {fidelity['psnr_db']:.1f} dB (clean {fidelity['psnr_clean_db']:.1f}, border "
-          f"{fidelity['psnr_border_db']:.1f}, {fidelity['clean_share']:.0%} clean), "
-          f"{fidelity['share_off_32']:.2%} of points off by > 32/255")
+    if m is not None:
+        print(f"  flipped       {m['old']['flipped_faces']} -> {m['new']['flipped_faces']}; "
+              f"texels shared by two triangles {m['old']['overlap_texels']} -> {m['new']['overlap_texels']}")
+        print(f"  density loss  {m['map']['density_loss_area_share']:.2%} of the area below half its texel density")
+        print(f"  colour        PSNR {fidelity['psnr_db']:.1f} dB (clean {fidelity['psnr_clean_db']:.1f}, border "
+              f"{fidelity['psnr_border_db']:.1f}, {fidelity['clean_share']:.0%} clean), "
+              f"{fidelity['share_off_32']:.2%} of points off by > 32/255")
     stages = ", ".join(f"{k} {v:.2f}" for k, v in r["seconds"].items() if k != "total")
     print(f"  seconds       load {t_load:.2f}, {stages}")
 

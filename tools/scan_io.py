@@ -1,14 +1,16 @@
-"""Reads textured scans (OBJ+MTL, GLB) into plain numpy arrays, without Blender.
+"""Reads textured scans (OBJ+MTL, glTF, GLB) into plain numpy arrays, without Blender.
 
 Used by the tests, the benchmark and the command-line demo; the add-on reads
-meshes through bpy instead. Polygons are fan-triangulated here, because the
-native module takes triangles only.
+meshes through bpy instead. Polygons are fan-triangulated (OBJ by the native
+reader, _native.read_obj), because the native stages take triangles only.
 """
 from __future__ import annotations
 
+import base64
 import io
 import json
 import struct
+import urllib.parse
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,11 +49,14 @@ def image_size(source) -> tuple[int, int]:
 
 def load(path) -> Scan:
     path = Path(path)
-    if path.suffix.lower() == ".obj":
+    suffix = path.suffix.lower()
+    if suffix == ".obj":
         return load_obj(path)
-    if path.suffix.lower() == ".glb":
+    if suffix == ".glb":
         return load_glb(path)
-    raise ValueError(f"unsupported scan format: {path.suffix}")
+    if suffix == ".gltf":
+        return load_gltf(path)
+    raise ValueError(f"unsupported scan format: {path.suffix} (OBJ, glTF or GLB)")
 
 
 # ---- OBJ ------------------------------------------------------------------
@@ -75,60 +80,45 @@ def _read_mtl_textures(obj_path: Path, mtllibs: list[str]) -> dict[str, Path]:
 
 
 def load_obj(path: Path) -> Scan:
-    verts, texcoords, faces, face_mtl, mtllibs = [], [], [], [], []
-    material = None
-    with open(path, errors="replace") as fh:
-        for line in fh:
-            if line.startswith("v "):
-                verts.append(line.split()[1:4])
-            elif line.startswith("vt "):
-                texcoords.append(line.split()[1:3])
-            elif line.startswith("f "):
-                corners = [c.split("/") for c in line.split()[1:]]
-                for i in range(1, len(corners) - 1):  # fan triangulation
-                    faces.append((corners[0], corners[i], corners[i + 1]))
-                    face_mtl.append(material)
-            elif line.startswith("usemtl"):
-                material = line.split(maxsplit=1)[1].strip() if len(line.split()) > 1 else None
-            elif line.startswith("mtllib"):
-                mtllibs.append(line.split(maxsplit=1)[1].strip())
-    positions = np.asarray(verts, dtype=np.float64)
-    vt = np.asarray(texcoords, dtype=np.float64).reshape(-1, 2)
-    n_v, n_t = len(positions), len(vt)
+    """The geometry through the native reader (_native.read_obj): parsing in
+    Python took about 24 s for a million faces, the native reader well under
+    a tenth of that (bench/RESULTS.md)."""
+    from atlas_defrag import _native
 
-    def index(token: str, count: int) -> int:
-        i = int(token)
-        return i - 1 if i > 0 else count + i
+    obj = _native.read_obj(str(path))
+    tris, uv_idx = obj["triangles"], obj["texcoord_index"]
+    has_uv = uv_idx[:, 0] >= 0
+    vt = obj["texcoords"]
+    uvs = vt[np.maximum(uv_idx, 0)] if len(vt) else np.zeros((len(tris), 3, 2))
+    uvs[~has_uv] = 0.0
 
-    tris = np.array([[index(c[0], n_v) for c in f] for f in faces], dtype=np.int32)
-    has_uv = np.array([all(len(c) > 1 and c[1] for c in f) for f in faces])
-    uv_idx = np.array([[index(c[1], n_t) if h else 0 for c in f] for f, h in zip(faces, has_uv)], dtype=np.int64)
-    uvs = vt[uv_idx] if n_t else np.zeros((len(faces), 3, 2))
-
-    textures = _read_mtl_textures(path, mtllibs)
+    textures = _read_mtl_textures(path, obj["material_libraries"])
     pages, page_of = [], {}
-    face_page = np.full(len(faces), -1, dtype=np.int32)
-    for f, (m, h) in enumerate(zip(face_mtl, has_uv)):
-        tex = textures.get(m)
-        if not h or tex is None or not tex.exists():
+    material_page = np.full(len(obj["materials"]) + 1, -1, dtype=np.int32)  # the last: no usemtl
+    used, first_face = np.unique(obj["face_material"][has_uv], return_index=True)
+    for m in used[np.argsort(first_face)]:  # pages in the order faces first use them
+        tex = textures.get(obj["materials"][m]) if m >= 0 else None
+        if tex is None or not tex.exists():
             continue
         if tex not in page_of:
             page_of[tex] = len(pages)
             pages.append(tex)
-        face_page[f] = page_of[tex]
+        material_page[m] = page_of[tex]
+    face_page = np.where(has_uv, material_page[obj["face_material"]], -1).astype(np.int32)
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
-    return Scan(positions, tris, uvs, face_page, sizes, pages, [{"base_color": p} for p in pages])
+    return Scan(obj["positions"], tris, uvs, face_page, sizes, pages, [{"base_color": p} for p in pages])
 
 
-# ---- GLB ------------------------------------------------------------------
+# ---- glTF and GLB -----------------------------------------------------------
 
 _COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 
 
-def _accessor(gltf: dict, binary: bytes, index: int) -> np.ndarray:
+def _accessor(gltf: dict, buffers: list, index: int) -> np.ndarray:
     acc = gltf["accessors"][index]
     view = gltf["bufferViews"][acc["bufferView"]]
+    binary = buffers[view["buffer"]]
     dtype = np.dtype(_COMPONENTS[acc["componentType"]])
     width = _WIDTH[acc["type"]]
     start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
@@ -142,11 +132,20 @@ def _accessor(gltf: dict, binary: bytes, index: int) -> np.ndarray:
     return values
 
 
-def _image_bytes(gltf: dict, binary: bytes, texture_index: int) -> bytes:
+def _uri_bytes(uri: str, folder: Path) -> bytes:
+    """A glTF uri: an embedded data: URI, or a file beside the .gltf."""
+    if uri.startswith("data:"):
+        return base64.b64decode(uri.split(",", 1)[1])
+    return (folder / urllib.parse.unquote(uri)).read_bytes()
+
+
+def _image_bytes(gltf: dict, buffers: list, folder: Path, texture_index: int) -> bytes:
     image = gltf["images"][gltf["textures"][texture_index]["source"]]
+    if "uri" in image:
+        return _uri_bytes(image["uri"], folder)
     view = gltf["bufferViews"][image["bufferView"]]
     start = view.get("byteOffset", 0)
-    return binary[start:start + view["byteLength"]]
+    return buffers[view["buffer"]][start:start + view["byteLength"]]
 
 
 def _node_matrices(gltf: dict):
@@ -182,9 +181,23 @@ def load_glb(path: Path) -> Scan:
     json_len, _ = struct.unpack_from("<II", data, 12)
     gltf = json.loads(data[20:20 + json_len])
     bin_offset = 20 + json_len
-    bin_len, _ = struct.unpack_from("<II", data, bin_offset)
-    binary = data[bin_offset + 8:bin_offset + 8 + bin_len]
+    chunk = b""
+    if bin_offset + 8 <= len(data):
+        bin_len, _ = struct.unpack_from("<II", data, bin_offset)
+        chunk = data[bin_offset + 8:bin_offset + 8 + bin_len]
+    # Buffer 0 without a uri is the binary chunk; any other is a uri.
+    buffers = [chunk if "uri" not in b else _uri_bytes(b["uri"], path.parent) for b in gltf.get("buffers", [])]
+    return _scan_from_gltf(gltf, buffers, path.parent)
 
+
+def load_gltf(path: Path) -> Scan:
+    """A .gltf file: JSON, with buffers and images in files beside it or in data: URIs."""
+    gltf = json.loads(path.read_text(encoding="utf-8"))
+    buffers = [_uri_bytes(b["uri"], path.parent) for b in gltf.get("buffers", [])]
+    return _scan_from_gltf(gltf, buffers, path.parent)
+
+
+def _scan_from_gltf(gltf: dict, buffers: list, folder: Path) -> Scan:
     positions, tris, uvs, face_page = [], [], [], []
     pages, page_of, maps = [], {}, []
     base = 0
@@ -192,14 +205,14 @@ def load_glb(path: Path) -> Scan:
         for prim in gltf["meshes"][mesh_index]["primitives"]:
             if prim.get("mode", 4) != 4:
                 continue
-            pos = _accessor(gltf, binary, prim["attributes"]["POSITION"]).astype(np.float64)
+            pos = _accessor(gltf, buffers, prim["attributes"]["POSITION"]).astype(np.float64)
             pos = pos @ world[:3, :3].T + world[:3, 3]
-            idx = _accessor(gltf, binary, prim["indices"]).reshape(-1, 3).astype(np.int64)
+            idx = _accessor(gltf, buffers, prim["indices"]).reshape(-1, 3).astype(np.int64)
             material = gltf["materials"][prim["material"]] if "material" in prim else {}
             pbr = material.get("pbrMetallicRoughness", {})
             tex = pbr.get("baseColorTexture")
             if "TEXCOORD_0" in prim["attributes"]:
-                uv = _accessor(gltf, binary, prim["attributes"]["TEXCOORD_0"]).astype(np.float64)
+                uv = _accessor(gltf, buffers, prim["attributes"]["TEXCOORD_0"]).astype(np.float64)
                 uv[:, 1] = 1.0 - uv[:, 1]  # glTF puts v = 0 at the top
                 uvs.append(uv[idx])
             else:
@@ -210,14 +223,14 @@ def load_glb(path: Path) -> Scan:
                 key = prim.get("material")
                 if key not in page_of:
                     page_of[key] = len(pages)
-                    pages.append(_image_bytes(gltf, binary, tex["index"]))
+                    pages.append(_image_bytes(gltf, buffers, folder, tex["index"]))
                     roles = {"base_color": pages[-1]}
                     for role, slot in (("normal", material.get("normalTexture")),
                                        ("occlusion", material.get("occlusionTexture")),
                                        ("metallic_roughness", pbr.get("metallicRoughnessTexture")),
                                        ("emission", material.get("emissiveTexture"))):
                         if slot is not None:
-                            roles[role] = _image_bytes(gltf, binary, slot["index"])
+                            roles[role] = _image_bytes(gltf, buffers, folder, slot["index"])
                     maps.append(roles)
                 page = page_of[key]
             positions.append(pos)

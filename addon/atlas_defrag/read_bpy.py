@@ -289,26 +289,37 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
     return maps, pin_images, pin_uv_nodes, pin_normal_nodes
 
 
+# Floats converted to bytes per block of this many: the block stays in cache,
+# where whole-image passes (scale, round, cast) each went through memory.
+_BYTE_BLOCK = 1 << 16
+
+
 def read_pixels(img) -> np.ndarray:
-    """(H, W, C) row 0 = bottom; uint8 for byte images, float32 for float ones."""
+    """(H, W, C) row 0 = bottom; uint8 for byte images, float32 for float ones.
+
+    bpy hands out pixels as floats only; a byte image's values are b / 255,
+    and rint(255 f) gives b back exactly."""
     w, h = img.size
     c = img.channels
     n = w * h * c
     try:
         buf = np.empty(n, dtype=np.float32)
+        out = buf if img.is_float else np.empty(n, dtype=np.uint8)
     except MemoryError as exc:
         raise DefragError(f"Out of memory reading image '{img.name}' ({w}x{h})") from exc
     if len(img.pixels) != n:
         raise DefragError(f"Image '{img.name}' has an unexpected pixel count")
     img.pixels.foreach_get(buf)
-    if not img.is_float:
-        buf *= 255.0
-        np.rint(buf, out=buf)
-        arr = buf.astype(np.uint8)
+    if out is not buf:
+        block = np.empty(_BYTE_BLOCK, dtype=np.float32)
+        for start in range(0, n, _BYTE_BLOCK):
+            src = buf[start:start + _BYTE_BLOCK]
+            tmp = block[:len(src)]
+            np.multiply(src, 255.0, out=tmp)
+            np.rint(tmp, out=tmp)
+            out[start:start + len(src)] = tmp
         del buf
-    else:
-        arr = buf
-    return arr.reshape(h, w, c)
+    return out.reshape(h, w, c)
 
 
 def read(obj, uv_map: Optional[str] = None) -> ReadResult:

@@ -1,0 +1,246 @@
+#include "io/obj_file.hpp"
+
+#include <charconv>
+#include <cstdio>
+#include <memory>
+#include <sstream>
+#include <string_view>
+#include <unordered_map>
+
+namespace atlas::obj {
+namespace {
+
+// The whole file in memory: a 1M-face scan is about 100 MB of text, and one
+// read is several times faster than line-by-line streams.
+std::string file_contents(const std::string& path) {
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!file) throw InputError("cannot open " + path);
+  std::string text;
+  char buffer[1 << 16];
+  for (size_t n; (n = std::fread(buffer, 1, sizeof buffer, file.get())) > 0;) text.append(buffer, n);
+  if (std::ferror(file.get())) throw InputError("cannot read " + path);
+  return text;
+}
+
+bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+
+// The whitespace-separated words of one line, read front to back.
+class Words {
+ public:
+  Words(std::string_view line, int number) : rest_(line), number_(number) {}
+
+  // The next word, empty at the end of the line.
+  std::string_view next() {
+    size_t start = 0;
+    while (start < rest_.size() && is_space(rest_[start])) ++start;
+    size_t end = start;
+    while (end < rest_.size() && !is_space(rest_[end])) ++end;
+    const std::string_view word = rest_.substr(start, end - start);
+    rest_.remove_prefix(end);
+    return word;
+  }
+
+  // Everything after the keyword, without surrounding blanks (names may hold spaces).
+  std::string_view remainder() const {
+    std::string_view s = rest_;
+    while (!s.empty() && is_space(s.front())) s.remove_prefix(1);
+    while (!s.empty() && is_space(s.back())) s.remove_suffix(1);
+    return s;
+  }
+
+  double number() {
+    std::string_view word = next();
+    if (!word.empty() && word.front() == '+') word.remove_prefix(1);  // from_chars takes no '+'
+    double value = 0;
+    const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
+    if (word.empty() || error != std::errc() || end != word.data() + word.size()) fail("a number", word);
+    return value;
+  }
+
+  [[noreturn]] void fail(const char* expected, std::string_view word) const {
+    std::ostringstream msg;
+    msg << "OBJ line " << number_ << ": expected " << expected << ", got '" << word << "'";
+    throw InputError(msg.str());
+  }
+
+  int line_number() const { return number_; }
+
+ private:
+  std::string_view rest_;
+  int number_;
+};
+
+// One index of a face corner (1-based, or negative from the end of the
+// elements defined so far) as a 0-based index; `count` elements exist.
+int element_index(std::string_view token, int count, const char* what, const Words& words) {
+  long long value = 0;
+  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+  if (token.empty() || error != std::errc() || end != token.data() + token.size()) words.fail("an index", token);
+  const long long index = value > 0 ? value - 1 : count + value;
+  if (value == 0 || index < 0 || index >= count) {
+    std::ostringstream msg;
+    msg << "OBJ line " << words.line_number() << ": " << what << " index " << value << " is outside the "
+        << count << " defined before it";
+    throw InputError(msg.str());
+  }
+  return static_cast<int>(index);
+}
+
+// What the parser gathers before the arrays are built.
+struct Lists {
+  std::vector<double> positions, texcoords;
+  std::vector<int> corners, corner_texcoords, face_material;
+  std::vector<int> face_vertices, face_texcoords;  // of the face being read, kept to spare an allocation per face
+  std::unordered_map<std::string, int> material_of;
+  int material = -1;
+  ObjFile out;
+};
+
+// A `f` line: corners v, v/vt, v//vn or v/vt/vn, as a fan of triangles.
+void read_face(Words& words, Lists& lists) {
+  std::vector<int>& vertex = lists.face_vertices;
+  std::vector<int>& texcoord = lists.face_texcoords;
+  vertex.clear(), texcoord.clear();
+  bool textured = true;
+  const int vertices = static_cast<int>(lists.positions.size() / 3);
+  const int texcoords = static_cast<int>(lists.texcoords.size() / 2);
+  for (std::string_view corner = words.next(); !corner.empty(); corner = words.next()) {
+    const size_t slash = corner.find('/');
+    vertex.push_back(element_index(corner.substr(0, slash), vertices, "vertex", words));
+    std::string_view uv = slash == std::string_view::npos ? std::string_view() : corner.substr(slash + 1);
+    uv = uv.substr(0, uv.find('/'));
+    if (uv.empty()) textured = false;
+    else texcoord.push_back(element_index(uv, texcoords, "texture coordinate", words));
+  }
+  for (size_t i = 1; i + 1 < vertex.size(); ++i) {
+    for (const size_t k : {size_t(0), i, i + 1}) {
+      lists.corners.push_back(vertex[k]);
+      lists.corner_texcoords.push_back(textured ? texcoord[k] : -1);
+    }
+    lists.face_material.push_back(lists.material);
+  }
+}
+
+void read_line(std::string_view line, int number, Lists& lists) {
+  Words words(line, number);
+  const std::string_view keyword = words.next();
+  if (keyword == "v") {
+    for (int k = 0; k < 3; ++k) lists.positions.push_back(words.number());
+  } else if (keyword == "vt") {
+    for (int k = 0; k < 2; ++k) lists.texcoords.push_back(words.number());
+  } else if (keyword == "f") {
+    read_face(words, lists);
+  } else if (keyword == "usemtl") {
+    const std::string name(words.remainder());
+    const auto [it, added] = lists.material_of.emplace(name, static_cast<int>(lists.out.materials.size()));
+    if (added) lists.out.materials.push_back(name);
+    lists.material = it->second;
+  } else if (keyword == "mtllib") {
+    lists.out.material_libraries.emplace_back(words.remainder());
+  }
+}
+
+// Lines are formatted into a buffer flushed in large blocks.
+class TextOut {
+ public:
+  explicit TextOut(const std::string& path) : file_(std::fopen(path.c_str(), "wb"), &std::fclose), path_(path) {
+    if (!file_) throw InputError("cannot write " + path);
+  }
+  TextOut& text(std::string_view s) {
+    buffer_.append(s);
+    return flush_if_full();
+  }
+  TextOut& number(double value) {  // %.9g
+    char digits[32];
+    const auto end = std::to_chars(digits, digits + sizeof digits, value, std::chars_format::general, 9).ptr;
+    buffer_.append(digits, end);
+    return *this;
+  }
+  TextOut& integer(long long value) {
+    char digits[24];
+    buffer_.append(digits, std::to_chars(digits, digits + sizeof digits, value).ptr);
+    return *this;
+  }
+  void close() {
+    flush();
+    if (std::fclose(file_.release()) != 0) throw InputError("cannot write " + path_);
+  }
+
+ private:
+  TextOut& flush_if_full() {
+    if (buffer_.size() > (1 << 20)) flush();
+    return *this;
+  }
+  void flush() {
+    if (std::fwrite(buffer_.data(), 1, buffer_.size(), file_.get()) != buffer_.size())
+      throw InputError("cannot write " + path_);
+    buffer_.clear();
+  }
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file_;
+  std::string path_, buffer_;
+};
+
+template <class Matrix, class T>
+Matrix rows_of(const std::vector<T>& values) {
+  return Eigen::Map<const Matrix>(values.data(), static_cast<Eigen::Index>(values.size() / Matrix::ColsAtCompileTime),
+                                  Matrix::ColsAtCompileTime);
+}
+
+}  // namespace
+
+ObjFile read_obj(const std::string& path) {
+  const std::string text = file_contents(path);
+  Lists lists;
+  const std::string_view all(text);
+  int number = 1;
+  for (size_t start = 0; start < all.size(); ++number) {
+    size_t end = all.find('\n', start);
+    if (end == std::string_view::npos) end = all.size();
+    std::string_view line = all.substr(start, end - start);
+    line = line.substr(0, line.find('#'));
+    read_line(line, number, lists);
+    start = end + 1;
+  }
+  ObjFile& out = lists.out;
+  out.positions = rows_of<RowMatrixX3d>(lists.positions);
+  out.texcoords = rows_of<RowMatrixX2d>(lists.texcoords);
+  out.triangles = rows_of<RowMatrixX3i>(lists.corners);
+  out.texcoord_index = rows_of<RowMatrixX3i>(lists.corner_texcoords);
+  out.face_material = Eigen::Map<const Eigen::VectorXi>(lists.face_material.data(),
+                                                        static_cast<Eigen::Index>(lists.face_material.size()));
+  return std::move(out);
+}
+
+void write_obj(const std::string& path, const std::string& library, const RowMatrixX3d& positions,
+               const RowMatrixX3i& triangles, const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_material,
+               const std::vector<std::string>& materials) {
+  if (corner_uv.rows() != 3 * triangles.rows() || face_material.size() != triangles.rows())
+    throw InputError("write_obj: corner_uv must hold 3 rows and face_material 1 entry per face");
+  if (triangles.size() && (triangles.minCoeff() < 0 || triangles.maxCoeff() >= positions.rows()))
+    throw InputError("write_obj: triangles refer to vertices that do not exist");
+  std::vector<std::vector<int>> faces_of(materials.size());
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    if (face_material[f] < 0 || face_material[f] >= static_cast<int>(materials.size()))
+      throw InputError("write_obj: face_material refers to a material that is not named");
+    faces_of[face_material[f]].push_back(static_cast<int>(f));
+  }
+  TextOut out(path);
+  out.text("mtllib ").text(library).text("\n");
+  for (Eigen::Index v = 0; v < positions.rows(); ++v)
+    out.text("v ").number(positions(v, 0)).text(" ").number(positions(v, 1)).text(" ").number(positions(v, 2)).text("\n");
+  for (Eigen::Index c = 0; c < corner_uv.rows(); ++c)
+    out.text("vt ").number(corner_uv(c, 0)).text(" ").number(corner_uv(c, 1)).text("\n");
+  for (size_t m = 0; m < materials.size(); ++m) {
+    if (faces_of[m].empty()) continue;
+    out.text("usemtl ").text(materials[m]).text("\n");
+    for (const int f : faces_of[m]) {
+      out.text("f");
+      for (int k = 0; k < 3; ++k)  // 1-based; corner k of face f is texcoord 3f + k
+        out.text(" ").integer(triangles(f, k) + 1).text("/").integer(3LL * f + k + 1);
+      out.text("\n");
+    }
+  }
+  out.close();
+}
+
+}  // namespace atlas::obj

@@ -1,0 +1,41 @@
+// Wavefront OBJ geometry as plain arrays, read and written for the
+// command-line entry (the add-on goes through Blender). Only what a textured scan needs:
+// positions, texture coordinates, faces (fan-triangulated) and the material
+// each face uses; normals, groups, lines and points are skipped.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "core/mesh.hpp"
+
+namespace atlas::obj {
+
+struct ObjFile {
+  RowMatrixX3d positions;                      // V x 3, the x y z of each `v` line (a colour after them is ignored)
+  RowMatrixX2d texcoords;                      // T x 2, the u v of each `vt` line (w is ignored)
+  RowMatrixX3i triangles;                      // F x 3, 0-based vertex of each corner
+  RowMatrixX3i texcoord_index;                 // F x 3, 0-based texcoord of each corner; -1 on all three
+                                               // corners of a face that lacks one on any corner
+  Eigen::VectorXi face_material;               // F, index into materials; -1 before the first usemtl
+  std::vector<std::string> materials;          // usemtl names, in order of first use
+  std::vector<std::string> material_libraries; // mtllib arguments, in file order
+};
+
+// Reads the file. Polygons become fans (0, i, i + 1); a face of fewer than
+// three corners is dropped. Negative indices count back from the last
+// element defined before the face, as the format says. Throws InputError
+// naming the line for a malformed number or an index outside the file's
+// elements, and for a file that cannot be read.
+ObjFile read_obj(const std::string& path);
+
+// Writes positions (V x 3), one `vt` per face corner (corner_uv, 3F x 2) and
+// the faces, grouped by material in ascending order, each group after
+// `usemtl materials[m]` (face_material, F, indexes materials), after a line
+// `mtllib library`. Numbers keep 9 significant digits (%.9g): float32 UVs
+// and positions survive the round trip. Throws InputError if the file
+// cannot be written.
+void write_obj(const std::string& path, const std::string& library, const RowMatrixX3d& positions,
+               const RowMatrixX3i& triangles, const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_material,
+               const std::vector<std::string>& materials);
+
+}  // namespace atlas::obj
