@@ -92,6 +92,8 @@ def main(argv=None) -> int:
     parser.add_argument("--size", type=int, default=720)
     parser.add_argument("--out", type=Path, default=HERE / "pictures")
     parser.add_argument("--both-sides", action="store_true")
+    parser.add_argument("--tag", default="", help="names the picture <model>_seams_<tag>.png and the layout "
+                        "'Atlas Defrag (<tag>)': for a module built from another commit (ATLAS_BUILD_DIR)")
     args = parser.parse_args(argv)
     scan = scan_io.load(MODELS[args.model])
     result = _native.defragment(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
@@ -104,12 +106,12 @@ def main(argv=None) -> int:
     panels, captions = [], []
     for name, seams, charts, seam, colour in (
             ("input", before, r["charts_before"], r["seam_before"], (255, 90, 60)),
-            ("Atlas Defrag", after, r["charts_after"], r["seam_after"], (255, 220, 0))):
+            ("Atlas Defrag" + (f" ({args.tag})" if args.tag else ""), after, r["charts_after"], r["seam_after"], (255, 220, 0))):
         for side, f in (("front", frame), ("back", back))[:2 if args.both_sides else 1]:
             panels.append(render(scan, seams, f, args.size, colour))
             captions.append(f"{name}, {side}: {charts} charts, seam {seam:.1f}")
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / f"{args.model}_seams.png"
+    path = args.out / f"{args.model}_seams{'_' + args.tag if args.tag else ''}.png"
     _sheet(panels, captions, path, f"{args.model}: UV seams drawn on the model (seam = 3D length / sqrt(area))")
     print(path)
     return 0

@@ -46,7 +46,7 @@ struct Corner {
 struct Move {
   int face = -1, to = -1, k1 = -1, k2 = -1, k3 = -1, g1 = -1, g2 = -1;
   double gain = 0;
-  Point uv[3];  // the face's new corner UVs, in texels of the chart `to`
+  Point uv[3] = {Point::Zero(), Point::Zero(), Point::Zero()};  // new corner UVs, texels of the chart `to`
 };
 
 std::vector<int> chart_labels(int face_count, const std::vector<FlatChart>& charts) {
@@ -129,7 +129,7 @@ class Refiner {
       const int g1 = across(f, k1), g2 = across(f, k2);
       if (g1 < 0 || g2 < 0 || g1 == g2 || chart(g1) != chart(g2) || chart(g1) == from || chart(g1) < 0) continue;
       if (!face_group_.empty() && face_group_[g1] != face_group_[f]) continue;
-      m = {f, chart(g1), k1, k2, k3, g1, g2, 0, {}};
+      m = {f, chart(g1), k1, k2, k3, g1, g2, 0, {Point::Zero(), Point::Zero(), Point::Zero()}};
       if (place(m) && fits(m) && disks_.move_keeps_topology(f, m.to)) return true;
     }
     return false;
