@@ -1,7 +1,5 @@
 #include "pipeline.hpp"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -54,13 +52,25 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
 
   std::vector<std::vector<FlatChart>> pieces(order.size());
   std::vector<FlattenStats> stats(order.size());
-  std::atomic<int> finished{0};
+  size_t total_faces = 0;
+  for (int c : order) total_faces += faces_in(c);
+  std::atomic<size_t> finished_faces{0};
   parallel_for(static_cast<int>(order.size()), 1, [&](int i) {
     control.throw_if_cancelled();
     pieces[i] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[order[i]], options,
                                         control, stats[i]);
-    ++finished;
-    if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / order.size());
+    finished_faces += faces_in(order[i]);
+    // Every worker reports, one at a time (the Python callback takes the GIL):
+    // thread 0 alone stays silent while it flattens the largest chart, which
+    // comes first. Faces, not charts, because time follows the face count.
+    std::exception_ptr error;
+#pragma omp critical(atlas_flatten_progress)
+    try {
+      control.progress("flatten", double(finished_faces) / std::max<size_t>(total_faces, 1));
+    } catch (...) {
+      error = std::current_exception();
+    }
+    if (error) std::rethrow_exception(error);
   });
   control.throw_if_cancelled();
   std::vector<FlatChart> out;
