@@ -18,8 +18,10 @@ GROUPS = {
               "save_beside_blend", "cancel_leaves_nothing", "worker_thread_run"],
     "smithsonian": ["operator_smithsonian"],
     "meshroom": ["operator_meshroom"],
+    "export": ["fbx_round_trip_meshroom", "fbx_round_trip_smithsonian", "obj_round_trip_meshroom", "save_reopen",
+               "several_objects"],
 }
-NEEDS_NATIVE = {"tetra", "smithsonian", "meshroom"}
+NEEDS_NATIVE = {"tetra", "smithsonian", "meshroom", "export"}
 _cache = {}
 
 
