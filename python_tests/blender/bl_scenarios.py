@@ -479,6 +479,29 @@ def several_objects(pkg):
     return {"message": message}
 
 
+def redo_asks_first(pkg):
+    """Redo (Adjust Last Operation, here through ed.undo_redo) does not re-run
+    the job unless Run Again is ticked; cancelled, it leaves the first result."""
+    H.reset()
+    obj = H.textured_plane()
+    name = obj.name
+    H.undo_push("before")
+    assert run_operator(pkg, undo=True) == {"FINISHED"}
+    first = H.object_state(name)
+    outcome = pkg.operators.last_outcome
+    outcome["status"] = None
+    with H.undo_context():
+        assert bpy.ops.ed.undo_redo() == {"CANCELLED"}
+    assert outcome["status"] is None, outcome  # the job did not run
+    assert H.object_state(name) == first, _diff(first, H.object_state(name))
+    bpy.context.window_manager.operators[-1].properties.run_again = True
+    with H.undo_context():
+        assert bpy.ops.ed.undo_redo() == {"FINISHED"}
+    assert outcome["status"] == "finished", outcome
+    again = H.object_state(name)
+    assert again["uv_maps"] == first["uv_maps"] and again["images"] == first["images"], _diff(first, again)
+
+
 # --------------------------------------------------------------------------- errors
 
 ERRORS = {
@@ -579,6 +602,7 @@ SCENARIOS = {
     "obj_round_trip_meshroom": lambda pkg: export_round_trip(pkg, "meshroom", "obj"),
     "save_reopen": save_reopen,
     "several_objects": several_objects,
+    "redo_asks_first": redo_asks_first,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)
