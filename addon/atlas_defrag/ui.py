@@ -124,7 +124,7 @@ def register():
         print(f"Atlas Defrag: presets not installed: {exc}")
     problem = operators.native_problem()
     if problem:
-        print("Atlas Defrag:", problem)
+        print(problem)
         if not bpy.app.background:
             bpy.app.timers.register(_say_problem, first_interval=0.5)
 
