@@ -228,15 +228,13 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
             return self._fail("error", str(exc))
         if not self.uv_map:
             self.uv_map = api.read_bpy.check_object(objects[0]).name
-        # Read by execute(): the run the dialog confirms goes to a worker thread.
-        self._from_dialog = not bpy.app.background and context.window is not None
         return context.window_manager.invoke_props_dialog(self, width=360)
 
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        if self.options.is_repeat or not getattr(self, "_from_dialog", False):
+        if self._has_run(context):  # the redo panel, not the dialog
             box = layout.box()
             box.label(text="A change here re-runs the whole job, and Blender waits for it", icon="INFO")
             box.prop(self, "run_again")
@@ -244,6 +242,11 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         if obj is not None and obj.type == "MESH":
             layout.prop_search(self, "uv_map", obj.data, "uv_layers")
         draw_settings(layout, self)
+
+    def _has_run(self, context) -> bool:
+        """True once this operator finished (it is then among the registered ones)."""
+        me = self.as_pointer()
+        return any(op.as_pointer() == me for op in context.window_manager.operators)
 
     # -- synchronous path (background, scripts, confirmed redo) ---------------
     def execute(self, context):
@@ -256,8 +259,8 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
             jobs = [(obj, self._settings(obj)) for obj in objects]
         except (DefragError, TypeError, ValueError) as exc:
             return self._fail("error", str(exc))
-        if getattr(self, "_from_dialog", False) and context.window is not None and not bpy.app.background:
-            self._from_dialog = False  # a redo of this operator runs synchronously
+        if self.options.is_invoke and context.window is not None and not bpy.app.background:
+            # The run the dialog confirms goes to a worker thread (a redo never gets here).
             return self._start_modal(context, jobs)
         wm = context.window_manager
         wm.progress_begin(0, 100)
@@ -270,13 +273,23 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
                 result = api.compute(read, settings, progress=progress)
                 reports.append(api.finish(obj, read, result, settings))
         except DefragCancelled:
-            return self._fail("cancelled", "Cancelled: nothing was changed")
+            return self._end(context, reports, "Cancelled: nothing was changed" if not reports else "Cancelled")
         except DefragError as exc:
-            return self._fail("error", _done_before(reports) + str(exc))
+            return self._end(context, reports, str(exc))
         finally:
             wm.progress_end()
-        self._report_done(context, reports)
-        return {"FINISHED"}
+        return self._end(context, reports, None)
+
+    def _end(self, context, reports, error):
+        """Reports the objects done and the error that stopped the rest. With
+        some objects done the run FINISHED, so that one undo step takes them back."""
+        if reports:
+            self._report_done(context, reports)
+        if error is None:
+            return {"FINISHED"}
+        status = "cancelled" if error.startswith("Cancelled") else "error"
+        self._fail(status, _done_before(reports) + error)
+        return {"FINISHED"} if reports else {"CANCELLED"}
 
     def _fail(self, status, message):
         message = dialog_words(message)
@@ -363,11 +376,7 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
             if error is None:
                 return {"RUNNING_MODAL"}
         self._end_modal(context)
-        if error is not None:
-            status = "cancelled" if error.startswith("Cancelled") else "error"
-            return self._fail(status, _done_before(self._reports) + error)
-        self._report_done(context, self._reports)
-        return {"FINISHED"}
+        return self._end(context, self._reports, error)
 
     def _finish_run(self, run):
         """Writes a finished worker's result; the error message, or None."""

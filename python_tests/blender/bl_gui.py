@@ -94,6 +94,9 @@ def driver():
         assert OUTCOME["status"] is None, OUTCOME
         ticks = yield from wait_outcome(ARGS.timeout)
         assert OUTCOME["status"] == "finished", OUTCOME
+        # The first tick comes before Blender handles Return. A run on the main
+        # thread would end before the next tick, which would then see the outcome.
+        assert ticks >= 2, f"the confirmed dialog blocked the event loop ({ticks} ticks)"
         yield 0.3
         S.check_result(name, before, None)
         H.undo()

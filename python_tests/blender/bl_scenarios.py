@@ -479,6 +479,39 @@ def several_objects(pkg):
     return {"message": message}
 
 
+def several_objects_one_fails(pkg):
+    """The second selected mesh has no image texture: the first is done, the
+    error names what was done, and one undo takes it back."""
+    H.reset()
+    a = H.import_model(H.model_path("tetra"))
+    name = a.name
+    b = make_error_case_object("no_image_texture", "Bare")
+    before = H.object_state(name)
+    H.make_active(a)
+    b.select_set(True)
+    H.undo_push("before")
+    try:
+        run_operator(pkg, undo=True)
+    except RuntimeError as exc:
+        msg = str(exc)
+    else:
+        raise AssertionError("the operator did not report the second object's error")
+    assert f"Done for '{name}'" in msg and "No image texture" in msg, msg
+    check_result(name, before, None)
+    H.undo()
+    assert H.object_state(name) == before, _diff(before, H.object_state(name))
+
+
+def make_error_case_object(case, name):
+    """A plane with the problem of an error case, added to the current scene."""
+    obj = H.textured_plane(name=name)
+    if case == "no_image_texture":
+        tree = obj.data.materials[0].node_tree
+        for n in [n for n in tree.nodes if n.bl_idname == "ShaderNodeTexImage"]:
+            tree.nodes.remove(n)
+    return obj
+
+
 def redo_asks_first(pkg):
     """Redo (Adjust Last Operation, here through ed.undo_redo) does not re-run
     the job unless Run Again is ticked; cancelled, it leaves the first result."""
@@ -530,11 +563,7 @@ def make_error_case(case):
         obj.data.uv_layers.remove(obj.data.uv_layers[0])
         return obj
     if case == "no_image_texture":
-        obj = H.textured_plane()
-        for n in list(obj.data.materials[0].node_tree.nodes):
-            if n.bl_idname == "ShaderNodeTexImage":
-                obj.data.materials[0].node_tree.nodes.remove(n)
-        return obj
+        return make_error_case_object(case, "Plane")
     if case == "eight_uv_maps":
         return H.textured_plane(uv_maps=8)
     if case == "udim":
@@ -603,6 +632,7 @@ SCENARIOS = {
     "save_reopen": save_reopen,
     "several_objects": several_objects,
     "redo_asks_first": redo_asks_first,
+    "several_objects_one_fails": several_objects_one_fails,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)
