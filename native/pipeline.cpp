@@ -1,8 +1,5 @@
 #include "pipeline.hpp"
 
-#include <omp.h>
-
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -58,21 +55,43 @@ constexpr double kStrictDensityLoss = 0.02;
 constexpr double kDensityBudget = 0.008;
 constexpr double kDensityAllowance = 2e-4;
 
+// Reports progress from any worker, one at a time: the Python callback takes
+// the GIL, and what it throws (Cancelled) must leave the critical section.
+void report_from_worker(const RunControl& control, const char* stage, double fraction) {
+  std::exception_ptr error;
+#pragma omp critical(atlas_worker_progress)
+  try {
+    control.progress(stage, fraction);
+  } catch (...) {
+    error = std::current_exception();
+  }
+  if (error) std::rethrow_exception(error);
+}
+
 // Flattens the aggregated charts `which` into pieces[c], stats[c], one chart
-// per task, in the given order.
+// per task, in the given order. Every worker reports progress, by faces
+// flattened: time follows the face count, and thread 0 alone would stay
+// silent while it flattens the largest chart, which comes first.
 void flatten_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                     const std::vector<std::vector<int>>& chart_faces, const Aggregation& aggregation,
                     const std::vector<int>& which, const FlattenOptions& options, const RunControl& control,
                     std::vector<std::vector<FlatChart>>& pieces, std::vector<FlattenStats>& stats) {
-  std::atomic<int> finished{0};
+  auto faces_of = [&](int c) {
+    size_t n = 0;
+    for (int m : aggregation.members[c]) n += chart_faces[m].size();
+    return n;
+  };
+  size_t total = 0;
+  for (int c : which) total += faces_of(c);
+  std::atomic<size_t> finished{0};
   parallel_for(static_cast<int>(which.size()), 1, [&](int i) {
     control.throw_if_cancelled();
     const int c = which[i];
     stats[c] = {};
     pieces[c] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[c], options, control,
                                         stats[c]);
-    ++finished;
-    if (omp_get_thread_num() == 0) control.progress("flatten", double(finished) / which.size());
+    finished += faces_of(c);
+    report_from_worker(control, "flatten", double(finished) / std::max<size_t>(total, 1));
   });
   control.throw_if_cancelled();
 }

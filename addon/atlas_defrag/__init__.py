@@ -16,7 +16,7 @@ bl_info = {
     "author": "Atlas Defrag developers",
     "version": (0, 1, 0),
     "blender": (3, 4, 0),
-    "location": "UV Editor and 3D Viewport > UV > Defragment Texture Atlas",
+    "location": "3D Viewport > Object (or UV in Edit Mode), UV Editor > Image / UV, Sidebar > Atlas Defrag",
     "description": "Merge fragmented UV charts of scanned meshes and bake new textures",
     "category": "UV",
     "support": "COMMUNITY",
@@ -25,7 +25,8 @@ bl_info = {
 import importlib
 
 if "job" in locals():  # script reload: reload the submodules already loaded
-    for _name in ("options", "job", "png_files", "compat", "read_bpy", "write_bpy", "api", "operators"):
+    for _name in ("options", "job", "png_files", "native_check", "compat", "read_bpy", "write_bpy", "api",
+                  "operators", "ui"):
         if _name in globals():
             importlib.reload(globals()[_name])
 
@@ -35,7 +36,7 @@ from .job import DefragCancelled, DefragError  # noqa: E402,F401
 __all__ = ["defragment", "DefragError", "DefragCancelled", "register", "unregister"]
 
 # Loaded on first use, so that importing the package needs no bpy.
-_BPY_MODULES = ("compat", "read_bpy", "write_bpy", "api", "operators")
+_BPY_MODULES = ("compat", "read_bpy", "write_bpy", "api", "operators", "ui")
 
 
 def __getattr__(name):
@@ -49,9 +50,10 @@ def defragment(obj, **options) -> dict:
 
     Keyword options: those of options.SCHEMA (README, *Options*), and uv_map
     (default: the active UV map), storage ('PACK' or 'SAVE'), image_dir (with
-    'SAVE'), duplicate_materials, progress (callable(stage, fraction)), cancel
-    (a _native.CancelToken), wait_in_main_thread (the native work on a thread
-    of its own, so that signal handlers run meanwhile: see api.defragment).
+    'SAVE'), duplicate_materials, new_map_first (default True: the new UV map
+    at index 0, where FBX readers look), progress (callable(stage, fraction)),
+    cancel (a _native.CancelToken), wait_in_main_thread (the native work on a
+    thread of its own, so that signal handlers run meanwhile: see api.defragment).
 
     The report has charts_before/after, seam_before/after, seconds, the new
     UV map, images and materials, and warnings. Raises DefragError with the
@@ -62,10 +64,12 @@ def defragment(obj, **options) -> dict:
 
 
 def register():
-    from . import operators
+    from . import operators, ui
     operators.register()
+    ui.register()
 
 
 def unregister():
-    from . import operators
+    from . import operators, ui
+    ui.unregister()
     operators.unregister()

@@ -25,6 +25,7 @@ class Settings:
     storage: str = "PACK"  # 'PACK' into the .blend or 'SAVE' beside it (or in image_dir)
     image_dir: Optional[str] = None
     duplicate_materials: bool = False
+    new_map_first: bool = True  # the new UV map at index 0 (FBX and game engines read that one)
 
     @classmethod
     def from_kwargs(cls, **kw) -> "Settings":
@@ -32,7 +33,8 @@ class Settings:
         storage = str(kw.pop("storage", "PACK")).upper()
         s = cls(uv_map=kw.pop("uv_map", None) or None, options=job.Options(**opts),
                 storage=storage, image_dir=kw.pop("image_dir", None),
-                duplicate_materials=bool(kw.pop("duplicate_materials", False)))
+                duplicate_materials=bool(kw.pop("duplicate_materials", False)),
+                new_map_first=bool(kw.pop("new_map_first", True)))
         if kw:
             known = sorted(BY_NAME) + ["duplicate_materials", "image_dir", "storage", "uv_map"]
             raise DefragError("unknown option(s): " + ", ".join(sorted(kw)) + " (known: " + ", ".join(known) + ")")
@@ -44,7 +46,7 @@ class Settings:
         if self.storage not in STORAGE:
             raise DefragError(f"storage must be one of {STORAGE}, not {self.storage!r}")
         if self.storage == "SAVE" and not self.image_dir and not bpy.data.filepath:
-            raise DefragError("Save the .blend file first, or choose to pack the images")
+            raise DefragError("Save the .blend file first, or set Images to 'Pack in .blend'")
 
 
 def prepare(obj, settings: Settings) -> read_bpy.ReadResult:
@@ -83,7 +85,8 @@ def finish(obj, read: read_bpy.ReadResult, result: job.JobResult, settings: Sett
         _set_mode(obj, "OBJECT")
         written = write_bpy.write(obj, read, result, storage=settings.storage,
                                   image_dir=settings.image_dir,
-                                  duplicate_materials=settings.duplicate_materials)
+                                  duplicate_materials=settings.duplicate_materials,
+                                  new_map_first=settings.new_map_first)
     finally:
         if obj.mode != mode:
             _set_mode(obj, mode)
@@ -101,10 +104,10 @@ def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **opt
     """Defragments obj's texture atlas synchronously; returns the report dict.
 
     Options: those of options.SCHEMA, and uv_map (default: active), storage
-    ('PACK' | 'SAVE'), image_dir, duplicate_materials. The report's 'shrunk'
-    (and a warning) says when charts lost texel density to fit max_page_size,
-    max_pages or the input's texel count. Raises DefragError (a subclass of
-    Exception) with the reason; on any error nothing is changed.
+    ('PACK' | 'SAVE'), image_dir, duplicate_materials, new_map_first. The
+    report's 'shrunk' (and a warning) says when charts lost texel density to
+    fit max_page_size, max_pages or the input's texel count. Raises DefragError
+    (a subclass of Exception) with the reason; on any error nothing is changed.
     wait_in_main_thread: the native work runs on a thread of its own while
     this thread waits in short steps, free to run signal handlers (the batch
     entry's SIGINT cancels the token).

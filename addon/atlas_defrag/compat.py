@@ -37,6 +37,16 @@ def input_role(socket_name: str) -> str:
     return role
 
 
+def node_tree(mat):
+    """The material's node tree when it shades with nodes, else None.
+    Material.use_nodes is deprecated in 5.0 (always on) and goes in 6.0."""
+    if mat is None or mat.node_tree is None:
+        return None
+    if bpy.app.version >= (5, 0, 0) or mat.use_nodes:
+        return mat.node_tree
+    return None
+
+
 def calc_loop_triangles(mesh) -> None:
     # 4.x keeps loop triangles up to date lazily; the call still exists in 4.5.
     fn = getattr(mesh, "calc_loop_triangles", None)

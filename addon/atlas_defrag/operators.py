@@ -1,13 +1,14 @@
 # SPDX-License-Identifier: MIT
 """The operator, its dialog and its menu entries."""
 
+import re
 import threading
 import time
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
-from . import api, compat, job
+from . import api, compat, job, native_check, write_bpy
 from .job import DefragCancelled, DefragError
 from .options import SCHEMA
 
@@ -50,9 +51,56 @@ class _Run:
 last_outcome = {"status": None, "message": ""}
 
 
-def _outcome(status, message):
+def _outcome(status, message, report=None):
     last_outcome["status"] = status
     last_outcome["message"] = message
+    last_outcome["report"] = report
+
+
+# Why adjacent charts stayed apart (report['aggregate_stops']), in words.
+STOP_REASONS = {
+    "not_disk": "the merged chart would have a hole or a handle",
+    "non_manifold": "they meet at a non-manifold or flipped edge",
+    "normal_coherence": "the merged chart would curve too far to flatten without stretching",
+    "max_chart_faces": "the merged chart would exceed the largest chart size",
+    "min_chart_fraction": "the smaller chart is too large a share of the surface",
+    "feasible": "nothing refused them: the Target Charts count was reached first",
+}
+
+
+def stop_text(report) -> str:
+    """Why the aggregation stopped, e.g. '120 pairs: the merged chart would have
+    a hole or a handle'; empty when no pair was left."""
+    stops = report.get("aggregate_stops") or {}
+    parts = [f"{n} pair{'s' if n != 1 else ''}: {STOP_REASONS.get(k, k)}"
+             for k, n in sorted(stops.items(), key=lambda kv: -kv[1]) if n]
+    return ("Adjacent charts left apart because " + "; ".join(parts)) if parts else ""
+
+
+def image_text(report) -> str:
+    """The new images with their sizes, and the density scale the packer applied."""
+    names = []
+    for name in report.get("images", []):
+        img = bpy.data.images.get(name)
+        names.append(f"{name} ({img.size[0]}x{img.size[1]})" if img is not None else name)
+    text = "New images: " + (", ".join(names) or "none")
+    scale = report.get("scale")
+    if scale is not None and abs(scale - 1.0) > 1e-3:
+        text += f"; texel density scaled by {scale:.3g} to fit the page size"
+    return text
+
+
+def report_lines(report) -> list:
+    """What the Info log and the panel show after a run."""
+    lines = [f"Defragmented '{report['object']}': {job.summary(report)}; new UV map '{report['uv_map']}'",
+             image_text(report)]
+    stops = stop_text(report)
+    return lines + ([stops] if stops else [])
+
+
+def native_problem() -> str:
+    """Why the native module does not load here ('' when it does)."""
+    return native_check.problem(__package__)
 
 
 def _native_token():
@@ -93,19 +141,13 @@ def _option_properties() -> dict:
 
 
 # The options' properties as a mixin: bpy collects the annotations of base classes too.
+# The panel's settings (ui.py) are the same mixin on a PropertyGroup.
 _OptionProperties = type("_OptionProperties", (), {"__annotations__": _option_properties()})
 
 
-class UV_OT_defragment_atlas(_OptionProperties, bpy.types.Operator):
-    """Merge the UV charts of the active mesh into fewer, larger ones and bake
-    new textures for them (the old UV map and images are kept)"""
+class WriteProperties:
+    """How the result is written into Blender (not options of the native job)."""
 
-    bl_idname = "uv.defragment_atlas"
-    bl_label = "Defragment Texture Atlas"
-    bl_options = {"REGISTER", "UNDO"}
-
-    uv_map: StringProperty(name="UV Map", description="UV map to defragment (empty: the active one)",
-                           options={"SKIP_SAVE"})
     storage: EnumProperty(
         name="Images", default="PACK",
         items=(("PACK", "Pack in .blend", "Pack the new images into the .blend file"),
@@ -113,11 +155,56 @@ class UV_OT_defragment_atlas(_OptionProperties, bpy.types.Operator):
     duplicate_materials: BoolProperty(
         name="Duplicate Materials", default=False,
         description="Rewire copies of the materials and leave the originals untouched")
-    use_modal: BoolProperty(default=False, options={"HIDDEN", "SKIP_SAVE"})
+    new_map_first: BoolProperty(
+        name="New Map First", default=True,
+        description="Put the new UV map first (the one at index 0 moves to the end): FBX readers "
+                    "and game engines texture through the first UV map")
+
+
+def draw_settings(layout, data) -> None:
+    """The options and write properties of data (the operator or the panel's settings)."""
+    for option in SCHEMA:
+        if not option.automatic:
+            layout.prop(data, option.name, expand=bool(option.choices))
+            continue
+        col = layout.column(heading=option.label)
+        col.prop(data, _automatic_name(option), text="Automatic")
+        sub = col.column()
+        sub.enabled = not getattr(data, _automatic_name(option))
+        sub.prop(data, option.name)
+    for name in WriteProperties.__annotations__:
+        layout.prop(data, name)
+
+
+def setting_names() -> list:
+    """Every property the panel's settings and the operator share."""
+    names = []
+    for o in SCHEMA:
+        names += [_automatic_name(o)] if o.automatic else []
+        names.append(o.name)
+    return names + list(WriteProperties.__annotations__)
+
+
+class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Operator):
+    bl_idname = "uv.defragment_atlas"
+    bl_label = "Defragment Texture Atlas"
+    bl_description = ("Merge the UV charts of the selected meshes into fewer, larger ones and bake "
+                      "new textures for them (the old UV map and images are kept)")
+    bl_options = {"REGISTER", "UNDO", "PRESET"}
+
+    uv_map: StringProperty(name="UV Map", description="UV map to defragment (empty: the active one)",
+                           options={"SKIP_SAVE"})
+    run_again: BoolProperty(
+        name="Run Again", default=False, options={"SKIP_SAVE"},
+        description="Re-run the whole job with the changed settings (Blender waits until it ends)")
 
     @classmethod
     def poll(cls, context):
-        # Permissive on purpose: execute() explains what is missing.
+        problem = native_problem()
+        if problem:
+            cls.poll_message_set(problem)
+            return False
+        # Otherwise permissive: invoke() explains what is missing.
         return context.scene is not None
 
     def _option_value(self, option):
@@ -126,101 +213,138 @@ class UV_OT_defragment_atlas(_OptionProperties, bpy.types.Operator):
         value = getattr(self, option.name)
         return value.lower() if option.choices else value
 
-    def _settings(self) -> api.Settings:
+    def _settings(self, obj=None) -> api.Settings:
+        # The UV map chosen in the dialog is the active object's; the others use their active map.
+        uv_map = self.uv_map if obj is None or self.uv_map in obj.data.uv_layers else None
         return api.Settings.from_kwargs(
-            uv_map=self.uv_map or None, storage=self.storage,
-            duplicate_materials=self.duplicate_materials,
+            uv_map=uv_map or None, storage=self.storage,
+            duplicate_materials=self.duplicate_materials, new_map_first=self.new_map_first,
             **{o.name: self._option_value(o) for o in SCHEMA})
 
     def invoke(self, context, event):
-        obj = context.active_object
         try:
-            layer = api.read_bpy.check_object(obj, self.uv_map or None)
+            objects = targets(context)
+            for obj in objects:
+                api.read_bpy.check_textures(obj, self.uv_map if obj == objects[0] else None)
         except DefragError as exc:
             return self._fail("error", str(exc))
         if not self.uv_map:
-            self.uv_map = layer.name
-        self.use_modal = not bpy.app.background and context.window is not None
+            self.uv_map = api.read_bpy.check_object(objects[0]).name
         return context.window_manager.invoke_props_dialog(self, width=360)
 
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
+        if self._has_run(context):  # the redo panel, not the dialog
+            box = layout.box()
+            box.label(text="A change here re-runs the whole job, and Blender waits for it", icon="INFO")
+            box.prop(self, "run_again")
         obj = context.active_object
         if obj is not None and obj.type == "MESH":
             layout.prop_search(self, "uv_map", obj.data, "uv_layers")
-        for option in SCHEMA:
-            self._draw_option(layout, option)
-        layout.prop(self, "storage")
-        layout.prop(self, "duplicate_materials")
+        draw_settings(layout, self)
 
-    def _draw_option(self, layout, option):
-        if not option.automatic:
-            layout.prop(self, option.name, expand=bool(option.choices))
-            return
-        col = layout.column(heading=option.label)
-        col.prop(self, _automatic_name(option), text="Automatic")
-        sub = col.column()
-        sub.enabled = not getattr(self, _automatic_name(option))
-        sub.prop(self, option.name)
+    def _has_run(self, context) -> bool:
+        """True once this operator finished (it is then among the registered ones)."""
+        me = self.as_pointer()
+        return any(op.as_pointer() == me for op in context.window_manager.operators)
 
-    # -- synchronous path (background, scripts, redo) ------------------------
+    # -- synchronous path (background, scripts, confirmed redo) ---------------
     def execute(self, context):
-        obj = context.active_object
+        if self.options.is_repeat and not self.run_again:
+            # Blender restores the previous result when a redo is cancelled.
+            self.report({"INFO"}, "Tick 'Run Again' to re-run the job with these settings")
+            return {"CANCELLED"}
         try:
-            settings = self._settings()
-            read = api.prepare(obj, settings)
-        except (DefragError, TypeError) as exc:
+            objects = targets(context)
+            jobs = [(obj, self._settings(obj)) for obj in objects]
+        except (DefragError, TypeError, ValueError) as exc:
             return self._fail("error", str(exc))
-        if self.use_modal and context.window is not None and not bpy.app.background:
-            self.use_modal = False  # a redo of this operator runs synchronously
-            return self._start_modal(context, obj, read, settings)
+        if self.options.is_invoke and context.window is not None and not bpy.app.background:
+            # The run the dialog confirms goes to a worker thread (a redo never gets here).
+            return self._start_modal(context, jobs)
         wm = context.window_manager
         wm.progress_begin(0, 100)
+        reports = []
         try:
-            result = api.compute(read, settings,
-                                 progress=lambda s, f: wm.progress_update(int(100 * f)))
-            report = api.finish(obj, read, result, settings)
+            for k, (obj, settings) in enumerate(jobs):
+                def progress(stage, fraction, k=k):
+                    wm.progress_update(int(100 * (k + fraction) / len(jobs)))
+                read = api.prepare(obj, settings)
+                result = api.compute(read, settings, progress=progress)
+                reports.append(api.finish(obj, read, result, settings))
         except DefragCancelled:
-            return self._fail("cancelled", "Cancelled: nothing was changed")
+            return self._end(context, reports, "Cancelled: nothing was changed" if not reports else "Cancelled")
         except DefragError as exc:
-            return self._fail("error", str(exc))
+            return self._end(context, reports, str(exc))
         finally:
             wm.progress_end()
-        self._report_done(report)
-        return {"FINISHED"}
+        return self._end(context, reports, None)
+
+    def _end(self, context, reports, error):
+        """Reports the objects done and the error that stopped the rest. With
+        some objects done the run FINISHED, so that one undo step takes them back."""
+        if reports:
+            self._report_done(context, reports)
+        if error is None:
+            return {"FINISHED"}
+        status = "cancelled" if error.startswith("Cancelled") else "error"
+        self._fail(status, _done_before(reports) + error)
+        return {"FINISHED"} if reports else {"CANCELLED"}
 
     def _fail(self, status, message):
+        message = dialog_words(message)
         _outcome(status, message)
         self.report({"WARNING"} if status == "cancelled" else {"ERROR"}, message)
         return {"CANCELLED"}
 
-    def _report_done(self, report):
-        for w in report.get("warnings", []):
-            self.report({"WARNING"}, w)
-        msg = (f"Defragmented '{report['object']}': {job.summary(report)}; "
-               f"new UV map '{report['uv_map']}'")
-        _outcome("finished", msg)
-        self.report({"INFO"}, msg)
+    def _report_done(self, context, reports):
+        lines = []
+        for report in reports:
+            for w in report.get("warnings", []):
+                self.report({"WARNING"}, w)
+            lines += report_lines(report)
+        for line in lines:
+            self.report({"INFO"}, line)
+        _outcome("finished", "\n".join(lines), reports)
+        show_in_image_editors(context, reports)
 
-    # -- modal path: worker thread + timer ------------------------------------
-    def _start_modal(self, context, obj, read, settings):
+    # -- modal path: one worker thread per object in turn + timer -------------
+    def _start_modal(self, context, jobs):
         try:
-            token = _native_token()
+            _native_token()
         except ImportError as exc:
             return self._fail("error", f"The native module is missing: {exc}")
-        run = _Run(read, settings, token)
-        self._run = run
-        self._object_name = obj.name
+        self._queue = [(obj.name, settings) for obj, settings in jobs]
+        self._count = len(jobs)
+        self._reports = []
+        self._run = None
+        error = self._next_run()
+        if error:
+            return self._fail("error", error)
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.1, window=context.window)
         wm.progress_begin(0, 100)
         compat.status_text_set(context, "Defragmenting texture atlas... (Esc to cancel)")
         wm.modal_handler_add(self)
-        run.thread = threading.Thread(target=run.work, name="atlas_defrag", daemon=True)
-        run.thread.start()
         return {"RUNNING_MODAL"}
+
+    def _next_run(self) -> str:
+        """Reads the next queued object and starts its worker; an error message or ''."""
+        name, settings = self._queue.pop(0)
+        obj = bpy.data.objects.get(name)
+        if obj is None:
+            return f"The object '{name}' was removed during the run"
+        try:
+            read = api.prepare(obj, settings)
+        except DefragError as exc:
+            return str(exc)
+        self._object_name = name
+        self._run = _Run(read, settings, _native_token())
+        self._run.thread = threading.Thread(target=self._run.work, name="atlas_defrag", daemon=True)
+        self._run.thread.start()
+        return ""
 
     def _end_modal(self, context):
         wm = context.window_manager
@@ -240,28 +364,37 @@ class UV_OT_defragment_atlas(_OptionProperties, bpy.types.Operator):
         if event.type != "TIMER":
             return {"PASS_THROUGH"} if event.type in _NAVIGATION else {"RUNNING_MODAL"}
         if run.thread.is_alive():
-            context.window_manager.progress_update(int(100 * run.fraction))
+            done = (len(self._reports) + run.fraction) / self._count
+            context.window_manager.progress_update(int(100 * done))
             if not run.cancel_requested:
+                which = f" ({self._object_name})" if self._count > 1 else ""
                 compat.status_text_set(
-                    context, f"Defragmenting texture atlas: {run.stage} {100 * run.fraction:.0f}% "
+                    context, f"Defragmenting texture atlas{which}: {run.stage} {100 * run.fraction:.0f}% "
                              f"({time.perf_counter() - run.started:.0f} s, Esc to cancel)")
             return {"RUNNING_MODAL"}
+        error = self._finish_run(run)
+        if error is None and self._queue:
+            error = self._next_run() or None
+            if error is None:
+                return {"RUNNING_MODAL"}
         self._end_modal(context)
+        return self._end(context, self._reports, error)
+
+    def _finish_run(self, run):
+        """Writes a finished worker's result; the error message, or None."""
         if run.cancel_requested or isinstance(run.error, DefragCancelled):
-            return self._fail("cancelled", "Cancelled: nothing was changed")
+            return "Cancelled: nothing was changed" if not self._reports else "Cancelled"
         if run.error is not None:
-            msg = str(run.error) if isinstance(run.error, DefragError) else \
+            return str(run.error) if isinstance(run.error, DefragError) else \
                 f"{type(run.error).__name__}: {run.error}"
-            return self._fail("error", msg)
         obj = bpy.data.objects.get(self._object_name)
         if obj is None:
-            return self._fail("error", "The object was removed during the run: nothing was written")
+            return "The object was removed during the run: nothing was written"
         try:
-            report = api.finish(obj, run.read, run.result, run.settings)
+            self._reports.append(api.finish(obj, run.read, run.result, run.settings))
         except DefragError as exc:
-            return self._fail("error", str(exc))
-        self._report_done(report)
-        return {"FINISHED"}
+            return str(exc)
+        return None
 
     def cancel(self, context):
         # Blender ends the modal (window closed, file loaded): stop the worker.
@@ -272,12 +405,61 @@ class UV_OT_defragment_atlas(_OptionProperties, bpy.types.Operator):
         self._end_modal(context)
 
 
+def targets(context) -> list:
+    """The meshes to defragment: the active object first, then the other
+    selected meshes, each mesh once (linked duplicates share it)."""
+    active = context.active_object
+    api.read_bpy.check_object(active)
+    out, seen = [active], {active.data.name}
+    for obj in getattr(context, "selected_objects", []):
+        if obj.type == "MESH" and obj.data.name not in seen:
+            seen.add(obj.data.name)
+            out.append(obj)
+    return out
+
+
+def _done_before(reports) -> str:
+    if not reports:
+        return ""
+    return "Done for " + ", ".join(f"'{r['object']}'" for r in reports) + " (undo to revert); then: "
+
+
+def dialog_words(message: str) -> str:
+    """A message with the options' internal names replaced by the dialog's labels."""
+    for o in SCHEMA:
+        message = re.sub(rf"\b{o.name}\b", f"'{o.label}'", message)
+    return message
+
+
+def show_in_image_editors(context, reports) -> None:
+    """Image Editors showing a source image show its new counterpart."""
+    new_by_source = {}
+    for report in reports:
+        for name in report.get("images", []):
+            new_by_source.setdefault(name.split(write_bpy.SUFFIX)[0], bpy.data.images.get(name))
+    screen = getattr(context, "screen", None)
+    for area in (screen.areas if screen is not None else []):
+        if area.type != "IMAGE_EDITOR":
+            continue
+        space = area.spaces.active
+        shown = space.image
+        if shown is not None:
+            new = new_by_source.get(write_bpy.image_stem(shown.name))
+        else:
+            new = next(iter(new_by_source.values()), None)
+        if new is not None:
+            space.image = new
+            area.tag_redraw()
+
+
 def menu_func(self, context):
     self.layout.separator()
     self.layout.operator(UV_OT_defragment_atlas.bl_idname, icon="UV")
 
 
-MENUS = ("IMAGE_MT_uvs", "VIEW3D_MT_uv_map")
+# Edit Mode: the UV menus. Object Mode, where a user lands after importing a
+# scan: the Object menu and the UV Editor's Image menu (menu search finds these).
+MENUS = ("IMAGE_MT_uvs", "VIEW3D_MT_uv_map", "VIEW3D_MT_object", "IMAGE_MT_image")
 classes = (UV_OT_defragment_atlas,)
 
 

@@ -95,6 +95,20 @@ def _refuse_linked(obj) -> None:
                 f"{kind} '{block.name}' is linked from the library '{block.library.filepath}' and cannot be "
                 "changed: make it local first (Object > Relations > Make Local > "
                 "Selected Objects, Data and Materials)")
+def check_textures(obj, uv_map: Optional[str] = None) -> None:
+    """check_object, and that some material has an image map on the UV map:
+    the checks a dialog can make before it opens (no pixels are read)."""
+    layer = check_object(obj, uv_map)
+    warnings: List[str] = []
+    materials = _analyse_slots(obj, layer.name, _render_uv_name(obj.data), warnings)
+    if not any(info.maps for info in materials.values()):
+        raise DefragError(_no_texture_message(obj, layer.name, warnings))
+
+
+def _no_texture_message(obj, uv_name: str, warnings: List[str]) -> str:
+    why = ("; " + "; ".join(warnings)) if warnings else ""
+    return (f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "
+            f"its Principled BSDF through UV map '{uv_name}'{why}")
 
 
 def _render_uv_name(me) -> str:
@@ -254,9 +268,9 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
     pin_images: List[str] = []
     pin_uv_nodes: List[str] = []
     pin_normal_nodes: List[str] = []
-    if mat is None or not mat.use_nodes or mat.node_tree is None:
+    tree = compat.node_tree(mat)
+    if tree is None:
         return maps, pin_images, pin_uv_nodes, pin_normal_nodes
-    tree = mat.node_tree
     rewired_normals = set()
     for node in tree.nodes:
         if node.bl_idname != "ShaderNodeTexImage":
@@ -361,10 +375,7 @@ def _read(obj, me, uv_name: str) -> ReadResult:
     pages = _source_pages(materials, _used_slots(geo.tri_material, n_slots))
     slot_of_face, face_page = _face_pages(materials, geo.tri_material, n_slots)
     if not pages or not np.any(face_page >= 0):
-        why = ("; " + "; ".join(warnings)) if warnings else ""
-        raise DefragError(
-            f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "
-            f"its Principled BSDF through UV map '{uv_name}'{why}")
+        raise DefragError(_no_texture_message(obj, uv_name, warnings))
     job = JobInput(
         mesh=MeshData(positions=geo.positions, triangles=geo.triangles, uvs=geo.uvs,
                       face_page=face_page.astype(np.int32)),

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import re
+import tempfile
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Tuple
 
@@ -46,9 +47,14 @@ class _Journal:
 _IMAGE_EXT = re.compile(r"\.(png|jpe?g|tga|tiff?|exr|bmp|webp|hdr|j2c|jp2)(?=_defrag|$)", re.IGNORECASE)
 
 
+def image_stem(name: str) -> str:
+    """An image name without its file extension: 'photo.jpg' -> 'photo'."""
+    return _IMAGE_EXT.sub("", name) or name
+
+
 def _safe_file_stem(name: str) -> str:
     """File name for an image name: 'photo.jpg_defrag' -> 'photo_defrag'."""
-    stem = _IMAGE_EXT.sub("", name)
+    stem = image_stem(name)
     stem = re.sub(r"[^\w\-.]+", "_", stem).strip("._") or "image"
     return stem
 
@@ -102,7 +108,7 @@ def _new_image(out: OutputImage, name: str):
     return img
 
 
-def _store_image(img, is_float: bool, storage: str, directory: Optional[str], taken: set) -> None:
+def _store_image(img, is_float: bool, directory: str, taken: set) -> None:
     if is_float:
         # Float buffers are written as they are only when channel packed:
         # other alpha modes (un)premultiply on save and the values drift.
@@ -114,9 +120,6 @@ def _store_image(img, is_float: bool, storage: str, directory: Optional[str], ta
     else:
         img.file_format = "PNG"
         ext = ".png"
-    if storage == "PACK":
-        img.pack()
-        return
     path = _unique_path(directory, _safe_file_stem(img.name), ext, taken)
     img.filepath_raw = path
     img.save()
@@ -212,9 +215,15 @@ def _rewire_material(mat, info, new_uv: str, page_images: Dict[str, object], rea
 
 
 def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
-          image_dir: Optional[str] = None, duplicate_materials: bool = False) -> dict:
+          image_dir: Optional[str] = None, duplicate_materials: bool = False,
+          new_map_first: bool = True) -> dict:
     """Applies the result to obj (which must be in Object mode). Returns what
-    was created: {'uv_map', 'images', 'materials', 'warnings'}."""
+    was created: {'uv_map', 'images', 'materials', 'warnings', ...}.
+
+    new_map_first puts the new UV map at index 0 (the map that was there moves
+    to the end): FBX readers and game engines texture through the first map.
+    The originals the rewiring leaves without users get a fake user, so that
+    saving the .blend keeps them."""
     if obj.mode != "OBJECT":
         raise DefragError("internal error: write() needs Object mode")
     if mesh_signature(obj) != read.signature:
@@ -222,21 +231,31 @@ def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
                           "nothing was written")
     if storage not in ("PACK", "SAVE"):
         raise DefragError(f"storage must be 'PACK' or 'SAVE', not {storage!r}")
-    if storage == "SAVE":
-        image_dir = image_dir or (os.path.dirname(bpy.path.abspath(bpy.data.filepath))
-                                  if bpy.data.filepath else None)
-        if not image_dir:
-            raise DefragError("Save the .blend file first, or choose to pack the images")
-        os.makedirs(image_dir, exist_ok=True)
+    image_dir = _image_dir(storage, image_dir)
     journal = _Journal()
     try:
-        return _write(obj, read, result, storage, image_dir, duplicate_materials, journal)
+        return _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_first, journal)
     except MemoryError as exc:
         journal.rollback()
         raise DefragError("Out of memory while writing the new images") from exc
     except BaseException:
         journal.rollback()
         raise
+
+
+def _image_dir(storage: str, image_dir: Optional[str]) -> str:
+    """Where the new image files go. Packed images are written to a fresh
+    folder in Blender's temporary one first (png_files encodes them in
+    parallel), so their path ends in the image's name plus .png or .exr: the
+    name the OBJ exporter writes as map_Kd."""
+    if storage == "PACK":
+        return tempfile.mkdtemp(prefix="atlas_defrag_", dir=bpy.app.tempdir or None)
+    if not image_dir:
+        if not bpy.data.filepath:
+            raise DefragError("Save the .blend file first, or set Images to 'Pack in .blend'")
+        image_dir = os.path.dirname(bpy.path.abspath(bpy.data.filepath))
+    os.makedirs(image_dir, exist_ok=True)
+    return image_dir
 
 
 @dataclass
@@ -250,16 +269,17 @@ class _Target:
     warnings: List[str] = field(default_factory=list)
 
 
-def _write(obj, read, result, storage, image_dir, duplicate_materials, journal) -> dict:
+def _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_first, journal) -> dict:
     if result.uvs.shape != (len(read.tri_loops), 3, 2) or result.face_page.shape != (len(read.tri_loops),):
         raise DefragError("internal error: the result does not match the mesh")
     target = _Target(obj, read, result, journal)
     page_role_image, created_images = _write_images(target, storage, image_dir)
-    new_uv = _write_uv_map(target)
+    new_uv = _write_uv_map(target, new_map_first)
     created_materials, rewired = _rewire_materials(target, new_uv, page_role_image, duplicate_materials)
+    _keep_originals(target, duplicate_materials)
     obj.data.update()
-    return {"uv_map": new_uv, "images": created_images, "materials": created_materials,
-            "rewired_materials": rewired, "warnings": target.warnings}
+    return {"uv_map": new_uv, "new_map_first": new_map_first, "images": created_images,
+            "materials": created_materials, "rewired_materials": rewired, "warnings": target.warnings}
 
 
 def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
@@ -284,25 +304,28 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
     for out in result.images:
         pages = group_pages.get(int(result.page_group[out.page]), [out.page])
         k = pages.index(out.page) if out.page in pages else 0
-        name = f"{out.source}{SUFFIX}" if k == 0 else f"{out.source}{SUFFIX}_{k + 1}"
-        if storage == "SAVE" and not out.is_float:
+        stem = image_stem(out.source)
+        name = f"{stem}{SUFFIX}" if k == 0 else f"{stem}{SUFFIX}_{k + 1}"
+        if not out.is_float:
             png_files_due.append((out, name, _unique_path(image_dir, _safe_file_stem(name), ".png", taken)))
             continue
         img = _new_image(out, name)
         created(out, img)
-        _store_image(img, out.is_float, storage, image_dir, taken)
+        _store_image(img, out.is_float, image_dir, taken)
     png_files.write_pngs((path, _rgba(out.pixels)) for out, _, path in png_files_due)
     for out, name, path in png_files_due:
         created(out, _load_saved_png(out, name, path))
+    if storage == "PACK":
+        for img in page_role_image.values():
+            img.pack()
     return page_role_image, created_images
 
 
-def _write_uv_map(target: _Target) -> str:
+def _write_uv_map(target: _Target, first: bool) -> str:
     """The new UV map, made active and render-active; returns its name."""
     me, read = target.obj.data, target.read
     old_uv = me.uv_layers[read.uv_map]
-    fallback = np.empty(read.n_loops * 2, dtype=np.float32)
-    old_uv.data.foreach_get("uv", fallback)
+    fallback = _uv_array(old_uv)
     per_loop, conflicts = loop_uvs(read.tri_loops, target.result.uvs, read.n_loops, fallback)
     if conflicts:
         target.warnings.append(f"{conflicts} polygon corners were split between charts: "
@@ -323,11 +346,41 @@ def _write_uv_map(target: _Target) -> str:
         if render_name in m.uv_layers:
             m.uv_layers[render_name].active_render = True
     target.journal.add(undo_uv)
+    if first and len(me.uv_layers) > 1:
+        _move_to_front(me, new_uv, target.journal)
     layer = me.uv_layers[new_uv]  # adding a layer may move the others
     layer.data.foreach_set("uv", per_loop.astype(np.float32).reshape(-1))
     me.uv_layers.active = layer
     layer.active_render = True
     return new_uv
+
+
+def _uv_array(layer) -> np.ndarray:
+    """(loops * 2,) float32 coordinates of a UV layer."""
+    arr = np.empty(len(layer.data) * 2, dtype=np.float32)
+    layer.data.foreach_get("uv", arr)
+    return arr
+
+
+def _move_to_front(me, name: str, journal: _Journal) -> None:
+    """Swaps UV map name (the last one) with the first by name and data:
+    Blender cannot reorder UV maps, and nodes refer to maps by name."""
+    first = me.uv_layers[0]
+    first_name, first_data = first.name, _uv_array(first)
+    parking = name + ".swap"
+    first.name = parking
+    me.uv_layers[name].name = first_name
+    me.uv_layers[parking].name = name
+    me.uv_layers[first_name].data.foreach_set("uv", first_data)
+    mesh_name = me.name
+
+    def undo():
+        m = bpy.data.meshes[mesh_name]
+        m.uv_layers[name].data.foreach_set("uv", _uv_array(m.uv_layers[first_name]))
+        m.uv_layers[name].name = parking
+        m.uv_layers[first_name].name = name
+        m.uv_layers[parking].name = first_name
+    journal.add(undo)
 
 
 def _rewire_materials(target: _Target, new_uv: str, page_role_image, duplicate_materials: bool):
@@ -372,6 +425,17 @@ def _rewire_materials(target: _Target, new_uv: str, page_role_image, duplicate_m
                                + ", ".join(sorted(set(shared_with_others)))
                                + " (use the duplicate-materials option to keep them)")
     return created_materials, rewired
+
+
+def _keep_originals(target: _Target, duplicate_materials: bool) -> None:
+    """A fake user on the source images (and, when duplicating, the source
+    materials) so that a saved .blend keeps them once nothing uses them."""
+    keep = [bpy.data.images[name] for name in target.read.job.images if name in bpy.data.images]
+    if duplicate_materials:
+        keep += [bpy.data.materials[info.name] for info in target.read.materials
+                 if info.name in bpy.data.materials]
+    for block in keep:
+        _set_attr(block, "use_fake_user", True, target.journal)
 
 
 def _polygon_pages(me, read: ReadResult, result: JobResult) -> np.ndarray:

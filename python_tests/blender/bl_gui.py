@@ -65,6 +65,18 @@ def wait_outcome(timeout):
     return len(ticks)
 
 
+def confirm_dialog(win, override):
+    """Opens the operator's dialog and confirms it with Return: the run starts."""
+    with override:
+        res = bpy.ops.uv.defragment_atlas("INVOKE_DEFAULT")
+    assert res == {"RUNNING_MODAL"}, res  # the dialog is open
+    yield 0.5
+    t0 = time.time()
+    win.event_simulate(type="RET", value="PRESS")
+    win.event_simulate(type="RET", value="RELEASE")
+    return time.time() - t0
+
+
 def driver():
     """A generator stepped by a timer: yields seconds to wait."""
     obj = H.import_model(H.model_path("tetra"))
@@ -77,14 +89,14 @@ def driver():
         H.undo_push("before")
         OUTCOME["status"] = None
         t0 = time.time()
-        with override:
-            res = bpy.ops.uv.defragment_atlas("EXEC_DEFAULT", use_modal=True)
-        call = time.time() - t0
-        assert res == {"RUNNING_MODAL"}, res
+        call = yield from confirm_dialog(win, override)
         # Control is back in the event loop while the worker computes.
         assert OUTCOME["status"] is None, OUTCOME
         ticks = yield from wait_outcome(ARGS.timeout)
         assert OUTCOME["status"] == "finished", OUTCOME
+        # The first tick comes before Blender handles Return. A run on the main
+        # thread would end before the next tick, which would then see the outcome.
+        assert ticks >= 2, f"the confirmed dialog blocked the event loop ({ticks} ticks)"
         yield 0.3
         S.check_result(name, before, None)
         H.undo()
@@ -99,9 +111,7 @@ def driver():
     try:
         win, override = ctx()
         OUTCOME["status"] = None
-        with override:
-            res = bpy.ops.uv.defragment_atlas("EXEC_DEFAULT", use_modal=True)
-        assert res == {"RUNNING_MODAL"}, res
+        yield from confirm_dialog(win, override)
         win.event_simulate(type="ESC", value="PRESS")
         win.event_simulate(type="ESC", value="RELEASE")
         yield from wait_outcome(60)

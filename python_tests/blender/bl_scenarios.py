@@ -25,7 +25,10 @@ def check_result(obj_name, before, report, *, duplicate=False):
     src_uv = before["uv_active"]
     new_uv = report["uv_map"] if report else src_uv + "_defrag"
     assert new_uv == src_uv + "_defrag", (new_uv, src_uv)
-    assert [u.name for u in me.uv_layers] == before["uv_maps"] + [new_uv]
+    old = before["uv_maps"]
+    first = report.get("new_map_first", True) if report else True
+    expected = [new_uv] + old[1:] + old[:1] if first else old + [new_uv]
+    assert [u.name for u in me.uv_layers] == expected, ([u.name for u in me.uv_layers], expected)
     assert me.uv_layers.active.name == new_uv
     assert me.uv_layers[new_uv].active_render
     # The old UV map and old images are byte-for-byte unchanged.
@@ -45,7 +48,7 @@ def check_result(obj_name, before, report, *, duplicate=False):
     for img in new_images:
         m = re.match(r"(.+)_defrag(_\d+)?(\.\d{3})?$", img.name)
         assert m, img.name
-        src = bpy.data.images[m.group(1)]
+        src = next(bpy.data.images[n] for n in before["images"] if _stem(n) == m.group(1))
         assert img.colorspace_settings.name == src.colorspace_settings.name, img.name
         assert bool(img.is_float) == bool(src.is_float), img.name
         assert img.source == "FILE" and (img.packed_file is not None or os.path.isfile(
@@ -70,6 +73,11 @@ def check_result(obj_name, before, report, *, duplicate=False):
                          if s.material and s.material.name not in before["materials"]]
         assert rewired_slots and all(m in report["materials"] for m in rewired_slots), rewired_slots
     return new_images
+
+
+def _stem(image_name):
+    """'photo.jpg' -> 'photo', as the new images are named."""
+    return re.sub(r"\.(png|jpe?g|tga|tiff?|exr|bmp|webp)$", "", image_name, flags=re.IGNORECASE)
 
 
 class _raises:
@@ -288,11 +296,11 @@ def write_identity_layout(pkg):
     result = identity_result(pkg, read)
     report = pkg.api.finish(obj, read, result, settings)
     assert report["uv_map"] == "UVMap_defrag"
-    assert report["images"] == ["textured_0_v2.jpg_defrag"]
+    assert report["images"] == ["textured_0_v2_defrag"]
     me = bpy.data.objects[name].data
     # Same layout -> same UVs; same pixels after the byte round trip.
     assert H.uv_hash(me, "UVMap_defrag") == before["uv_hash"]["UVMap"]
-    new = bpy.data.images["textured_0_v2.jpg_defrag"]
+    new = bpy.data.images["textured_0_v2_defrag"]
     old = bpy.data.images["textured_0_v2.jpg"]
     assert new.packed_file is not None and new.source == "FILE"
     a = np.empty(len(old.pixels), np.float32)
@@ -310,6 +318,221 @@ def write_identity_layout(pkg):
     assert mat.node_tree.nodes["Normal Map"].uv_map == "UVMap"
     for n, st in before["image_state"].items():
         assert H.image_state(bpy.data.images[n]) == st
+
+
+# --------------------------------------------------------------------------- export, save
+
+
+def _pixels(img) -> np.ndarray:
+    """(H, W, 4) float32 pixels of an image."""
+    arr = np.empty(img.size[0] * img.size[1] * img.channels, dtype=np.float32)
+    img.pixels.foreach_get(arr)
+    return _as_rgba(arr.reshape(img.size[1], img.size[0], img.channels))
+
+
+def _as_rgba(px):
+    if px.shape[2] == 4:
+        return px
+    out = np.ones(px.shape[:2] + (4,), np.float32)
+    out[..., :px.shape[2]] = px
+    return out
+
+
+def _base_color_image(mat):
+    """The image feeding Base Color, straight or through other nodes."""
+    if mat is None or mat.node_tree is None:
+        return None
+    for node in H.image_nodes(mat):
+        if node.image is None:
+            continue
+        targets = [lk.to_socket.name for out in node.outputs for lk in out.links]
+        if any(t in ("Base Color", "Color", "Color1", "A", "Subsurface Color") for t in targets) \
+                or not targets:
+            return node.image
+    return None
+
+
+def face_colours(obj, uv_name):
+    """(polygons, 3) RGB at each polygon's UV centroid on map uv_name, through the
+    base colour image of its material; NaN for polygons without one."""
+    me = obj.data
+    uv = np.empty(len(me.loops) * 2, np.float32)
+    me.uv_layers[uv_name].data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2)
+    starts = np.empty(len(me.polygons), np.int32)
+    counts = np.empty(len(me.polygons), np.int32)
+    mats = np.empty(len(me.polygons), np.int32)
+    me.polygons.foreach_get("loop_start", starts)
+    me.polygons.foreach_get("loop_total", counts)
+    me.polygons.foreach_get("material_index", mats)
+    centre = np.add.reduceat(uv, starts) / counts[:, None]
+    out = np.full((len(me.polygons), 3), np.nan, np.float32)
+    for slot, ms in enumerate(obj.material_slots):
+        img = _base_color_image(ms.material)
+        faces = mats == slot
+        if img is None or not faces.any():
+            continue
+        px = _pixels(img)
+        h, w = px.shape[:2]
+        c = centre[faces] % 1.0
+        x = np.clip((c[:, 0] * w).astype(int), 0, w - 1)
+        y = np.clip((c[:, 1] * h).astype(int), 0, h - 1)
+        out[faces] = px[y, x, :3]
+    return out
+
+
+def _import_any(path):
+    """Imports an exported model (FBX or OBJ) into an empty scene; its largest mesh."""
+    H.reset()
+    if path.endswith(".fbx"):
+        bpy.ops.import_scene.fbx(filepath=path)
+    else:
+        H.import_model(path)
+    meshes = [o for o in bpy.context.scene.objects if o.type == "MESH"]
+    return max(meshes, key=lambda o: len(o.data.polygons))
+
+
+def _export(path, obj):
+    H.make_active(obj)
+    if path.endswith(".fbx"):
+        bpy.ops.export_scene.fbx(filepath=path, use_selection=True, path_mode="COPY", embed_textures=True)
+    elif hasattr(bpy.ops.wm, "obj_export"):
+        bpy.ops.wm.obj_export(filepath=path, export_selected_objects=True, path_mode="COPY")
+    else:
+        bpy.ops.export_scene.obj(filepath=path, use_selection=True, path_mode="COPY")
+
+
+def export_round_trip(pkg, model, ext):
+    """Operator with its defaults, export, re-import: the colour per face
+    through the re-imported first UV map and its texture is the original
+    colour (mean error <= 4/255). FBX embeds the packed images; OBJ takes
+    image files, so it runs with 'Save Beside .blend' (and with the default
+    'Pack in .blend' its MTL still names the new texture)."""
+    H.reset()
+    obj = H.import_model(H.model_path(model))
+    name = obj.name
+    before = face_colours(obj, obj.data.uv_layers.active.name)
+    folder = tempfile.mkdtemp(prefix=f"atlas_{ext}_")
+    path = os.path.join(folder, "model." + ext)
+    if ext == "obj":
+        H.undo_push("before")
+        assert run_operator(pkg, undo=True) == {"FINISHED"}
+        _export(path, bpy.data.objects[name])
+        mtl = open(os.path.join(folder, "model.mtl")).read()
+        assert "map_Kd texture_1001_defrag.png" in mtl, mtl[:500]
+        H.undo()
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(folder, "scene.blend"))
+        assert run_operator(pkg, storage="SAVE") == {"FINISHED"}
+    else:
+        assert run_operator(pkg) == {"FINISHED"}
+    obj = bpy.data.objects[name]
+    assert obj.data.uv_layers[0].name.endswith("_defrag"), [u.name for u in obj.data.uv_layers]
+    _export(path, obj)
+    again = _import_any(path)
+    assert len(again.data.polygons) == len(before), (len(again.data.polygons), len(before))
+    after = face_colours(again, again.data.uv_layers[0].name)
+    both = ~np.isnan(before[:, 0]) & ~np.isnan(after[:, 0])
+    assert both.mean() > 0.9, f"only {both.mean():.2f} of the faces have a texture after the round trip"
+    error = float(np.abs(after[both] - before[both]).mean() * 255)
+    assert error <= 4.0, f"mean error {error:.1f}/255 after the {ext} round trip"
+    return {"mean_error_255": error, "faces": int(both.sum())}
+
+
+def save_reopen(pkg, model="smithsonian"):
+    """Save and reopen after a run with duplicated materials: the original
+    images (embedded in the GLB) and materials and the new ones keep their pixels."""
+    H.reset()
+    obj = H.import_model(H.model_path(model))
+    name = obj.name
+    originals = {i.name: H.image_state(i)["pixels"] for i in bpy.data.images if i.size[0] > 0}
+    old_materials = [s.material.name for s in obj.material_slots]
+    report = pkg.defragment(obj, duplicate_materials=True)
+    new = {n: H.image_state(bpy.data.images[n])["pixels"] for n in report["images"]}
+    blend = os.path.join(tempfile.mkdtemp(prefix="atlas_reopen_"), "scene.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    bpy.ops.wm.open_mainfile(filepath=blend)
+    for n, pixels in list(originals.items()) + list(new.items()):
+        assert n in bpy.data.images, f"image {n} lost after save and reopen"
+        assert H.image_state(bpy.data.images[n])["pixels"] == pixels, f"image {n} changed after reopen"
+    for m in old_materials + report["materials"]:
+        assert m in bpy.data.materials, f"material {m} lost after save and reopen"
+    assert bpy.data.objects[name].data.uv_layers[0].name == report["uv_map"]
+    return {"images": sorted(originals) + sorted(new)}
+
+
+def several_objects(pkg):
+    """Two selected meshes: each gets its own new map and images, and the
+    outcome reports both."""
+    H.reset()
+    a = H.import_model(H.model_path("tetra"))
+    b = H.textured_plane(name="Second")
+    states = {o.name: H.object_state(o.name) for o in (a, b)}
+    H.make_active(a)
+    b.select_set(True)
+    assert run_operator(pkg) == {"FINISHED"}
+    for n, before in states.items():
+        check_result(n, before, None)
+    message = pkg.operators.last_outcome["message"]
+    for n in states:
+        assert f"Defragmented '{n}'" in message, message
+    assert "New images:" in message and "x" in message, message
+    return {"message": message}
+
+
+def several_objects_one_fails(pkg):
+    """The second selected mesh has no image texture: the first is done, the
+    error names what was done, and one undo takes it back."""
+    H.reset()
+    a = H.import_model(H.model_path("tetra"))
+    name = a.name
+    b = make_error_case_object("no_image_texture", "Bare")
+    before = H.object_state(name)
+    H.make_active(a)
+    b.select_set(True)
+    H.undo_push("before")
+    try:
+        run_operator(pkg, undo=True)
+    except RuntimeError as exc:
+        msg = str(exc)
+    else:
+        raise AssertionError("the operator did not report the second object's error")
+    assert f"Done for '{name}'" in msg and "No image texture" in msg, msg
+    check_result(name, before, None)
+    H.undo()
+    assert H.object_state(name) == before, _diff(before, H.object_state(name))
+
+
+def make_error_case_object(case, name):
+    """A plane with the problem of an error case, added to the current scene."""
+    obj = H.textured_plane(name=name)
+    if case == "no_image_texture":
+        tree = obj.data.materials[0].node_tree
+        for n in [n for n in tree.nodes if n.bl_idname == "ShaderNodeTexImage"]:
+            tree.nodes.remove(n)
+    return obj
+
+
+def redo_asks_first(pkg):
+    """Redo (Adjust Last Operation, here through ed.undo_redo) does not re-run
+    the job unless Run Again is ticked; cancelled, it leaves the first result."""
+    H.reset()
+    obj = H.textured_plane()
+    name = obj.name
+    H.undo_push("before")
+    assert run_operator(pkg, undo=True) == {"FINISHED"}
+    first = H.object_state(name)
+    outcome = pkg.operators.last_outcome
+    outcome["status"] = None
+    with H.undo_context():
+        assert bpy.ops.ed.undo_redo() == {"CANCELLED"}
+    assert outcome["status"] is None, outcome  # the job did not run
+    assert H.object_state(name) == first, _diff(first, H.object_state(name))
+    bpy.context.window_manager.operators[-1].properties.run_again = True
+    with H.undo_context():
+        assert bpy.ops.ed.undo_redo() == {"FINISHED"}
+    assert outcome["status"] == "finished", outcome
+    again = H.object_state(name)
+    assert again["uv_maps"] == first["uv_maps"] and again["images"] == first["images"], _diff(first, again)
 
 
 # --------------------------------------------------------------------------- errors
@@ -340,11 +563,7 @@ def make_error_case(case):
         obj.data.uv_layers.remove(obj.data.uv_layers[0])
         return obj
     if case == "no_image_texture":
-        obj = H.textured_plane()
-        for n in list(obj.data.materials[0].node_tree.nodes):
-            if n.bl_idname == "ShaderNodeTexImage":
-                obj.data.materials[0].node_tree.nodes.remove(n)
-        return obj
+        return make_error_case_object(case, "Plane")
     if case == "eight_uv_maps":
         return H.textured_plane(uv_maps=8)
     if case == "udim":
@@ -407,6 +626,13 @@ SCENARIOS = {
     "cancel_leaves_nothing": cancel_leaves_nothing,
     "worker_thread_run": worker_thread_run,
     "write_identity_layout": write_identity_layout,
+    "fbx_round_trip_meshroom": lambda pkg: export_round_trip(pkg, "meshroom", "fbx"),
+    "fbx_round_trip_smithsonian": lambda pkg: export_round_trip(pkg, "smithsonian", "fbx"),
+    "obj_round_trip_meshroom": lambda pkg: export_round_trip(pkg, "meshroom", "obj"),
+    "save_reopen": save_reopen,
+    "several_objects": several_objects,
+    "redo_asks_first": redo_asks_first,
+    "several_objects_one_fails": several_objects_one_fails,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)

@@ -106,7 +106,8 @@ def textured_plane(name="Plane", image_size=(64, 32), uv_maps=1, source="GENERAT
         img.pixels.foreach_set(rng.random(image_size[0] * image_size[1] * 4).astype(np.float32))
         img.pack()
     mat = bpy.data.materials.new(name + "_mat")
-    mat.use_nodes = True
+    if bpy.app.version < (5, 0, 0):  # 5.0: always on, the property is deprecated
+        mat.use_nodes = True
     tree = mat.node_tree
     bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
     tex = tree.nodes.new("ShaderNodeTexImage")
@@ -141,14 +142,14 @@ def image_state(img) -> dict:
 
 def tree_state(mat) -> dict:
     if mat is None or mat.node_tree is None:
-        return {"use_nodes": bool(mat and mat.use_nodes)}
+        return {"use_nodes": False}
     nodes = []
     for n in mat.node_tree.nodes:
         nodes.append((n.name, n.bl_idname, n.image.name if getattr(n, "image", None) else None,
                       getattr(n, "uv_map", None), getattr(n, "space", None)))
     links = sorted((lk.from_node.name, lk.from_socket.identifier, lk.to_node.name, lk.to_socket.identifier)
                    for lk in mat.node_tree.links)
-    return {"use_nodes": mat.use_nodes, "nodes": sorted(nodes), "links": links}
+    return {"nodes": sorted(nodes), "links": links}
 
 
 def object_state(obj_name: str, pixels=True) -> dict:

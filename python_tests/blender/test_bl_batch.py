@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -149,3 +150,31 @@ def test_batch_ply_with_texture_comment(tmp_path, runner):
     _, maps = _read_obj_output(out)
     assert maps == ["cube_tex_defrag.png"], maps  # named after the output model
     assert (out.parent / "cube_tex_defrag.png").is_file()
+
+
+def test_gnu_parallel_recipe_skips_what_is_done(tmp_path):
+    """The README's GNU parallel recipe, with -S : (this machine as the one
+    login) over three models: every output written; run again, nothing is
+    redone (each job says it skipped, and no output changes)."""
+    parallel = shutil.which("parallel")
+    if parallel is None:
+        pytest.fail("GNU parallel is missing: run scripts/setup.sh (Debian package 'parallel')")
+    models = [H.model_path("tetra"), H.model_path("meshroom"), str(BOX_GLB)]
+    out = tmp_path / "out"
+    out.mkdir()
+    cmd = [parallel, "--will-cite", "-S", ":", "-j2", BLENDER, "--background", "--factory-startup",
+           "--python-exit-code", "1", "--python", str(BATCH), "--", "{}", str(out) + "/{/.}.glb",
+           "--skip-existing", ":::"] + models
+
+    first = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    assert first.returncode == 0, first.stdout[-3000:] + first.stderr[-3000:]
+    outputs = sorted(out.glob("*.glb"))
+    assert [p.stem for p in outputs] == sorted(os.path.splitext(os.path.basename(m))[0] for m in models)
+    stamps = {p: p.stat().st_mtime_ns for p in outputs}
+    assert first.stdout.count("atlas_defrag: wrote") == 3, first.stdout[-3000:]
+
+    second = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    assert second.returncode == 0, second.stdout[-3000:] + second.stderr[-3000:]
+    assert second.stdout.count("atlas_defrag: skipped") == 3, second.stdout[-3000:]
+    assert "atlas_defrag: wrote" not in second.stdout
+    assert {p: p.stat().st_mtime_ns for p in out.glob("*.glb")} == stamps

@@ -105,6 +105,34 @@ def test_install_extension_bpy45(addon_zip, tmp_path):
                           capture_output=True, text=True, timeout=900, env=env)
     assert out.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
     res = json.loads(out.read_text())
-    assert res["blender"].startswith("4."), res
+    import bpy
+    assert res["blender"] == bpy.app.version_string, res  # the bpy of this venv: 4.5, or 5.0 (test_bl_bpy50.py)
     _check(res, user)
     assert res["enabled"] == ["bl_ext.user_default.atlas_defrag"]
+
+
+def test_platform_zip_linux_leg(tmp_path):
+    """The linux-x64 leg of .github/workflows/platform-zips.yml, with its own
+    command (tools/platform_zip.py) on the build folder: a zip whose manifest
+    names linux-x64 only and that Blender's extension tool accepts; asking it
+    for another platform is refused, naming what the module is built for."""
+    import bpy
+    from blenv import BUILD
+    require_native()
+    tool = REPO / "tools" / "platform_zip.py"
+    proc = subprocess.run([sys.executable, str(tool), "--platform", "linux-x64", "--build-dir", str(BUILD),
+                           "--out-dir", str(tmp_path)], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    tag = f"cp{sys.version_info[0]}{sys.version_info[1]}"
+    zips = sorted(tmp_path.glob("*.zip"))
+    assert [z.name for z in zips] == [f"atlas_defrag-0.1.0-linux-x64-{tag}.zip"], zips
+    with zipfile.ZipFile(zips[0]) as z:
+        assert 'platforms = ["linux-x64"]' in z.read("atlas_defrag/blender_manifest.toml").decode()
+        assert any(n.startswith("atlas_defrag/_native") for n in z.namelist())
+    blender_ext = Path(bpy.utils.system_resource("SCRIPTS")) / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
+    check = subprocess.run([sys.executable, str(blender_ext), "validate", str(zips[0])], capture_output=True,
+                           text=True, timeout=120)
+    assert check.returncode == 0, check.stdout + check.stderr
+    wrong = subprocess.run([sys.executable, str(tool), "--platform", "windows-x64", "--build-dir", str(BUILD),
+                            "--out-dir", str(tmp_path / "wrong")], capture_output=True, text=True, timeout=900)
+    assert wrong.returncode != 0 and "built for linux-x64" in wrong.stderr, wrong.stderr[-2000:]
