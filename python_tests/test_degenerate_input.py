@@ -54,6 +54,17 @@ def test_copies_bake_like_the_face_they_repeat(native):
     assert seconds < 2, seconds
 
 
+def test_bake_takes_nan_uvs_without_harm(native):
+    positions, triangles, uvs, face_page, sizes = quad_with(40)
+    new = np.where(np.arange(uvs.size).reshape(uvs.shape) % 5 == 0, np.nan, uvs)
+    image = np.zeros((8, 8, 3), np.uint8)
+    try:
+        out = native.bake(uvs, face_page, [image], new, face_page, sizes)
+        assert out[0].shape == (256, 256, 3)
+    except ValueError:
+        pass
+
+
 def test_a_back_face_is_not_a_copy(native):
     positions, triangles, uvs, face_page, sizes = quad_with(0)
     triangles = np.concatenate([triangles, triangles[:1, ::-1]]).astype(np.int32)

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
+#include <cstring>
 #include <numeric>
 
 namespace atlas {
@@ -51,9 +53,10 @@ DuplicateFaces find_duplicate_faces(const Mesh& mesh, const std::vector<int>& fa
 
 std::vector<int> first_of_equal_faces(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page) {
   const int n = static_cast<int>(face_page.size());
+  // Bit patterns, not values: NaN (which a caller may pass) would break the sort's ordering.
   auto key = [&](int f) {
-    std::array<double, 7> k{static_cast<double>(face_page[f])};
-    for (int i = 0; i < 6; ++i) k[1 + i] = corner_uv(3 * f + i / 2, i % 2);
+    std::array<std::uint64_t, 7> k{static_cast<std::uint64_t>(static_cast<std::uint32_t>(face_page[f]))};
+    for (int i = 0; i < 6; ++i) std::memcpy(&k[1 + i], &corner_uv(3 * f + i / 2, i % 2), sizeof(double));
     return k;
   };
   std::vector<int> order(n);
