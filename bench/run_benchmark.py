@@ -737,6 +737,11 @@ def write_results(results: list, mach: dict, args, path: Path, started: float) -
         "it, only its time and memory.")
     add("- The large scan is one smooth closed blob, the easy case for Smart UV Project (few, large islands); "
         "on the real scans it is the other way round.")
+    # The stage profile (bench/profile_stages.py) is its own section: kept.
+    old = path.read_text() if path.exists() else ""
+    if "\n## Where the time goes" in old:
+        kept = old[old.index("\n## Where the time goes") + 1:]
+        lines += [""] + [kept[:kept.find("\n## ", 1)] if "\n## " in kept[1:] else kept.rstrip("\n")]
     path.write_text("\n".join(lines) + "\n")
 
 
