@@ -173,7 +173,8 @@ def _give_texture(obj, image_path: str):
     import bpy
     img = bpy.data.images.load(image_path, check_existing=True)
     mat = bpy.data.materials.new(os.path.splitext(os.path.basename(image_path))[0])
-    mat.use_nodes = True
+    if bpy.app.version < (5, 0, 0):  # always on in 5.0, where the property is deprecated
+        mat.use_nodes = True
     tree = mat.node_tree
     bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
     tex = tree.nodes.new("ShaderNodeTexImage")
@@ -190,9 +191,8 @@ def _has_image_texture(pkg, obj) -> bool:
     except pkg.DefragError:
         return False
     for slot in obj.material_slots:
-        mat = slot.material
-        if mat and mat.use_nodes and any(n.bl_idname == "ShaderNodeTexImage" and n.image
-                                         for n in mat.node_tree.nodes):
+        tree = pkg.compat.node_tree(slot.material)
+        if tree is not None and any(n.bl_idname == "ShaderNodeTexImage" and n.image for n in tree.nodes):
             return True
     return False
 
@@ -205,7 +205,7 @@ def _drop_source_uv(obj, name: str, report: dict) -> None:
     still_used = []
     for slot in obj.material_slots:
         mat = slot.material
-        if mat and mat.use_nodes:
+        if mat and mat.node_tree:  # nodes that would name the removed map, used or not
             for n in mat.node_tree.nodes:
                 if getattr(n, "uv_map", None) == name:
                     still_used.append(f"{mat.name}/{n.name}")

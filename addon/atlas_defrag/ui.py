@@ -56,7 +56,7 @@ def _draw_last_report(layout) -> None:
         _wrapped(layout, line, icon=icon if k == 0 else "BLANK1")
 
 
-def _wrapped(layout, text: str, icon="NONE", width=48) -> None:
+def _wrapped(layout, text: str, icon="NONE", width=24) -> None:
     """A long text as several labels (a panel label does not wrap)."""
     col = layout.column(align=True)
     line = ""

@@ -2,7 +2,7 @@
 """Blender 5.0: the bpy-module suites again, in the bpy 5.0 module of its own
 venv (.venv-bpy5, made by scripts/setup.sh; ATLAS_BPY5_PYTHON overrides):
 extension install, the operator on every shared scan, FBX/OBJ round trips,
-save and reopen, the UI checks, the read/write layers."""
+save and reopen, the UI checks, the read/write layers, the batch entry."""
 
 from __future__ import annotations
 
@@ -16,7 +16,8 @@ from blenv import HERE, REPO, require_native
 
 BPY5_PYTHON = Path(os.environ.get("ATLAS_BPY5_PYTHON", REPO / ".venv-bpy5" / "bin" / "python"))
 SUITES = ["test_bl_bpy45.py", "test_bl_io_bpy45.py", "test_bl_ui_bpy.py", "test_bl_png.py", "test_bl_job.py",
-          "test_bl_packaging.py::test_install_extension_bpy45"]
+          "test_bl_packaging.py::test_install_extension_bpy45", "test_bl_batch.py::test_batch45_obj_to_glb_and_back",
+          "test_bl_batch.py::test_batch45_glb_to_obj"]
 
 
 def test_bpy50_suites():

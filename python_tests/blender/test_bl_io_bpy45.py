@@ -4,6 +4,8 @@ reading real scans, writing a given layout, error cases, rollback."""
 
 from __future__ import annotations
 
+import os
+
 import bpy
 import numpy as np
 import pytest
@@ -186,3 +188,20 @@ def test_read_gltf_wrap_emulation_and_transforms(pkg):
     with pytest.raises(pkg.DefragError, match="coordinate transform"):
         pkg.read_bpy.read(obj)
     assert H.object_state(obj.name) == before
+
+
+def test_write_float_image_packed(pkg):
+    """Packed float images: written to a temporary EXR first, then packed; the
+    path ends in the image's name (what exporters name the texture)."""
+    H.reset()
+    obj = H.textured_plane(float_buffer=True, image_size=(16, 8))
+    settings = pkg.api.Settings.from_kwargs()
+    read = pkg.api.prepare(obj, settings)
+    src = next(iter(read.job.images.values()))
+    report = pkg.api.finish(obj, read, identity_result(pkg, read), settings)
+    img = bpy.data.images[report["images"][0]]
+    assert img.is_float and img.packed_file is not None
+    assert os.path.basename(img.filepath) == "Plane_tex_defrag.exr", img.filepath
+    b = np.empty(len(img.pixels), np.float32)
+    img.pixels.foreach_get(b)
+    assert np.allclose(b.reshape(8, 16, 4), src.pixels, atol=1e-4)
