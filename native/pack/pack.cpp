@@ -23,13 +23,19 @@ constexpr double kExpectedFill = 0.6;
 // Padded chart texels over page texels at which a page is taken as full,
 // to estimate how far charts that did not fit overshoot it.
 constexpr double kFullPage = 0.8;
+// A packing that broke a limit overshoots it by at least this ratio, so the
+// next try is a few percent smaller: when the estimate above says the charts
+// should have fitted, predicting from it would creep down by the search
+// tolerance and spend every step without finding a fit.
+constexpr double kLeastOvershoot = 1.1;
 
 struct Packing {
   double scale = 1.0;
   std::vector<ScaledChart> charts;
   Layout layout;
-  // > 0: the charts did not fit the one page allowed (layout empty); their
-  // padded texels over that page's.
+  // > 0: the charts did not fit the one page allowed (layout empty); how
+  // many times their padded texels exceed what that page held (estimated
+  // with kFullPage when the page was not tried).
   double overflow = 0.0;
 };
 
@@ -105,13 +111,14 @@ Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale
                   int max_side, int max_pages, const RunControl& control) {
   Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, control), {}};
   const std::vector<int> order = largest_first(packing.charts);
-  if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control)) {
+  double placed_share = 0.0;
+  if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control, &placed_share)) {
     packing.layout = std::move(*single);
   } else if (max_pages == 1) {
     double padded = 0.0;
     for (const ScaledChart& chart : packing.charts) padded += static_cast<double>(chart.turned[0].texels);
     const double side = max_side + 2.0 * frame.margin;
-    packing.overflow = padded / (side * side);
+    packing.overflow = placed_share > 0.0 ? 1.0 / placed_share : padded / (kFullPage * side * side);
   } else {
     packing.layout = pack_many_pages(order, packing.charts, frame, max_side, control);
   }
@@ -137,16 +144,20 @@ Packing largest_fitting_packing(TryScale try_scale, double start, double cap, do
       failed = std::min(failed, s);
     const double lo = fitting ? fitting->scale : 0.0;
     if (lo >= cap || failed <= lo * kScaleTolerance) break;
+    // The least overshoot is a floor, not a measure: it says nothing of the exponent.
+    const bool measured = std::isfinite(ratio) && ratio != kLeastOvershoot;
     double exponent = 2.0;
-    if (last_ratio > 0.0 && std::isfinite(ratio) && s != last_s)
+    if (last_ratio > 0.0 && measured && s != last_s)
       exponent = std::clamp(std::log(ratio / last_ratio) / std::log(s / last_s), 0.25, 2.0);
     double next = std::isfinite(ratio) ? kAimBelow * s * std::pow(ratio, -1.0 / exponent) : 0.5 * s;
     next = std::min(cap, next);
+    // A fit that predicts the limit within tolerance of itself is the answer.
+    if (fitting && ratio <= 1.0 && next < lo * kScaleTolerance) break;
     if (next <= lo || next >= failed)
       next = !fitting ? 0.5 * failed
                       : std::isfinite(failed) ? std::sqrt(lo * failed) : std::min(cap, 1.1 * lo);
     if (fitting && next < lo * kScaleTolerance) break;  // already within tolerance
-    if (std::isfinite(ratio)) {
+    if (measured) {
       last_s = s;
       last_ratio = ratio;
     }
@@ -176,14 +187,14 @@ struct PageLimits {
   // about as scale^2, so the scale search can predict from them: page texels
   // over the budget, and over `pages` full pages (more pages is > 1 anyway).
   double ratio(const Packing& packing, int max_side) const {
-    if (packing.overflow > 0.0) return std::max(1.0 + 1e-9, packing.overflow / kFullPage);
+    if (packing.overflow > 0.0) return std::max(kLeastOvershoot, packing.overflow);
     const std::vector<PageSize>& pages_used = packing.layout.pages;
     double r = 0.0;
     const double used = static_cast<double>(page_texels(pages_used));
     if (texels > 0) r = used / texels;
     if (pages > 0) {
       const double full = static_cast<double>(pages) * max_side * max_side;
-      r = std::max(r, static_cast<int>(pages_used.size()) > pages ? std::max(1.0 + 1e-9, used / full)
+      r = std::max(r, static_cast<int>(pages_used.size()) > pages ? std::max(kLeastOvershoot, used / full)
                                                                    : used / full);
     }
     return r;

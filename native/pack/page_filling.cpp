@@ -138,13 +138,19 @@ PageSize trimmed_page(PageSize used, const Frame& frame) {
 
 std::optional<OnePage> pack_one_page(const std::vector<int>& order,
                                      const std::vector<ScaledChart>& charts, int width,
-                                     int height, const RunControl& control) {
+                                     int height, const RunControl& control,
+                                     long long* placed_texels) {
   OnePage result;
   result.placement.resize(charts.size());
   Page page(width, height);
+  long long placed = 0;
   for (int c : order) {
     control.throw_if_cancelled();
-    if (!place_chart(page, charts[c], result.placement[c])) return std::nullopt;
+    if (!place_chart(page, charts[c], result.placement[c])) {
+      if (placed_texels) *placed_texels = placed;
+      return std::nullopt;
+    }
+    placed += charts[c].turned[0].texels;
   }
   result.used = {page.texels.used_width(), page.texels.used_height()};
   return result;
@@ -155,7 +161,7 @@ std::optional<OnePage> pack_one_page(const std::vector<int>& order,
 std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
                                          const std::vector<ScaledChart>& charts,
                                          const Frame& frame, int max_side,
-                                         const RunControl& control) {
+                                         const RunControl& control, double* placed_share) {
   const int to_virtual = 2 * frame.margin, max_virtual = max_side + to_virtual;
   double dilated_texels = 0.0;
   int narrowest = 1;  // the page must be at least this wide in virtual texels
@@ -164,13 +170,18 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
     const TexelMask& m = charts[c].turned[0].mask;
     narrowest = std::max(narrowest, std::min(m.width, m.height));
   }
+  if (placed_share) *placed_share = 0.0;
   if (dilated_texels > static_cast<double>(max_virtual) * max_virtual) return std::nullopt;
   auto width_for = [&](double virtual_width) {
     return std::min(max_side, allowed_side(virtual_width - to_virtual, frame.sides));
   };
   auto pack = [&](int width) -> std::optional<Layout> {
-    auto page = pack_one_page(order, charts, width + to_virtual, max_virtual, control);
-    if (!page) return std::nullopt;
+    long long placed = 0;
+    auto page = pack_one_page(order, charts, width + to_virtual, max_virtual, control, &placed);
+    if (!page) {
+      if (placed_share && width == max_side) *placed_share = static_cast<double>(placed) / dilated_texels;
+      return std::nullopt;
+    }
     return Layout{std::move(page->placement), {trimmed_page(page->used, frame)}};
   };
   int width = width_for(std::max(narrowest, static_cast<int>(std::sqrt(dilated_texels / kExpectedDensity))));

@@ -58,17 +58,22 @@ std::vector<int> largest_first(const std::vector<ScaledChart>& charts);
 PageSize trimmed_page(PageSize used, const Frame& frame);
 
 // The charts of `order` on one page whose virtual frame is width x height,
-// or nullopt as soon as one does not fit.
+// or nullopt as soon as one does not fit; then *placed_texels (if given) is
+// the dilated texels (ScaledChart texels, turn 0) of the charts placed before.
 std::optional<OnePage> pack_one_page(const std::vector<int>& order,
                                      const std::vector<ScaledChart>& charts, int width,
-                                     int height, const RunControl& control);
+                                     int height, const RunControl& control,
+                                     long long* placed_texels = nullptr);
 
 // The smallest near-square page with sides <= max_side holding the charts,
-// or nullopt if they need more than one page.
+// or nullopt if they need more than one page; then *placed_share (if given)
+// is the share of their dilated texels a max_side page held before one did
+// not fit (0 when they hold more texels than that page: it was not tried).
 std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
                                          const std::vector<ScaledChart>& charts,
                                          const Frame& frame, int max_side,
-                                         const RunControl& control);
+                                         const RunControl& control,
+                                         double* placed_share = nullptr);
 
 // First fit over pages of max_side; the last page is then made as small as it
 // can be. Every chart must fit an empty page.
