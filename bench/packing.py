@@ -1,6 +1,6 @@
 """Packing and resampling on the real scans: efficiency, texels, page sizes, copied texels, PSNR.
 
-    .venv/bin/python bench/packing.py [--base-build DIR] [--no-xatlas]
+    PYTHONPATH=build/addon .venv/bin/python bench/packing.py [--base-build DIR] [--no-xatlas]
 
 For the three scans in ../shared/models, with Atlas Defrag's defaults:
   * packing efficiency (chart texels / page texels, padding not counted),
@@ -53,6 +53,11 @@ def load_module(build: Path):
     found = sorted((build / "addon" / "atlas_defrag").glob("_native*.so")) + sorted(build.glob("_native*.so"))
     if not found:
         raise SystemExit(f"no _native module in {build}")
+    # scan_io reads OBJ files through the add-on's module: a second copy of
+    # the same file cannot be loaded (pybind11 registers its types once).
+    from atlas_defrag import _native
+    if Path(_native.__file__).resolve() == found[0].resolve():
+        return _native
     spec = importlib.util.spec_from_file_location("_native", found[0])
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
