@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 import bpy
+import numpy as np
 
 from . import compat, job, read_bpy, write_bpy
 from .options import BY_NAME
@@ -58,6 +59,38 @@ def prepare(obj, settings: Settings) -> read_bpy.ReadResult:
         raise DefragError("Out of memory while reading the mesh and images") from exc
 
 
+@dataclass
+class SharedRead:
+    """Several objects read for one atlas shared by all: each object's read,
+    the concatenated job and each object's faces in it."""
+
+    reads: list
+    job: job.JobInput
+    faces: list
+
+
+def prepare_shared(objects, settings: list) -> SharedRead:
+    """prepare() for every object (settings[k] for objects[k]), and the one
+    job over all of them. Changes nothing."""
+    reads = [prepare(obj, s) for obj, s in zip(objects, settings)]
+    joined, faces = job.concatenate([r.job for r in reads])
+    return SharedRead(reads=reads, job=joined, faces=faces)
+
+
+def finish_shared(objects, shared: SharedRead, result: job.JobResult, settings: list):
+    """finish() for every object of a shared atlas, in turn, yielding each
+    report: the first writes the new images, the others rewire to them. The
+    report's numbers are the shared job's; atlas_objects names every object."""
+    images = write_bpy.SharedImages()
+    names = [obj.name for obj in objects]
+    for obj, read, faces, s in zip(objects, shared.reads, shared.faces, settings):
+        report = finish(obj, read, job.split(result, faces), s, shared_images=images)
+        part = result.face_page[faces]
+        report.update(atlas_objects=names, faces=faces.stop - faces.start,
+                      pages_used=sorted(int(q) for q in np.unique(part[part >= 0])))
+        yield report
+
+
 def compute(read: read_bpy.ReadResult, settings: Settings, progress=None, cancel=None,
             native=None) -> job.JobResult:
     """The native work: thread-safe (touches no bpy data)."""
@@ -77,8 +110,10 @@ def _set_mode(obj, mode: str) -> None:
         bpy.ops.object.mode_set(mode=mode)
 
 
-def finish(obj, read: read_bpy.ReadResult, result: job.JobResult, settings: Settings) -> dict:
-    """Writes the result (in Object mode, returning to the mode it found)."""
+def finish(obj, read: read_bpy.ReadResult, result: job.JobResult, settings: Settings,
+           shared_images=None) -> dict:
+    """Writes the result (in Object mode, returning to the mode it found);
+    shared_images: see write_bpy.write."""
     t0 = time.perf_counter()
     mode = obj.mode
     try:
@@ -86,7 +121,7 @@ def finish(obj, read: read_bpy.ReadResult, result: job.JobResult, settings: Sett
         written = write_bpy.write(obj, read, result, storage=settings.storage,
                                   image_dir=settings.image_dir,
                                   duplicate_materials=settings.duplicate_materials,
-                                  new_map_first=settings.new_map_first)
+                                  new_map_first=settings.new_map_first, shared=shared_images)
     finally:
         if obj.mode != mode:
             _set_mode(obj, mode)

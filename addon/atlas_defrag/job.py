@@ -403,6 +403,52 @@ def _output_sizes(layout: _Layout, old_pages, new_pages, sources) -> np.ndarray:
     return np.maximum(1, np.rint(layout.page_sizes[new_pages] * ratio[None, :])).astype(np.int32)
 
 
+def concatenate(jobs: Sequence[JobInput]) -> Tuple[JobInput, List[slice]]:
+    """One job over several objects' jobs, for one atlas shared by all, and
+    each job's faces in it. Pages with the same image maps become one page;
+    pages whose roles and formats agree share a group, so their charts are
+    packed onto the same new pages. Every mesh is moved clear of the ones
+    before it along x: the core welds equal positions, and two objects must
+    share no vertex. The translation changes no shape, area or normal."""
+    page_index: Dict[tuple, int] = {}
+    group_index: Dict[tuple, int] = {}
+    pages: List[SourcePage] = []
+    images: Dict[str, ImageData] = {}
+    positions, triangles, uvs, face_page, faces = [], [], [], [], []
+    n_verts = n_faces = 0
+    x_end = 0.0
+    for job in jobs:
+        images.update(job.images)
+        local = np.empty(len(job.pages), dtype=np.int32)
+        for p, page in enumerate(job.pages):
+            key = tuple((m.role, m.image, m.normal_map) for m in page.maps)
+            if key not in page_index:
+                gkey = tuple((m.role, images[m.image].colorspace, images[m.image].is_float) for m in page.maps)
+                page_index[key] = len(pages)
+                pages.append(SourcePage(maps=list(page.maps), group=group_index.setdefault(gkey, len(group_index))))
+            local[p] = page_index[key]
+        m = job.mesh
+        shift = x_end - m.positions[:, 0].min() + 1.0 if n_verts else 0.0
+        positions.append(m.positions + np.array([shift, 0.0, 0.0]))
+        x_end = positions[-1][:, 0].max()
+        triangles.append(m.triangles + n_verts)
+        uvs.append(m.uvs)
+        face_page.append(np.where(m.face_page >= 0, local[np.maximum(m.face_page, 0)], -1).astype(np.int32))
+        faces.append(slice(n_faces, n_faces + len(m.triangles)))
+        n_verts += len(m.positions)
+        n_faces += len(m.triangles)
+    mesh = MeshData(positions=np.concatenate(positions), triangles=np.concatenate(triangles).astype(np.int32),
+                    uvs=np.concatenate(uvs), face_page=np.concatenate(face_page))
+    return JobInput(mesh=mesh, pages=pages, images=images), faces
+
+
+def split(result: JobResult, faces: slice) -> JobResult:
+    """The part of a shared atlas's result on one job's faces (see
+    concatenate): its UVs and pages, the new pages and images of all."""
+    return JobResult(uvs=result.uvs[faces], face_page=result.face_page[faces], page_sizes=result.page_sizes,
+                     page_group=result.page_group, images=result.images, report=dict(result.report))
+
+
 def loop_uvs(tri_loops: np.ndarray, uvs: np.ndarray, n_loops: int,
              fallback: Optional[np.ndarray] = None) -> Tuple[np.ndarray, int]:
     """Per-loop UVs (L, 2) from per-corner UVs; also the number of loops whose

@@ -92,7 +92,9 @@ def image_text(report) -> str:
 
 def report_lines(report) -> list:
     """What the Info log and the panel show after a run."""
-    lines = [f"Defragmented '{report['object']}': {job.summary(report)}; new UV map '{report['uv_map']}'",
+    others = [n for n in report.get("atlas_objects", []) if n != report["object"]]
+    shared = f" (one atlas with {', '.join(repr(n) for n in others)})" if others else ""
+    lines = [f"Defragmented '{report['object']}'{shared}: {job.summary(report)}; new UV map '{report['uv_map']}'",
              image_text(report)]
     stops = stop_text(report)
     return lines + ([stops] if stops else [])
@@ -159,6 +161,10 @@ class WriteProperties:
         name="New Map First", default=True,
         description="Put the new UV map first (the one at index 0 moves to the end): FBX readers "
                     "and game engines texture through the first UV map")
+    one_atlas: BoolProperty(
+        name="One Atlas for All Selected", default=False,
+        description="Pack the charts of every selected mesh into one shared atlas (shared new images) "
+                    "instead of one atlas per mesh")
 
 
 def draw_settings(layout, data) -> None:
@@ -264,16 +270,18 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         if self.options.is_invoke and context.window is not None and not bpy.app.background:
             # The run the dialog confirms goes to a worker thread (a redo never gets here).
             return self._start_modal(context, jobs)
+        units = self._units(jobs)
         wm = context.window_manager
         wm.progress_begin(0, 100)
         reports = []
         try:
-            for k, (obj, settings) in enumerate(jobs):
+            for k, unit in enumerate(units):
                 def progress(stage, fraction, k=k):
-                    wm.progress_update(int(100 * (k + fraction) / len(jobs)))
-                read = api.prepare(obj, settings)
-                result = api.compute(read, settings, progress=progress)
-                reports.append(api.finish(obj, read, result, settings))
+                    wm.progress_update(int(100 * (k + fraction) / len(units)))
+                read = _prepare(unit)
+                result = api.compute(read, unit[0][1], progress=progress)
+                for report in _finish(unit, read, result):
+                    reports.append(report)
         except DefragCancelled:
             return self._end(context, reports, "Cancelled: nothing was changed" if not reports else "Cancelled")
         except DefragError as exc:
@@ -281,6 +289,11 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         finally:
             wm.progress_end()
         return self._end(context, reports, None)
+
+    def _units(self, jobs) -> list:
+        """The runs, each a list of (object, settings): one per object, or
+        one over all of them (One Atlas for All Selected)."""
+        return [jobs] if self.one_atlas and len(jobs) > 1 else [[j] for j in jobs]
 
     def _end(self, context, reports, error):
         """Reports the objects done and the error that stopped the rest. With
@@ -310,14 +323,14 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         _outcome("finished", "\n".join(lines), reports)
         show_in_image_editors(context, reports)
 
-    # -- modal path: one worker thread per object in turn + timer -------------
+    # -- modal path: one worker thread per run in turn + timer ----------------
     def _start_modal(self, context, jobs):
         try:
             _native_token()
         except ImportError as exc:
             return self._fail("error", f"The native module is missing: {exc}")
-        self._queue = [(obj.name, settings) for obj, settings in jobs]
-        self._count = len(jobs)
+        self._queue = [[(obj.name, settings) for obj, settings in unit] for unit in self._units(jobs)]
+        self._count = len(self._queue)
         self._reports = []
         self._run = None
         error = self._next_run()
@@ -331,17 +344,17 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         return {"RUNNING_MODAL"}
 
     def _next_run(self) -> str:
-        """Reads the next queued object and starts its worker; an error message or ''."""
-        name, settings = self._queue.pop(0)
-        obj = bpy.data.objects.get(name)
-        if obj is None:
-            return f"The object '{name}' was removed during the run"
+        """Reads the next queued run's objects and starts its worker; an error message or ''."""
+        named = self._queue.pop(0)
+        unit, error = _resolve(named, "during the run")
+        if error:
+            return error
         try:
-            read = api.prepare(obj, settings)
+            read = _prepare(unit)
         except DefragError as exc:
             return str(exc)
-        self._object_name = name
-        self._run = _Run(read, settings, _native_token())
+        self._unit = named
+        self._run = _Run(read, unit[0][1], _native_token())
         self._run.thread = threading.Thread(target=self._run.work, name="atlas_defrag", daemon=True)
         self._run.thread.start()
         return ""
@@ -364,10 +377,10 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         if event.type != "TIMER":
             return {"PASS_THROUGH"} if event.type in _NAVIGATION else {"RUNNING_MODAL"}
         if run.thread.is_alive():
-            done = (len(self._reports) + run.fraction) / self._count
+            done = (self._count - len(self._queue) - 1 + run.fraction) / self._count
             context.window_manager.progress_update(int(100 * done))
             if not run.cancel_requested:
-                which = f" ({self._object_name})" if self._count > 1 else ""
+                which = f" ({', '.join(n for n, _ in self._unit)})" if self._count > 1 else ""
                 compat.status_text_set(
                     context, f"Defragmenting texture atlas{which}: {run.stage} {100 * run.fraction:.0f}% "
                              f"({time.perf_counter() - run.started:.0f} s, Esc to cancel)")
@@ -387,11 +400,12 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         if run.error is not None:
             return str(run.error) if isinstance(run.error, DefragError) else \
                 f"{type(run.error).__name__}: {run.error}"
-        obj = bpy.data.objects.get(self._object_name)
-        if obj is None:
-            return "The object was removed during the run: nothing was written"
+        unit, error = _resolve(self._unit, "during the run: nothing was written")
+        if error:
+            return error
         try:
-            self._reports.append(api.finish(obj, run.read, run.result, run.settings))
+            for report in _finish(unit, run.read, run.result):
+                self._reports.append(report)
         except DefragError as exc:
             return str(exc)
         return None
@@ -416,6 +430,29 @@ def targets(context) -> list:
             seen.add(obj.data.name)
             out.append(obj)
     return out
+
+
+def _resolve(named, when: str):
+    """[(object, settings)] of [(name, settings)], and '' or the error
+    naming an object removed meanwhile."""
+    unit = [(bpy.data.objects.get(name), settings) for name, settings in named]
+    gone = [name for (name, _), (obj, _) in zip(named, unit) if obj is None]
+    return unit, (f"The object '{gone[0]}' was removed {when}" if gone else "")
+
+
+def _prepare(unit):
+    """The read of one run: one object's, or the shared read of several."""
+    if len(unit) == 1:
+        return api.prepare(*unit[0])
+    return api.prepare_shared([obj for obj, _ in unit], [s for _, s in unit])
+
+
+def _finish(unit, read, result):
+    """Writes one run's result, yielding the report of each object."""
+    if len(unit) == 1:
+        yield api.finish(unit[0][0], read, result, unit[0][1])
+        return
+    yield from api.finish_shared([obj for obj, _ in unit], read, result, [s for _, s in unit])
 
 
 def _done_before(reports) -> str:

@@ -214,16 +214,26 @@ def _rewire_material(mat, info, new_uv: str, page_images: Dict[str, object], rea
         _set_attr(tree.nodes[name], "uv_map", read.render_uv, journal)
 
 
+@dataclass
+class SharedImages:
+    """The new images of an atlas shared by several objects: the first
+    object's write makes them, the others' writes rewire to them."""
+
+    by_page_role: Dict[Tuple[int, str], object] = field(default_factory=dict)
+    names: List[str] = field(default_factory=list)
+
+
 def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
           image_dir: Optional[str] = None, duplicate_materials: bool = False,
-          new_map_first: bool = True) -> dict:
+          new_map_first: bool = True, shared: Optional[SharedImages] = None) -> dict:
     """Applies the result to obj (which must be in Object mode). Returns what
     was created: {'uv_map', 'images', 'materials', 'warnings', ...}.
 
     new_map_first puts the new UV map at index 0 (the map that was there moves
     to the end): FBX readers and game engines texture through the first map.
     The originals the rewiring leaves without users get a fake user, so that
-    saving the .blend keeps them."""
+    saving the .blend keeps them. shared: the images of an atlas shared
+    with objects written before (empty for the first, filled once it succeeded)."""
     if obj.mode != "OBJECT":
         raise DefragError("internal error: write() needs Object mode")
     if mesh_signature(obj) != read.signature:
@@ -234,7 +244,8 @@ def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
     image_dir = _image_dir(storage, image_dir)
     journal = _Journal()
     try:
-        return _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_first, journal)
+        return _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_first, journal,
+                      shared or SharedImages())
     except MemoryError as exc:
         journal.rollback()
         raise DefragError("Out of memory while writing the new images") from exc
@@ -269,15 +280,20 @@ class _Target:
     warnings: List[str] = field(default_factory=list)
 
 
-def _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_first, journal) -> dict:
+def _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_first, journal,
+           shared: SharedImages) -> dict:
     if result.uvs.shape != (len(read.tri_loops), 3, 2) or result.face_page.shape != (len(read.tri_loops),):
         raise DefragError("internal error: the result does not match the mesh")
     target = _Target(obj, read, result, journal)
-    page_role_image, created_images = _write_images(target, storage, image_dir)
+    if shared.by_page_role:
+        page_role_image, created_images = shared.by_page_role, list(shared.names)
+    else:
+        page_role_image, created_images = _write_images(target, storage, image_dir)
     new_uv = _write_uv_map(target, new_map_first)
     created_materials, rewired = _rewire_materials(target, new_uv, page_role_image, duplicate_materials)
     _keep_originals(target, duplicate_materials)
     obj.data.update()
+    shared.by_page_role, shared.names = page_role_image, created_images
     return {"uv_map": new_uv, "new_map_first": new_map_first, "images": created_images,
             "materials": created_materials, "rewired_materials": rewired, "warnings": target.warnings}
 

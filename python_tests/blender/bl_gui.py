@@ -65,10 +65,10 @@ def wait_outcome(timeout):
     return len(ticks)
 
 
-def confirm_dialog(win, override):
+def confirm_dialog(win, override, **props):
     """Opens the operator's dialog and confirms it with Return: the run starts."""
     with override:
-        res = bpy.ops.uv.defragment_atlas("INVOKE_DEFAULT")
+        res = bpy.ops.uv.defragment_atlas("INVOKE_DEFAULT", **props)
     assert res == {"RUNNING_MODAL"}, res  # the dialog is open
     yield 0.5
     t0 = time.time()
@@ -142,6 +142,24 @@ def driver():
         done("dialog_run", True, {"invoke": sorted(res)})
     except Exception:
         done("dialog_run", False, traceback.format_exc())
+
+    # 4. One Atlas for All Selected, modal: one worker run writes both objects.
+    try:
+        plane = H.textured_plane(name="Second")
+        H.make_active(bpy.data.objects[name])
+        plane.select_set(True)
+        win, override = ctx()
+        OUTCOME["status"] = None
+        yield from confirm_dialog(win, override, one_atlas=True)
+        yield from wait_outcome(ARGS.timeout)
+        assert OUTCOME["status"] == "finished", OUTCOME
+        reports = OUTCOME["report"]
+        assert [r["object"] for r in reports] == [name, plane.name], reports
+        assert reports[0]["images"] == reports[1]["images"], reports
+        assert new_uv_present(plane.name)
+        done("modal_one_atlas", True, {"images": reports[0]["images"]})
+    except Exception:
+        done("modal_one_atlas", False, traceback.format_exc())
 
 
 GEN = None

@@ -479,6 +479,64 @@ def several_objects(pkg):
     return {"message": message}
 
 
+def one_atlas_for_all_selected(pkg):
+    """One Atlas for All Selected: two meshes (a scan and a plane) share one
+    set of new images; their new UV maps together cover no texel twice; the
+    outcome reports each object; one undo takes both back."""
+    H.reset()
+    a = H.import_model(H.model_path("tetra"))
+    b = H.textured_plane(name="Second")
+    names = [a.name, b.name]
+    states = {n: H.object_state(n) for n in names}
+    H.make_active(a)
+    b.select_set(True)
+    H.undo_push("before")
+    assert run_operator(pkg, undo=True, one_atlas=True) == {"FINISHED"}
+    for n, before in states.items():
+        check_result(n, before, None)
+    reports = pkg.operators.last_outcome["report"]
+    assert [r["object"] for r in reports] == names, [r["object"] for r in reports]
+    assert all(r["atlas_objects"] == names and r["images"] == reports[0]["images"] for r in reports), reports
+    assert set(reports[0]["pages_used"]) & set(reports[1]["pages_used"]), "the objects share no page"
+    message = pkg.operators.last_outcome["message"]
+    assert f"Defragmented '{names[0]}' (one atlas with '{names[1]}')" in message, message
+    assert f"Defragmented '{names[1]}' (one atlas with '{names[0]}')" in message, message
+    m = _shared_atlas_measures(pkg, names, reports[0]["uv_map"])
+    assert m["overlap_texels"] == 0 and m["flipped_faces"] == 0, m
+    H.undo()
+    for n, before in states.items():
+        assert H.object_state(n) == before, _diff(before, H.object_state(n))
+    return {"new": m}
+
+
+def _shared_atlas_measures(pkg, names, uv_map):
+    """_native.measure of the objects' new UV maps together, each face on the
+    page of the new image its material now shows (pages by image name)."""
+    from importlib import import_module
+    native = import_module(pkg.__name__ + "._native")
+    page_of_image, sizes = {}, []
+    positions, triangles, uvs, face_page = [], [], [], []
+    for k, n in enumerate(names):
+        job = pkg.read_bpy.read(bpy.data.objects[n], uv_map).job
+        local = []
+        for page in job.pages:
+            image = page.maps[0].image
+            if image not in page_of_image:
+                page_of_image[image] = len(sizes)
+                sizes.append(bpy.data.images[image].size[:])
+            local.append(page_of_image[image])
+        local = np.array(local, np.int32)
+        offset = sum(len(p) for p in positions)
+        positions.append(job.mesh.positions + [10.0 * k, 0.0, 0.0])  # apart: equal positions weld
+        triangles.append(job.mesh.triangles + offset)
+        uvs.append(job.mesh.uvs)
+        face_page.append(np.where(job.mesh.face_page >= 0, local[np.maximum(job.mesh.face_page, 0)], -1))
+    pos, tri = np.concatenate(positions), np.concatenate(triangles).astype(np.int32)
+    uv, fp = np.concatenate(uvs), np.concatenate(face_page).astype(np.int32)
+    size = np.array(sizes, np.int32)
+    return native.measure(pos, tri, uv, fp, size, uv, fp, size)["new"]
+
+
 def several_objects_one_fails(pkg):
     """The second selected mesh has no image texture: the first is done, the
     error names what was done, and one undo takes it back."""
@@ -633,6 +691,7 @@ SCENARIOS = {
     "several_objects": several_objects,
     "redo_asks_first": redo_asks_first,
     "several_objects_one_fails": several_objects_one_fails,
+    "one_atlas_for_all_selected": one_atlas_for_all_selected,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)

@@ -12,7 +12,7 @@ NATIVE_SCENARIOS = ["operator_tetra", "edit_mode_undo", "python_entry", "duplica
                     "save_beside_blend", "cancel_leaves_nothing", "worker_thread_run",
                     "operator_smithsonian", "operator_meshroom", "fbx_round_trip_meshroom",
                     "fbx_round_trip_smithsonian", "obj_round_trip_meshroom", "save_reopen", "several_objects",
-                    "several_objects_one_fails"]
+                    "several_objects_one_fails", "one_atlas_for_all_selected"]
 
 
 def test_is_blender_4():

@@ -107,3 +107,24 @@ def test_out_of_memory_is_reported(pkg, native):
     read = types.SimpleNamespace(job=inp)
     with pytest.raises(pkg.DefragError, match="Out of memory"):
         pkg.api.compute(read, pkg.api.Settings(), native=failing)
+
+
+def test_concatenate_two_objects_into_one_atlas(job, native):
+    """Two copies of the grid (equal positions, the same images): one job
+    with the pages shared and no vertex shared, one layout covering no texel
+    twice, and each part on the same new pages."""
+    one = grid_job(job)
+    joined, faces = job.concatenate([one, grid_job(job)])
+    f = len(one.mesh.triangles)
+    assert faces == [slice(0, f), slice(f, 2 * f)]
+    assert len(joined.pages) == 2 and [p.group for p in joined.pages] == [0, 1]
+    assert len(np.unique(joined.mesh.positions, axis=0)) == 2 * len(one.mesh.positions)
+    assert np.array_equal(joined.mesh.face_page[faces[1]], one.mesh.face_page)
+    res = job.run(joined, job.Options(padding=2))
+    parts = [job.split(res, s) for s in faces]
+    assert all(p.uvs.shape == (f, 3, 2) and p.images is res.images for p in parts)
+    used = [set(p.face_page[p.face_page >= 0].tolist()) for p in parts]
+    assert used[0] == used[1], used
+    m = native.measure(joined.mesh.positions, joined.mesh.triangles, joined.mesh.uvs, joined.mesh.face_page,
+                       job.page_sizes_of(joined), res.uvs, res.face_page, res.page_sizes)["new"]
+    assert m["overlap_texels"] == 0 and m["flipped_faces"] == 0, m
