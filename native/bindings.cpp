@@ -171,8 +171,13 @@ T option_value(const py::handle& value, const std::string& key, const char* rang
                         std::string(py::repr(value)));
 }
 
+// A text option's value, or the repr of whatever else was given (for the message).
+std::string option_text(const py::handle& value) {
+  return py::isinstance<py::str>(value) ? value.cast<std::string>() : std::string(py::repr(value));
+}
+
 PageSides page_sides_option(const py::handle& value, const std::string& key) {
-  const std::string v = py::isinstance<py::str>(value) ? value.cast<std::string>() : std::string(py::repr(value));
+  const std::string v = option_text(value);
   if (v == "tight") return PageSides::Tight;
   if (v == "multiple_of_4") return PageSides::MultipleOf4;
   if (v == "power_of_two") return PageSides::PowerOfTwo;
@@ -189,7 +194,7 @@ PipelineOptions pipeline_options(const py::object& obj) {
     const std::string key = key_obj.cast<std::string>();
     if (key == "target_charts") o.aggregate.target_charts = option_value<int>(value, key, "0 (automatic) or >= 1");
     else if (key == "weighting") {
-      const std::string w = py::isinstance<py::str>(value) ? value.cast<std::string>() : std::string(py::repr(value));
+      const std::string w = option_text(value);
       if (w != "uv" && w != "3d") throw py::value_error("weighting must be 'uv' or '3d', got '" + w + "'");
       o.aggregate.weighting = w == "uv" ? Weighting::UV : Weighting::Surface;
     } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = option_value<double>(value, key, ">= 0");

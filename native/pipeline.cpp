@@ -55,6 +55,13 @@ constexpr double kStrictDensityLoss = 0.02;
 constexpr double kDensityBudget = 0.008;
 constexpr double kDensityAllowance = 2e-4;
 
+// Faces of aggregated chart c: the faces of its original charts.
+size_t faces_in_aggregate(const Aggregation& aggregation, const std::vector<std::vector<int>>& chart_faces, int c) {
+  size_t n = 0;
+  for (int m : aggregation.members[c]) n += chart_faces[m].size();
+  return n;
+}
+
 // Reports progress from any worker, one at a time: the Python callback takes
 // the GIL, and what it throws (Cancelled) must leave the critical section.
 void report_from_worker(const RunControl& control, const char* stage, double fraction) {
@@ -76,11 +83,7 @@ void flatten_charts(const Mesh& mesh, const MeshTopology& topology, const ChartG
                     const std::vector<std::vector<int>>& chart_faces, const Aggregation& aggregation,
                     const std::vector<int>& which, const FlattenOptions& options, const RunControl& control,
                     std::vector<std::vector<FlatChart>>& pieces, std::vector<FlattenStats>& stats) {
-  auto faces_of = [&](int c) {
-    size_t n = 0;
-    for (int m : aggregation.members[c]) n += chart_faces[m].size();
-    return n;
-  };
+  auto faces_of = [&](int c) { return faces_in_aggregate(aggregation, chart_faces, c); };
   size_t total = 0;
   for (int c : which) total += faces_of(c);
   std::atomic<size_t> finished{0};
@@ -129,11 +132,7 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
   const auto chart_faces = faces_by_chart(graph.face_chart, graph.chart_count());
   std::vector<int> order(aggregation.chart_count());
   std::iota(order.begin(), order.end(), 0);
-  auto faces_in = [&](int c) {
-    size_t n = 0;
-    for (int m : aggregation.members[c]) n += chart_faces[m].size();
-    return n;
-  };
+  auto faces_in = [&](int c) { return faces_in_aggregate(aggregation, chart_faces, c); };
   std::sort(order.begin(), order.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
 
   std::vector<std::vector<FlatChart>> pieces(order.size());
