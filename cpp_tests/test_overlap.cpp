@@ -8,6 +8,7 @@
 #include "core/geometry.hpp"
 #include "flatten/cut_to_disk.hpp"
 #include "flatten/flatten_chart.hpp"
+#include "core/union_find.hpp"
 #include "test_meshes.hpp"
 
 using namespace atlas;
@@ -85,7 +86,7 @@ TEST(Overlap, HelicalStripEndsWithoutOverlap) {
   for (int f = 0; f < mesh.face_count(); ++f) chart_faces[graph.face_chart[f]].push_back(f);
   FlattenStats stats;
   const auto pieces =
-      flatten_without_overlap(mesh, topology, graph, chart_faces, merged.members[0], {}, RunControl(), stats);
+      flatten_without_overlap(mesh, topology, graph, chart_faces, merged.members[0], merged.merges, {}, RunControl(), stats);
   size_t faces = 0;
   for (const FlatChart& piece : pieces) {
     faces += piece.faces.size();
@@ -104,7 +105,7 @@ TEST(Overlap, ClosedSurfaceIsSplitIntoDisks) {
   std::vector<int> all(graph.chart_count());
   for (int c = 0; c < graph.chart_count(); ++c) all[c] = c;
   FlattenStats stats;
-  const auto pieces = flatten_without_overlap(torus, topology, graph, chart_faces, all, {}, RunControl(), stats);
+  const auto pieces = flatten_without_overlap(torus, topology, graph, chart_faces, all, {}, {}, RunControl(), stats);
   EXPECT_GE(stats.not_disk, 1);
   EXPECT_GE(pieces.size(), 2u);
   size_t faces = 0;
@@ -155,7 +156,7 @@ std::vector<FlatChart> flatten_single_chart(const Mesh& mesh, FlattenStats& stat
   const ChartGraph graph = build_chart_graph(mesh, topology, {});
   EXPECT_EQ(graph.chart_count(), 1);
   std::vector<std::vector<int>> chart_faces(1, identity(mesh.face_count()));
-  auto pieces = flatten_without_overlap(mesh, topology, graph, chart_faces, {0}, {}, RunControl(), stats);
+  auto pieces = flatten_without_overlap(mesh, topology, graph, chart_faces, {0}, {}, {}, RunControl(), stats);
   size_t faces = 0;
   for (const FlatChart& piece : pieces) {
     faces += piece.faces.size();
@@ -209,4 +210,122 @@ TEST(Overlap, LoneChartCrossingItselfInUvIsUncrossed) {
     EXPECT_FALSE(piece_crosses_itself(mesh, piece));
     EXPECT_FALSE(piece.kept_original);
   }
+}
+
+namespace {
+
+// A spherical cap reaching polar angle `extent` (radians): rings x 6 sectors
+// cells of quads around the pole, each cell of 3 rings by 6 quads its own
+// nearly flat chart. Merged, they bend too far to flatten without squeezing.
+Mesh sector_cap(int rings, int sectors, double extent) {
+  constexpr double kPi = 3.14159265358979323846;
+  const int around = 6 * sectors;
+  RowMatrixX3d positions(1 + rings * around, 3);
+  positions.row(0) << 0, 0, 1;
+  for (int r = 1; r <= rings; ++r)
+    for (int s = 0; s < around; ++s) {
+      const double phi = extent * r / rings, theta = 2 * kPi * s / around;
+      positions.row(1 + (r - 1) * around + s) << std::sin(phi) * std::cos(theta), std::sin(phi) * std::sin(theta),
+          std::cos(phi);
+    }
+  auto at = [&](int r, int s) { return r == 0 ? 0 : 1 + (r - 1) * around + (s % around); };
+  std::vector<Eigen::Vector3i> tris;
+  std::vector<int> chart;
+  for (int s = 0; s < around; ++s) {
+    tris.emplace_back(at(0, 0), at(1, s), at(1, s + 1));
+    chart.push_back(s / 6);
+    for (int r = 1; r < rings; ++r) {
+      tris.emplace_back(at(r, s), at(r + 1, s), at(r + 1, s + 1));
+      tris.emplace_back(at(r, s), at(r + 1, s + 1), at(r, s + 1));
+      const int cell = r / 3 * sectors + s / 6;
+      chart.push_back(cell), chart.push_back(cell);
+    }
+  }
+  RowMatrixX3i triangles(static_cast<Eigen::Index>(tris.size()), 3);
+  for (size_t f = 0; f < tris.size(); ++f) triangles.row(f) = tris[f].transpose();
+  return atlas::testing::with_chart_uvs(positions, triangles, chart);
+}
+
+struct CapRun {
+  std::vector<FlatChart> pieces;
+  FlattenStats stats;
+  std::vector<int> face_chart;  // original chart of each face
+  std::vector<std::pair<int, int>> merges;
+};
+
+CapRun flatten_cap(const Mesh& mesh, int relief_cuts) {
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const ChartGraph graph = build_chart_graph(mesh, topology, {});
+  AggregateOptions merge_all;
+  merge_all.min_normal_coherence = 0;
+  const Aggregation merged = aggregate_charts(mesh, topology, graph, merge_all, RunControl());
+  EXPECT_EQ(merged.chart_count(), 1);
+  std::vector<std::vector<int>> chart_faces(graph.chart_count());
+  for (int f = 0; f < mesh.face_count(); ++f) chart_faces[graph.face_chart[f]].push_back(f);
+  FlattenOptions options;
+  options.relief_cuts = relief_cuts;
+  CapRun run;
+  run.face_chart = graph.face_chart;
+  run.merges = merged.merges;
+  run.pieces = flatten_without_overlap(mesh, topology, graph, chart_faces, merged.members[0], merged.merges, options,
+                                       RunControl(), run.stats);
+  return run;
+}
+
+// Faces of the flattened pieces with less than half their original texel area, by 3D area share.
+double density_lost_share(const Mesh& mesh, const std::vector<FlatChart>& pieces) {
+  double lost = 0, total = 0;
+  for (const FlatChart& piece : pieces)
+    for (size_t i = 0; i < piece.faces.size(); ++i) {
+      const int f = piece.faces[i];
+      const double after = std::abs(signed_area(piece.corner_uv.row(3 * i), piece.corner_uv.row(3 * i + 1),
+                                                piece.corner_uv.row(3 * i + 2)));
+      total += mesh.area_3d(f);
+      if (after < 0.5 * std::abs(mesh.signed_area_uv(f))) lost += mesh.area_3d(f);
+    }
+  return lost / total;
+}
+
+}  // namespace
+
+// Without relief cuts the cap is split back into pieces; with them it stays
+// one chart, slit open, within the density rule and without flips or crossings.
+TEST(ReliefCut, KeepsABentChartWhole) {
+  const Mesh cap = sector_cap(12, 6, 2.8);
+  const CapRun split = flatten_cap(cap, 0);
+  EXPECT_GE(split.stats.density_lost, 1);
+  EXPECT_GE(split.pieces.size(), 2u);
+
+  const CapRun slit = flatten_cap(cap, 2);
+  ASSERT_EQ(slit.pieces.size(), 1u);
+  EXPECT_GE(slit.stats.relief_cuts, 1);
+  EXPECT_EQ(slit.stats.density_lost, 0);
+  EXPECT_LE(density_lost_share(cap, slit.pieces), FlattenOptions().max_density_loss);
+  const FlatChart& chart = slit.pieces[0];
+  EXPECT_EQ(chart.faces.size(), static_cast<size_t>(cap.face_count()));
+  double winding = 0;
+  for (size_t i = 0; i < chart.faces.size(); ++i) {
+    const double a = signed_area(chart.corner_uv.row(3 * i), chart.corner_uv.row(3 * i + 1), chart.corner_uv.row(3 * i + 2));
+    if (i == 0) winding = a;
+    EXPECT_GT(a * winding, 0) << "face " << i;
+  }
+}
+
+// A split undoes the aggregation's last merge: two pieces, the two clusters
+// that merge joined, rather than groups regrown from seeds.
+TEST(ReliefCut, SplitUndoesTheLastMerge) {
+  const Mesh cap = sector_cap(12, 6, 2.8);
+  const CapRun split = flatten_cap(cap, 0);
+  ASSERT_EQ(split.stats.density_lost, 1);
+  ASSERT_EQ(split.pieces.size(), 2u);
+  const auto [survivor, absorbed] = split.merges.back();
+  UnionFind before(24);
+  for (size_t i = 0; i + 1 < split.merges.size(); ++i) before.unite(split.merges[i].first, split.merges[i].second);
+  for (const FlatChart& piece : split.pieces) {
+    const int side = before.find(split.face_chart[piece.faces.front()]);
+    EXPECT_TRUE(side == before.find(survivor) || side == before.find(absorbed));
+    for (int f : piece.faces) EXPECT_EQ(before.find(split.face_chart[f]), side);
+  }
+  EXPECT_NE(before.find(split.face_chart[split.pieces[0].faces.front()]),
+            before.find(split.face_chart[split.pieces[1].faces.front()]));
 }

@@ -43,6 +43,16 @@ std::vector<std::vector<int>> faces_by_chart(const std::vector<int>& face_chart,
   return out;
 }
 
+// The graph with no merge offered to an original chart that keeps a handle:
+// a merged chart holding it could only be split back.
+ChartGraph without_merges_of_handles(const Mesh& mesh, const MeshTopology& topology, ChartGraph graph) {
+  const std::vector<char> handle =
+      charts_with_handles(mesh, topology, graph, faces_by_chart(graph.face_chart, graph.chart_count()));
+  for (ChartAdjacency& adj : graph.adjacency)
+    if (handle[adj.a] || handle[adj.b]) adj.mergeable = false;
+  return graph;
+}
+
 // The density rule (FlattenOptions::max_density_loss): every chart is first
 // flattened allowing kStrictDensityLoss of its surface below half density, or
 // kDensityAllowance of the whole surface (which spares splitting small
@@ -91,7 +101,8 @@ void flatten_charts(const Mesh& mesh, const MeshTopology& topology, const ChartG
     control.throw_if_cancelled();
     const int c = which[i];
     stats[c] = {};
-    pieces[c] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[c], options, control,
+    pieces[c] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[c],
+                                        aggregation.merges, options, control,
                                         stats[c]);
     finished += faces_of(c);
     report_from_worker(control, "flatten", double(finished) / std::max<size_t>(total, 1));
@@ -154,6 +165,23 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
     for (auto& piece : pieces[c]) out.push_back(std::move(piece));
   }
   return out;
+}
+
+// The seams the refinement must keep: those the graph kept, plus every edge
+// inside a flattened chart whose two faces disagree in UV there (the cuts of
+// cut_to_disk and relief_cut).
+std::vector<char> seams_in_flat_charts(const Mesh& mesh, const MeshTopology& topology, std::vector<char> seams,
+                                       const std::vector<FlatChart>& charts) {
+  RowMatrixX2d uv = RowMatrixX2d::Zero(3 * static_cast<Eigen::Index>(mesh.face_count()), 2);
+  std::vector<int> label(mesh.face_count(), -1);
+  for (size_t c = 0; c < charts.size(); ++c)
+    for (size_t j = 0; j < charts[c].faces.size(); ++j) {
+      label[charts[c].faces[j]] = static_cast<int>(c);
+      uv.middleRows(3 * charts[c].faces[j], 3) = charts[c].corner_uv.middleRows(3 * j, 3);
+    }
+  const std::vector<char> cut = self_seams(topology, mesh.triangles, uv, Eigen::VectorXi::Zero(mesh.face_count()), label);
+  for (size_t e = 0; e < seams.size(); ++e) seams[e] = seams[e] || cut[e];
+  return seams;
 }
 
 // A chart less than a texel across is scaled up to one texel. Such charts are
@@ -376,7 +404,7 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   // flip falls in two.
   const Mesh mesh = cut_internal_seams(welded, welded_topology, welded_graph);
   const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
-  const ChartGraph graph = build_chart_graph(mesh, topology, face_group);
+  const ChartGraph graph = without_merges_of_handles(mesh, topology, build_chart_graph(mesh, topology, face_group));
   clock.lap("charts");
   control.progress("charts", 1.0);
 
@@ -391,7 +419,8 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   std::vector<FlatChart> charts = flatten_all(mesh, topology, flat_graph, aggregation, options.slim, control, report);
   clock.lap("flatten");
   // Before tiny charts are enlarged: the refinement compares texel areas.
-  const RefineStats refined = refine_seams(mesh, topology, flat_graph.self_seam, face_group, options.refine, charts);
+  const std::vector<char> kept_seams = seams_in_flat_charts(mesh, topology, flat_graph.self_seam, charts);
+  const RefineStats refined = refine_seams(mesh, topology, kept_seams, face_group, options.refine, charts);
   report.refine_faces_moved = refined.faces_moved;
   report.refine_seam_removed = refined.seam_removed_3d / std::sqrt(total_area(welded));
   enlarge_tiny_charts(charts);

@@ -113,6 +113,7 @@ class Aggregator {
     Aggregation out;
     out.stops = stops();
     out.kept_seam = disks_.seams();
+    out.merges = merges_;
     std::vector<int> renumber(clusters_.size(), -1);
     out.face_chart.assign(graph_.face_chart.size(), -1);
     for (size_t f = 0; f < graph_.face_chart.size(); ++f) {
@@ -205,6 +206,7 @@ class Aggregator {
 
   void collapse(int a, int b, const MergeCheck& check) {
     const int keep = disks_.merge(a, b, check), gone = keep == a ? b : a;
+    merges_.push_back({keep, gone});
     Cluster& k = clusters_[keep];
     Cluster& g = clusters_[gone];
     const Link shared = welded_part(k.links.at(gone), check.left_open.empty() ? -1 : check.open_length);
@@ -238,6 +240,7 @@ class Aggregator {
   DiskClusters disks_;
   std::vector<Cluster> clusters_;
   std::priority_queue<Candidate> queue_;
+  std::vector<std::pair<int, int>> merges_;
   double total_area_3d_ = 0, total_area_uv_ = 0;
   int alive_ = 0;
 };

@@ -40,7 +40,7 @@ struct AggregateOptions {
 // by the first rule that refuses it. It tells a chart count that topology
 // forces (not_disk, non_manifold) from one that the options chose.
 struct AggregationStops {
-  int non_manifold = 0;        // a non-manifold or flipped shared edge, or a chart that started non-manifold
+  int non_manifold = 0;        // a non-manifold or flipped shared edge, or a chart that started non-manifold or with a handle
   int not_disk = 0;            // the union would have a hole or a handle
   int normal_coherence = 0;    // see AggregateOptions
   int max_chart_faces = 0;
@@ -54,6 +54,9 @@ struct Aggregation {
   // Per edge: boundary on both sides. The graph's self seams plus the arcs
   // that partial merges left open between two original charts of one chart.
   std::vector<char> kept_seam;
+  // Every merge in the order made: (survivor, absorbed), clusters named by
+  // an original chart in them. The flattening undoes them from the last.
+  std::vector<std::pair<int, int>> merges;
   AggregationStops stops;
   int chart_count() const { return static_cast<int>(members.size()); }
 };

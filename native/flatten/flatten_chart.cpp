@@ -10,9 +10,11 @@
 #include "charts/disk_merge.hpp"
 #include "core/corners.hpp"
 #include "core/geometry.hpp"
+#include "core/parallel_for.hpp"
 #include "core/segment_crossing.hpp"
 #include "core/union_find.hpp"
 #include "flatten/cut_to_disk.hpp"
+#include "flatten/relief_cut.hpp"
 
 namespace atlas {
 namespace {
@@ -80,16 +82,16 @@ void for_each_shared_edge(const MeshTopology& topology, const std::vector<int>& 
 // vertex only when their faces connect through edges inside the chart, so a
 // vertex where the chart merely touches itself (a pinch) is split in two.
 // An original chart that meets itself at a UV seam keeps it open
-// (graph.self_seam), as DiskClusters does.
+// (graph.self_seam), as DiskClusters does, and so do the edges `cuts` (sorted).
 LocalChart localize(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                    std::vector<int> faces) {
+                    std::vector<int> faces, const std::vector<int>& cuts = {}) {
   LocalChart c;
   c.faces = std::move(faces);
   const int n = static_cast<int>(c.faces.size());
   UnionFind corners(3 * n);
   auto local_corner_at = [&](int i, int v) { return 3 * i + mesh.corner_of(c.faces[i], v); };
   for_each_shared_edge(topology, c.faces, [&](int i, int j, int e) {
-    if (graph.self_seam[e]) return;
+    if (graph.self_seam[e] || std::binary_search(cuts.begin(), cuts.end(), e)) return;
     for (int end = 0; end < 2; ++end) {
       const int v = topology.edge_vertices(e, end);
       corners.unite(local_corner_at(i, v), local_corner_at(j, v));
@@ -268,6 +270,34 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology
   return out;
 }
 
+// The members undone into the two clusters the aggregation's last merge among
+// them joined (merges: (survivor, absorbed) in order, see Aggregation). Both
+// were disks when it made them, and gave way to the merge that failed, the
+// costliest the greedy order took. Empty when the members are not one cluster
+// of that history (a regrown group).
+std::vector<std::vector<int>> undo_last_merge(const std::vector<std::pair<int, int>>& merges,
+                                              const std::vector<int>& members) {
+  std::unordered_map<int, int> local;
+  for (int i = 0; i < static_cast<int>(members.size()); ++i) local[members[i]] = i;
+  int last = -1;
+  for (int i = 0; i < static_cast<int>(merges.size()); ++i)
+    if (local.count(merges[i].first) && local.count(merges[i].second)) last = i;
+  if (last < 0) return {};
+  UnionFind before(static_cast<int>(members.size()));
+  int joined = 0;
+  for (int i = 0; i < last; ++i) {
+    const auto a = local.find(merges[i].first), b = local.find(merges[i].second);
+    if (a != local.end() && b != local.end()) before.unite(a->second, b->second), ++joined;
+  }
+  // A tree of merges over m members has m - 1 of them, the last one included.
+  if (joined + 2 != static_cast<int>(members.size())) return {};
+  const int side = before.find(local[merges[last].second]);
+  std::vector<std::vector<int>> out(2);
+  for (int i = 0; i < static_cast<int>(members.size()); ++i)
+    out[before.find(i) == side ? 1 : 0].push_back(members[i]);
+  return out;
+}
+
 // The 3D area of a flattened chart's faces that end with less than half their
 // original texel area (eq.: new UV area / original UV area < 1/2), and the
 // original chart that lost the most of it (-1 when none did). SLIM balances
@@ -352,22 +382,35 @@ struct Attempt {
 };
 
 Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                      std::vector<int> faces, const FlattenOptions& options, const RunControl& control,
+                      const std::vector<int>& faces, const FlattenOptions& options, const RunControl& control,
                       FlattenStats& stats) {
-  LocalChart local = localize(mesh, topology, graph, std::move(faces));
-  if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
-  const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options.slim, control);
-  stats.scaffolded += solution.scaffolded;
-  if (!solution.status.ok() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
-  if (const auto crossing = boundary_crossing(local.triangles, solution.uv))
-    return {std::nullopt, &FlattenStats::overlapped,
-            smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second])};
-  const DensityLoss loss = density_loss(mesh, graph, local, solution.uv);
-  if (loss.lost_area > options.max_density_loss * loss.total_area && loss.lost_area > options.density_loss_allowance)
-    return {std::nullopt, &FlattenStats::density_lost, loss.culprit};
-  FlatChart chart = from_solution(local, solution);
-  chart.density_lost_area = loss.lost_area;
-  return {std::move(chart)};
+  std::vector<int> cuts;
+  for (int round = 0;; ++round) {
+    LocalChart local = localize(mesh, topology, graph, faces, cuts);
+    if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
+    const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options.slim, control);
+    stats.scaffolded += solution.scaffolded;
+    if (!solution.status.ok() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
+    if (const auto crossing = boundary_crossing(local.triangles, solution.uv))
+      return {std::nullopt, &FlattenStats::overlapped,
+              smaller_chart(graph, local.faces[crossing->first], local.faces[crossing->second])};
+    const DensityLoss loss = density_loss(mesh, graph, local, solution.uv);
+    if (loss.lost_area > options.max_density_loss * loss.total_area && loss.lost_area > options.density_loss_allowance) {
+      if (round < options.relief_cuts) {
+        const std::vector<int> cut = relief_cut(mesh, topology, local.faces, local.triangles, local.vertices, solution.uv);
+        if (!cut.empty()) {
+          cuts.insert(cuts.end(), cut.begin(), cut.end());
+          std::sort(cuts.begin(), cuts.end());
+          ++stats.relief_cuts;
+          continue;
+        }
+      }
+      return {std::nullopt, &FlattenStats::density_lost, loss.culprit};
+    }
+    FlatChart chart = from_solution(local, solution);
+    chart.density_lost_area = loss.lost_area;
+    return {std::move(chart)};
+  }
 }
 
 // True when the faces' original UVs cover some part of them twice without a
@@ -407,6 +450,16 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
 
 }  // namespace
 
+std::vector<char> charts_with_handles(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                                      const std::vector<std::vector<int>>& chart_faces) {
+  std::vector<char> out(chart_faces.size(), 0);
+  parallel_for(static_cast<int>(chart_faces.size()), 16, [&](int c) {
+    LocalChart local = localize(mesh, topology, graph, chart_faces[c]);
+    out[c] = !chart_faces[c].empty() && !cut_to_disk(local.triangles, local.vertices);
+  });
+  return out;
+}
+
 // After a split each piece is solved by a recursive call in an OpenMP task,
 // which a thread with no chart left to start takes up: one large chart that
 // splits again and again no longer leaves the other cores idle. The pieces
@@ -414,8 +467,10 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
 // a task: it is caught there and rethrown after the wait.
 std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
-                                               const std::vector<int>& members, const FlattenOptions& options,
-                                               const RunControl& control, FlattenStats& stats) {
+                                               const std::vector<int>& members,
+                                               const std::vector<std::pair<int, int>>& merges,
+                                               const FlattenOptions& options, const RunControl& control,
+                                               FlattenStats& stats) {
   std::vector<FlatChart> done;
   if (members.size() == 1) {
     flatten_lone_chart(mesh, topology, graph, chart_faces[members[0]], options, control, done, stats);
@@ -429,14 +484,15 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
     return done;
   }
   ++(stats.*attempt.refusal);
-  const std::vector<std::vector<int>> pieces = split_members(mesh, topology, graph, chart_faces, members, attempt.culprit);
+  std::vector<std::vector<int>> pieces = undo_last_merge(merges, members);
+  if (pieces.empty()) pieces = split_members(mesh, topology, graph, chart_faces, members, attempt.culprit);
   std::vector<std::vector<FlatChart>> parts(pieces.size());
   std::vector<FlattenStats> part_stats(pieces.size());
   std::vector<std::exception_ptr> errors(pieces.size());
   for (size_t k = 0; k < pieces.size(); ++k) {
 #pragma omp task default(shared) firstprivate(k)
     try {
-      parts[k] = flatten_without_overlap(mesh, topology, graph, chart_faces, pieces[k], options, control,
+      parts[k] = flatten_without_overlap(mesh, topology, graph, chart_faces, pieces[k], merges, options, control,
                                          part_stats[k]);
     } catch (...) {
       errors[k] = std::current_exception();

@@ -43,6 +43,7 @@ struct FlattenStats {
   int density_lost = 0;        // too much of the surface kept less than half its texels (FlattenOptions)
   int overlap_halved = 0;      // not a split of merged charts: lone charts whose own UVs overlap, cut in two
   int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
+  int relief_cuts = 0;         // not a split: slits cut into charts that lost density (relief_cut.hpp)
 };
 
 // Every counter under the name the report gives it: a new counter is a field
@@ -55,6 +56,7 @@ inline constexpr FlattenCounter kFlattenCounters[] = {
     {"splits_not_disk", &FlattenStats::not_disk},     {"splits_solver", &FlattenStats::solver_failed},
     {"splits_overlap", &FlattenStats::overlapped},    {"splits_density", &FlattenStats::density_lost},
     {"charts_scaffolded", &FlattenStats::scaffolded}, {"overlap_halved", &FlattenStats::overlap_halved},
+    {"relief_cuts", &FlattenStats::relief_cuts},
 };
 
 inline FlattenStats& operator+=(FlattenStats& sum, const FlattenStats& more) {
@@ -72,7 +74,17 @@ struct FlattenOptions {
   // splitting small pieces (closed scan debris above all) whose loss the
   // surface does not notice. 0: none.
   double density_loss_allowance = 0;
+  // Slits a chart that loses too much density may get, each followed by a
+  // new solve, before it is split instead (relief_cut.hpp). 0: split at once.
+  int relief_cuts = 2;
 };
+
+// Per original chart: 1 when its faces, joined as the flattening joins them,
+// keep a handle once their holes are cut open (UVs that fold a chart onto
+// itself can). Every chart holding one would too, so such a chart is better
+// left to merge with nothing.
+std::vector<char> charts_with_handles(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                                      const std::vector<std::vector<int>>& chart_faces);
 
 // Flattens one aggregated chart (its original charts `members`), splitting on
 // overlap or solver failure until every piece is valid.
@@ -81,6 +93,7 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
                                                const ChartGraph& graph,
                                                const std::vector<std::vector<int>>& chart_faces,
                                                const std::vector<int>& members,
+                                               const std::vector<std::pair<int, int>>& merges,
                                                const FlattenOptions& options, const RunControl& control,
                                                FlattenStats& stats);
 
