@@ -32,6 +32,10 @@ struct PackOptions {
                                // uniformly if they need more pages of max_page_size
   PageSides page_sides = PageSides::MultipleOf4;
   bool square_pages = false;   // pages with equal sides (the larger one)
+  // false: every chart owns a ring of `padding` texels, so two charts are
+  // 2 * padding apart; true: `padding` is the gap between two charts (as in
+  // xatlas), each chart's padded raster tested against the others' bare ones.
+  bool padding_between_charts = false;
 };
 
 struct PackResult {

@@ -25,13 +25,19 @@ constexpr double kHoleMissMargin = 0.9;
 
 // A page being filled: its texels, for drops, and the same on the hole grid
 // (a cell is occupied when any of its texels is), for hole searches.
+// With a gap padding the occupied texels are the charts before padding, so
+// the extent of the padded charts (what the page must hold) is kept apart.
 struct Page {
   PageOccupancy texels;
   PageOccupancy cells;
+  int gap_padding;  // > 0: the padding is a gap, charts occupy their bare rasters
+  PageSize extent = {0, 0};
   long long hole_miss_texels = std::numeric_limits<long long>::max();
 
-  Page(int width, int height)
-      : texels(width, height), cells(width / kHoleCell, height / kHoleCell) {}
+  Page(int width, int height, const Frame& frame)
+      : texels(width, height),
+        cells(width / kHoleCell, height / kHoleCell),
+        gap_padding(frame.gap ? frame.padding : 0) {}
 };
 
 // Lowest spot in a hole for one orientation, with its top below top_limit.
@@ -47,7 +53,12 @@ std::optional<Eigen::Vector2i> spot_in_hole(const Page& page, const ScaledChart&
   return Eigen::Vector2i(*at * kHoleCell);
 }
 
-void occupy(Page& page, const TexelMask& mask, Eigen::Vector2i at) {
+void occupy(Page& page, const ScaledChart& chart, int turn, Eigen::Vector2i at) {
+  const TexelMask& padded = chart.turned[turn].mask;
+  page.extent = {std::max(page.extent.width, at.x() + padded.width),
+                 std::max(page.extent.height, at.y() + padded.height)};
+  const TexelMask& mask = page.gap_padding > 0 ? chart.bare[turn] : padded;
+  at += Eigen::Vector2i::Constant(page.gap_padding);
   page.texels.occupy(mask, at.x(), at.y());
   const TexelMask cells = coarsen_mask(mask, at.x(), at.y(), kHoleCell, page.cells.width(),
                                        page.cells.height());
@@ -83,7 +94,7 @@ bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
           std::min(page.hole_miss_texels, static_cast<long long>(kHoleMissMargin * texels));
   }
   if (!best) return false;
-  occupy(page, chart.turned[best_turn].mask, *best);
+  occupy(page, chart, best_turn, *best);
   placement.x = best->x();
   placement.y = best->y();
   placement.turn = best_turn;
@@ -138,11 +149,11 @@ PageSize trimmed_page(PageSize used, const Frame& frame) {
 
 std::optional<OnePage> pack_one_page(const std::vector<int>& order,
                                      const std::vector<ScaledChart>& charts, int width,
-                                     int height, const RunControl& control,
+                                     int height, const Frame& frame, const RunControl& control,
                                      long long* placed_texels) {
   OnePage result;
   result.placement.resize(charts.size());
-  Page page(width, height);
+  Page page(width, height, frame);
   long long placed = 0;
   for (int c : order) {
     control.throw_if_cancelled();
@@ -150,9 +161,9 @@ std::optional<OnePage> pack_one_page(const std::vector<int>& order,
       if (placed_texels) *placed_texels = placed;
       return std::nullopt;
     }
-    placed += charts[c].turned[0].texels;
+    placed += charts[c].footprint;
   }
-  result.used = {page.texels.used_width(), page.texels.used_height()};
+  result.used = page.extent;
   return result;
 }
 
@@ -166,7 +177,7 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
   double dilated_texels = 0.0;
   int narrowest = 1;  // the page must be at least this wide in virtual texels
   for (int c : order) {
-    dilated_texels += static_cast<double>(charts[c].turned[0].texels);
+    dilated_texels += static_cast<double>(charts[c].footprint);
     const TexelMask& m = charts[c].turned[0].mask;
     narrowest = std::max(narrowest, std::min(m.width, m.height));
   }
@@ -177,7 +188,7 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
   };
   auto pack = [&](int width) -> std::optional<Layout> {
     long long placed = 0;
-    auto page = pack_one_page(order, charts, width + to_virtual, max_virtual, control, &placed);
+    auto page = pack_one_page(order, charts, width + to_virtual, max_virtual, frame, control, &placed);
     if (!page) {
       if (placed_share && width == max_side) *placed_share = static_cast<double>(placed) / dilated_texels;
       return std::nullopt;
@@ -227,14 +238,14 @@ Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledCh
     for (placement.page = 0; placement.page < static_cast<int>(pages.size()); ++placement.page)
       if (place_chart(pages[placement.page], charts[c], placement)) break;
     if (placement.page == static_cast<int>(pages.size())) {
-      pages.emplace_back(side, side);
+      pages.emplace_back(side, side, frame);
       if (!place_chart(pages.back(), charts[c], placement))
         throw std::logic_error("pack_many_pages: a chart is larger than an empty page");
     }
   }
   for (const Page& page : pages)
     layout.pages.push_back(
-        trimmed_page({page.texels.used_width(), page.texels.used_height()}, frame));
+        trimmed_page(page.extent, frame));
 
   const int last = static_cast<int>(pages.size()) - 1;
   std::vector<int> last_order;
