@@ -18,10 +18,6 @@ namespace {
 constexpr double kExpectedDensity = 0.8;
 constexpr int kSquareProbes = 2;  // widths tried after the first one
 constexpr double kSquareTolerance = 0.03;
-// A chart that found no hole rules out holes for charts of >= this fraction
-// of its texels on that page; charts come largest first, so holes are tried
-// again each time charts have shrunk by another 10%.
-constexpr double kHoleMissMargin = 0.9;
 
 // A page being filled: its texels, for drops, and the same on the hole grid
 // (a cell is occupied when any of its texels is), for hole searches.
@@ -32,7 +28,6 @@ struct Page {
   PageOccupancy cells;
   int gap_padding;  // > 0: the padding is a gap, charts occupy their bare rasters
   PageSize extent = {0, 0};
-  long long hole_miss_texels = std::numeric_limits<long long>::max();
 
   Page(int width, int height, const Frame& frame)
       : texels(width, height),
@@ -68,31 +63,22 @@ void occupy(Page& page, const ScaledChart& chart, int turn, Eigen::Vector2i at) 
 // Both orientations are tried; the one whose top ends lowest wins (a long
 // chart lies down), which keeps the packed region low and compact. Each is
 // dropped onto the horizon, then holes below are searched for a lower spot
-// unless the page lately had no hole for a chart that large.
+// (always: skipping them for charts as large as one that lately found no
+// hole saves little time and loses the holes that chart's shape missed).
 bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
   const int flat_first = chart.turned[1].mask.height < chart.turned[0].mask.height ? 1 : 0;
   const std::array<int, 2> turns = {flat_first, 1 - flat_first};
   std::optional<Eigen::Vector2i> best;
   int best_turn = 0, best_top = page.texels.height() + 1;
   auto keep_if_lower = [&](int turn, const std::optional<Eigen::Vector2i>& at) {
-    if (!at) return false;
+    if (!at) return;
     best = at;
     best_turn = turn;
     best_top = at->y() + chart.turned[turn].mask.height;
-    return true;
   };
   for (int turn : turns)
     keep_if_lower(turn, page.texels.lowest_drop(chart.turned[turn], best_top - 1));
-  // Without a drop spot the holes are the only chance, whatever was missed before.
-  const long long texels = chart.turned[0].texels;
-  if (!best || texels < page.hole_miss_texels) {
-    bool in_hole = false;
-    for (int turn : turns)
-      in_hole |= keep_if_lower(turn, spot_in_hole(page, chart, turn, best_top - 1));
-    if (!in_hole)
-      page.hole_miss_texels =
-          std::min(page.hole_miss_texels, static_cast<long long>(kHoleMissMargin * texels));
-  }
+  for (int turn : turns) keep_if_lower(turn, spot_in_hole(page, chart, turn, best_top - 1));
   if (!best) return false;
   occupy(page, chart, best_turn, *best);
   placement.x = best->x();
