@@ -11,6 +11,8 @@ For the three scans in ../shared/models, with Atlas Defrag's defaults:
     (_native.measure occupancy: page texels whose centre a triangle covers),
     and the bound the padding alone sets (chart texels / texels of the charts
     grown by the padding: what a packing with no gap at all would reach);
+  * the padding as a ring each chart owns (default) or as the gap between two
+    charts (padding_between_charts): efficiency, bound, clean mip levels;
   * share of texels copied unresampled, PSNR on all / clean / border points;
   * page-side modes on the tetra scan; a dense atlas (the Smithsonian scan with
     its maps downsampled to 512 x 512); 10,000 stacked charts.
@@ -140,6 +142,55 @@ def padding_bound(charts, padding: int) -> float:
     return raw / grown
 
 
+MIP_LEVELS = (1, 2, 3, 4)
+
+
+def chart_ids(placed, size) -> np.ndarray:
+    """Page of chart indices (-1: no chart) from the placed UVs, texel centres inside a triangle."""
+    from PIL import Image, ImageDraw
+
+    w, h = (int(v) for v in size)
+    im = Image.new("I", (w, h), -1)
+    draw = ImageDraw.Draw(im)
+    for c, uv in enumerate(placed):
+        for t in uv.reshape(-1, 3, 2) * [w, h]:
+            draw.polygon([tuple(p) for p in t], fill=c)
+    return np.asarray(im, np.int32)
+
+
+def clean_at_mip(ids: np.ndarray, level: int) -> float:
+    """Share of chart texels whose level-`level` mip texel and its 8 neighbours
+    (all that a bilinear read there can touch; the page wraps) average no
+    texel of another chart. Gap texels count as harmless."""
+    b = 2 ** level
+    h, w = -(-ids.shape[0] // b) * b, -(-ids.shape[1] // b) * b
+    padded = np.full((h, w), -1, np.int32)
+    padded[:ids.shape[0], :ids.shape[1]] = ids
+    blocks = padded.reshape(h // b, b, w // b, b)
+    high = blocks.max(axis=(1, 3))
+    low = np.where(blocks < 0, np.iinfo(np.int32).max, blocks).min(axis=(1, 3))
+    mixed = (high >= 0) & (low != high)
+    clean = (high >= 0) & ~mixed
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            nh, nm = np.roll(high, (dy, dx), (0, 1)), np.roll(mixed, (dy, dx), (0, 1))
+            clean &= (nh < 0) | (~nm & (nh == high))
+    texels = (blocks >= 0).sum(axis=(1, 3))
+    return float(texels[clean].sum() / texels.sum())
+
+
+def padding_semantics(native, charts) -> list:
+    """Efficiency, gap-free bound and clean mip texels with the padding as a ring
+    each chart owns (the default) and as the gap between two charts."""
+    cells = []
+    for between in (False, True):
+        r = native.pack_charts(charts, options={"padding": PADDING, "padding_between_charts": between})
+        ids = chart_ids(r["uvs"], r["page_sizes"][0])
+        bound = padding_bound(charts, PADDING // 2 if between else PADDING)
+        cells += [f"{r['efficiency']:.1%}", f"{bound:.1%}"] + [f"{clean_at_mip(ids, k):.1%}" for k in MIP_LEVELS]
+    return cells
+
+
 def xatlas_pack(native, charts, brute: bool):
     import xatlas
 
@@ -221,7 +272,7 @@ def main() -> int:
               "| scan | charts | efficiency | padding bound | texels in | texels out | scale | pack s |"
               + (" before: efficiency | texels out | pack s |" if base else ""),
               "|---|---:|---:|---:|---:|---:|---:|---:|" + ("---:|---:|---:|" if base else "")]
-    xatlas_rows, colour_rows, results = [], [], {}
+    xatlas_rows, colour_rows, semantic_rows, results = [], [], [], {}
     for name, rel in SCANS.items():
         print(f"{name} ...", file=sys.stderr)
         scan = scan_io.load(args.models / rel)
@@ -237,6 +288,7 @@ def main() -> int:
             efficiency, texels, b_seconds = base[name]
             row += f" {efficiency:.1%} | {texels:,} | {b_seconds:.3f} |"
         lines.append(row)
+        semantic_rows.append("| " + " | ".join([name] + padding_semantics(native, charts)) + " |")
         if have_xatlas:
             order = np.concatenate(faces_of)  # the faces in the order of `charts`
             ours = occupancy(native, charts, result["uvs"][order], result["page_sizes"], result["face_page"][order])
@@ -258,6 +310,17 @@ def main() -> int:
                   "| scan | ours: texels | occupancy | s | xatlas: texels | occupancy | utilization | s | "
                   "xatlas brute force: texels | occupancy | utilization | s |",
                   "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"] + xatlas_rows + [""]
+
+    mips = " | ".join(f"clean mip {k}" for k in MIP_LEVELS)
+    lines += ["## Padding: a ring each chart owns, or the gap between two charts", "",
+              f"The same charts packed with padding {PADDING} as a ring each chart owns (the default: charts "
+              f"{2 * PADDING} texels apart) and as the gap between two charts (`padding_between_charts`, as in "
+              f"xatlas: {PADDING} texels apart). Bound: the gap-free packing (charts grown by {PADDING}, or by "
+              f"{PADDING // 2} for the gap). Clean mip k: share of chart texels whose mip-k texel (a 2^k box) and its "
+              "8 neighbours, all a bilinear read there can touch, average no texel of another chart (gap texels, "
+              "filled by pull-push, count as harmless; the page wraps).", "",
+              f"| scan | ring: efficiency | bound | {mips} | gap: efficiency | bound | {mips} |",
+              "|---|" + "---:|" * (4 + 2 * len(MIP_LEVELS))] + semantic_rows + [""]
 
     lines += ["## Resampling per scan", "",
               "Copied: covered texels taken unresampled from the old texel they land on. PSNR on 400k points "

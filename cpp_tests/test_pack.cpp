@@ -61,17 +61,30 @@ std::vector<RowMatrixX2d> random_blobs(int count, unsigned seed) {
 
 // Re-rasterises every placed chart from the result alone and checks that its
 // texels lie on its page at least padding / 2 from the border, and that no
-// texel of any page is claimed by two dilated charts.
+// texel of any page is claimed by two dilated charts (gap: that no dilated
+// chart meets another chart's bare texels, i.e. charts are padding apart).
 void expect_valid_packing(const std::vector<RowMatrixX2d>& charts, const PackResult& result,
-                          int padding) {
+                          int padding, bool gap = false) {
   ASSERT_EQ(result.placed_uv.size(), charts.size());
   ASSERT_EQ(result.chart_page.size(), charts.size());
-  std::vector<std::vector<char>> claimed;
+  // Per page texel: 0, or 1 + the chart claiming it.
+  std::vector<std::vector<int>> claimed;
   for (const PageSize& page : result.pages) {
     ASSERT_GT(page.width, 0);
     ASSERT_GT(page.height, 0);
     claimed.emplace_back(static_cast<size_t>(page.width) * page.height, 0);
   }
+  // Calls visit(page, texel index) for each texel of `mask` on page p.
+  auto for_each_texel = [&](const TexelMask& mask, int p, auto visit) {
+    const PageSize page = result.pages[p];
+    for (int y = 0; y < mask.height; ++y)
+      for (int x = 0; x < mask.width; ++x) {
+        const int px = mask.origin_x + x, py = mask.origin_y + y;
+        if (mask.test(x, y) && px >= 0 && py >= 0 && px < page.width && py < page.height)
+          visit(static_cast<size_t>(py) * page.width + px);
+      }
+  };
+  std::vector<TexelMask> bare(charts.size());
   const int border = padding - padding / 2;
   for (size_t c = 0; c < charts.size(); ++c) {
     if (result.placed_uv[c].rows() == 0) continue;  // no faces: nothing to re-rasterise
@@ -88,18 +101,22 @@ void expect_valid_packing(const std::vector<RowMatrixX2d>& charts, const PackRes
     EXPECT_GE(own.origin_y, border) << "chart " << c;
     EXPECT_LE(own.origin_x + own.width, page.width - border) << "chart " << c;
     EXPECT_LE(own.origin_y + own.height, page.height - border) << "chart " << c;
-    const TexelMask grown = dilate_mask(own, padding);
     int collisions = 0;
-    for (int y = 0; y < grown.height; ++y)
-      for (int x = 0; x < grown.width; ++x) {
-        const int px = grown.origin_x + x, py = grown.origin_y + y;
-        if (!grown.test(x, y) || px < 0 || py < 0 || px >= page.width || py >= page.height)
-          continue;
-        char& owner = claimed[p][static_cast<size_t>(py) * page.width + px];
-        collisions += owner;
-        owner = 1;
-      }
+    for_each_texel(gap ? own : dilate_mask(own, padding), p, [&](size_t i) {
+      collisions += claimed[p][i] != 0;
+      claimed[p][i] = static_cast<int>(c) + 1;
+    });
     EXPECT_EQ(collisions, 0) << "chart " << c << " overlaps an earlier chart on page " << p;
+    if (gap) bare[c] = own;
+  }
+  for (size_t c = 0; gap && c < charts.size(); ++c) {
+    if (result.placed_uv[c].rows() == 0) continue;
+    const int p = result.chart_page[c];
+    int near = 0;
+    for_each_texel(dilate_mask(bare[c], padding), p, [&](size_t i) {
+      near += claimed[p][i] != 0 && claimed[p][i] != static_cast<int>(c) + 1;
+    });
+    EXPECT_EQ(near, 0) << "chart " << c << " is less than the padding from another chart";
   }
 }
 
@@ -217,6 +234,21 @@ TEST(PackCharts, BlobsNeverShareATexel) {
   expect_reported_transform(charts, result);
   EXPECT_DOUBLE_EQ(result.scale, 1.5);
   EXPECT_GT(result.efficiency, 0.45);
+}
+
+// Padding as the gap between charts: charts padding apart, not 2 * padding,
+// so the same charts take fewer texels.
+TEST(PackCharts, PaddingBetweenChartsKeepsTheGapOnly) {
+  const auto charts = random_blobs(300, 5);
+  PackOptions options;
+  options.padding = 4;
+  const PackResult ring = pack_charts(charts, options, RunControl());
+  options.padding_between_charts = true;
+  const PackResult gap = pack_charts(charts, options, RunControl());
+  expect_valid_packing(charts, gap, options.padding, true);
+  expect_reported_transform(charts, gap);
+  EXPECT_LT(total_page_texels(gap), total_page_texels(ring));
+  EXPECT_GT(gap.efficiency, 0.55);
 }
 
 TEST(PackCharts, DefaultPageIsSmallAndNearSquare) {

@@ -74,6 +74,9 @@ SCHEMA: Tuple[Option, ...] = (
                     Choice("multiple_of_4", "Multiple of 4", "Sides a multiple of 4 texels (BCn and ASTC blocks)"),
                     Choice("power_of_two", "Power of Two", "Sides a power of two (older engines, full mip chains)"))),
     Option("square_pages", bool, False, "Square Pages", "Both sides of every page equal (the larger one)"),
+    Option("padding_between_charts", bool, False, "Padding Between Charts",
+           "Padding is the gap between two charts (as in xatlas) rather than a ring around each chart "
+           "(charts twice the padding apart); packs tighter, keeps one mip level fewer clean"),
 )
 
 BY_NAME = {o.name: o for o in SCHEMA}

@@ -109,14 +109,14 @@ double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, i
 // (unless max_pages is 1: then the overflow is all a scale search needs).
 Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale, const Frame& frame,
                   int max_side, int max_pages, const RunControl& control) {
-  Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, control), {}};
+  Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, frame.gap, control), {}};
   const std::vector<int> order = largest_first(packing.charts);
   double placed_share = 0.0;
   if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control, &placed_share)) {
     packing.layout = std::move(*single);
   } else if (max_pages == 1) {
     double padded = 0.0;
-    for (const ScaledChart& chart : packing.charts) padded += static_cast<double>(chart.turned[0].texels);
+    for (const ScaledChart& chart : packing.charts) padded += static_cast<double>(chart.footprint);
     const double side = max_side + 2.0 * frame.margin;
     packing.overflow = placed_share > 0.0 ? 1.0 / placed_share : padded / (kFullPage * side * side);
   } else {
@@ -223,9 +223,9 @@ Packing pack_fixed(const std::vector<const RowMatrixX2d*>& chart_uv, const Frame
                    const RunControl& control) {
   const int virtual_side = side + 2 * frame.margin;
   auto try_scale = [&](double s) {
-    Packing packing{s, scale_charts(chart_uv, s, frame.padding, kHoleCell, control), {}};
+    Packing packing{s, scale_charts(chart_uv, s, frame.padding, kHoleCell, frame.gap, control), {}};
     const auto page = pack_one_page(largest_first(packing.charts), packing.charts, virtual_side,
-                                    kTallPage * virtual_side, control);
+                                    kTallPage * virtual_side, frame, control);
     if (!page) return std::make_pair(std::move(packing), std::numeric_limits<double>::infinity());
     packing.layout = {page->placement, {{side, side}}};
     return std::make_pair(std::move(packing), static_cast<double>(page->used.height) / virtual_side);
@@ -282,7 +282,8 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
   control.throw_if_cancelled();
   // Half the padding may lie beyond the border: pages wrap when sampled, so
   // the two borders together still give a chart its full padding.
-  const Frame frame{options.padding, options.padding / 2, options.page_sides, options.square_pages};
+  const Frame frame{options.padding, options.padding / 2, options.page_sides, options.square_pages,
+                    options.padding_between_charts};
   if (chart_uv.empty()) {
     PackResult empty;
     empty.scale = options.density_scale;

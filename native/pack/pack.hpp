@@ -32,6 +32,10 @@ struct PackOptions {
                                // uniformly if they need more pages of max_page_size
   PageSides page_sides = PageSides::MultipleOf4;
   bool square_pages = false;   // pages with equal sides (the larger one)
+  // false: every chart owns a ring of `padding` texels, so two charts are
+  // 2 * padding apart; true: `padding` is the gap between two charts (as in
+  // xatlas), each chart's padded raster tested against the others' bare ones.
+  bool padding_between_charts = false;
 };
 
 struct PackResult {
@@ -51,7 +55,9 @@ struct PackResult {
 // chart_uv[c] holds chart c's corner UVs in texels (3 rows per face, any placement).
 // Charts are rasterised conservatively, grown by options.padding, and placed
 // largest first, at 0 or 90 degrees: dropped onto the horizon of what is
-// already placed, or lower, into a hole under it (searched on a 4-texel grid).
+// already placed, or lower, into a hole under it (searched on a 2-texel grid).
+// A grown raster may not meet another grown raster or, with
+// padding_between_charts, another chart's raster before growing.
 // Page size: by default the smallest near-square page (sides multiples of 4) or,
 // beyond max_page_size, the fewest pages of that size (the last one shrunk);
 // fixed_page_size: one page of exactly that side, charts scaled as large as fit

@@ -18,20 +18,21 @@ namespace {
 constexpr double kExpectedDensity = 0.8;
 constexpr int kSquareProbes = 2;  // widths tried after the first one
 constexpr double kSquareTolerance = 0.03;
-// A chart that found no hole rules out holes for charts of >= this fraction
-// of its texels on that page; charts come largest first, so holes are tried
-// again each time charts have shrunk by another 10%.
-constexpr double kHoleMissMargin = 0.9;
 
 // A page being filled: its texels, for drops, and the same on the hole grid
 // (a cell is occupied when any of its texels is), for hole searches.
+// With a gap padding the occupied texels are the charts before padding, so
+// the extent of the padded charts (what the page must hold) is kept apart.
 struct Page {
   PageOccupancy texels;
   PageOccupancy cells;
-  long long hole_miss_texels = std::numeric_limits<long long>::max();
+  int gap_padding;  // > 0: the padding is a gap, charts occupy their bare rasters
+  PageSize extent = {0, 0};
 
-  Page(int width, int height)
-      : texels(width, height), cells(width / kHoleCell, height / kHoleCell) {}
+  Page(int width, int height, const Frame& frame)
+      : texels(width, height),
+        cells(width / kHoleCell, height / kHoleCell),
+        gap_padding(frame.gap ? frame.padding : 0) {}
 };
 
 // Lowest spot in a hole for one orientation, with its top below top_limit.
@@ -47,7 +48,12 @@ std::optional<Eigen::Vector2i> spot_in_hole(const Page& page, const ScaledChart&
   return Eigen::Vector2i(*at * kHoleCell);
 }
 
-void occupy(Page& page, const TexelMask& mask, Eigen::Vector2i at) {
+void occupy(Page& page, const ScaledChart& chart, int turn, Eigen::Vector2i at) {
+  const TexelMask& padded = chart.turned[turn].mask;
+  page.extent = {std::max(page.extent.width, at.x() + padded.width),
+                 std::max(page.extent.height, at.y() + padded.height)};
+  const TexelMask& mask = page.gap_padding > 0 ? chart.bare[turn] : padded;
+  at += Eigen::Vector2i::Constant(page.gap_padding);
   page.texels.occupy(mask, at.x(), at.y());
   const TexelMask cells = coarsen_mask(mask, at.x(), at.y(), kHoleCell, page.cells.width(),
                                        page.cells.height());
@@ -57,33 +63,24 @@ void occupy(Page& page, const TexelMask& mask, Eigen::Vector2i at) {
 // Both orientations are tried; the one whose top ends lowest wins (a long
 // chart lies down), which keeps the packed region low and compact. Each is
 // dropped onto the horizon, then holes below are searched for a lower spot
-// unless the page lately had no hole for a chart that large.
+// (always: skipping them for charts as large as one that lately found no
+// hole saves little time and loses the holes that chart's shape missed).
 bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
   const int flat_first = chart.turned[1].mask.height < chart.turned[0].mask.height ? 1 : 0;
   const std::array<int, 2> turns = {flat_first, 1 - flat_first};
   std::optional<Eigen::Vector2i> best;
   int best_turn = 0, best_top = page.texels.height() + 1;
   auto keep_if_lower = [&](int turn, const std::optional<Eigen::Vector2i>& at) {
-    if (!at) return false;
+    if (!at) return;
     best = at;
     best_turn = turn;
     best_top = at->y() + chart.turned[turn].mask.height;
-    return true;
   };
   for (int turn : turns)
     keep_if_lower(turn, page.texels.lowest_drop(chart.turned[turn], best_top - 1));
-  // Without a drop spot the holes are the only chance, whatever was missed before.
-  const long long texels = chart.turned[0].texels;
-  if (!best || texels < page.hole_miss_texels) {
-    bool in_hole = false;
-    for (int turn : turns)
-      in_hole |= keep_if_lower(turn, spot_in_hole(page, chart, turn, best_top - 1));
-    if (!in_hole)
-      page.hole_miss_texels =
-          std::min(page.hole_miss_texels, static_cast<long long>(kHoleMissMargin * texels));
-  }
+  for (int turn : turns) keep_if_lower(turn, spot_in_hole(page, chart, turn, best_top - 1));
   if (!best) return false;
-  occupy(page, chart.turned[best_turn].mask, *best);
+  occupy(page, chart, best_turn, *best);
   placement.x = best->x();
   placement.y = best->y();
   placement.turn = best_turn;
@@ -138,11 +135,11 @@ PageSize trimmed_page(PageSize used, const Frame& frame) {
 
 std::optional<OnePage> pack_one_page(const std::vector<int>& order,
                                      const std::vector<ScaledChart>& charts, int width,
-                                     int height, const RunControl& control,
+                                     int height, const Frame& frame, const RunControl& control,
                                      long long* placed_texels) {
   OnePage result;
   result.placement.resize(charts.size());
-  Page page(width, height);
+  Page page(width, height, frame);
   long long placed = 0;
   for (int c : order) {
     control.throw_if_cancelled();
@@ -150,9 +147,9 @@ std::optional<OnePage> pack_one_page(const std::vector<int>& order,
       if (placed_texels) *placed_texels = placed;
       return std::nullopt;
     }
-    placed += charts[c].turned[0].texels;
+    placed += charts[c].footprint;
   }
-  result.used = {page.texels.used_width(), page.texels.used_height()};
+  result.used = page.extent;
   return result;
 }
 
@@ -166,7 +163,7 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
   double dilated_texels = 0.0;
   int narrowest = 1;  // the page must be at least this wide in virtual texels
   for (int c : order) {
-    dilated_texels += static_cast<double>(charts[c].turned[0].texels);
+    dilated_texels += static_cast<double>(charts[c].footprint);
     const TexelMask& m = charts[c].turned[0].mask;
     narrowest = std::max(narrowest, std::min(m.width, m.height));
   }
@@ -177,7 +174,7 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
   };
   auto pack = [&](int width) -> std::optional<Layout> {
     long long placed = 0;
-    auto page = pack_one_page(order, charts, width + to_virtual, max_virtual, control, &placed);
+    auto page = pack_one_page(order, charts, width + to_virtual, max_virtual, frame, control, &placed);
     if (!page) {
       if (placed_share && width == max_side) *placed_share = static_cast<double>(placed) / dilated_texels;
       return std::nullopt;
@@ -227,14 +224,14 @@ Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledCh
     for (placement.page = 0; placement.page < static_cast<int>(pages.size()); ++placement.page)
       if (place_chart(pages[placement.page], charts[c], placement)) break;
     if (placement.page == static_cast<int>(pages.size())) {
-      pages.emplace_back(side, side);
+      pages.emplace_back(side, side, frame);
       if (!place_chart(pages.back(), charts[c], placement))
         throw std::logic_error("pack_many_pages: a chart is larger than an empty page");
     }
   }
   for (const Page& page : pages)
     layout.pages.push_back(
-        trimmed_page({page.texels.used_width(), page.texels.used_height()}, frame));
+        trimmed_page(page.extent, frame));
 
   const int last = static_cast<int>(pages.size()) - 1;
   std::vector<int> last_order;

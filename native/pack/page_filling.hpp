@@ -26,6 +26,10 @@ struct Frame {
   int margin = 0;
   PageSides sides = PageSides::MultipleOf4;
   bool square = false;  // both sides equal (the larger of the two)
+  // Padding as the gap between two charts: a chart's padded raster may not
+  // meet another's raster before padding, so charts are `padding` apart
+  // (not 2 * padding, as when every chart owns a ring of padding).
+  bool gap = false;
 };
 
 // Smallest side >= `side` (and >= 1) of the kind `sides` allows.
@@ -59,15 +63,15 @@ PageSize trimmed_page(PageSize used, const Frame& frame);
 
 // The charts of `order` on one page whose virtual frame is width x height,
 // or nullopt as soon as one does not fit; then *placed_texels (if given) is
-// the dilated texels (ScaledChart texels, turn 0) of the charts placed before.
+// the footprints (ScaledChart::footprint) of the charts placed before.
 std::optional<OnePage> pack_one_page(const std::vector<int>& order,
                                      const std::vector<ScaledChart>& charts, int width,
-                                     int height, const RunControl& control,
+                                     int height, const Frame& frame, const RunControl& control,
                                      long long* placed_texels = nullptr);
 
 // The smallest near-square page with sides <= max_side holding the charts,
 // or nullopt if they need more than one page; then *placed_share (if given)
-// is the share of their dilated texels a max_side page held before one did
+// is the share of their footprints a max_side page held before one did
 // not fit (0 when they hold more texels than that page: it was not tried).
 std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
                                          const std::vector<ScaledChart>& charts,

@@ -19,15 +19,22 @@ struct ScaledChart {
   std::array<Eigen::RowVector2d, 2> shift = {Eigen::RowVector2d::Zero(),
                                              Eigen::RowVector2d::Zero()};
   std::array<long long, 2> raster_texels = {0, 0};  // set before padding
+  // Page texels the chart takes, for sizing pages: its padded texels, or with
+  // a gap padding (half of it each side) halfway between those and the bare ones.
+  long long footprint = 0;
+  // Only when the padding is a gap between charts: the raster before padding,
+  // its texel (0, 0) on texel (padding, padding) of `turned`.
+  std::array<TexelMask, 2> bare;
 };
 
 // scale * R * uv with R = identity (turn 0) or (x, y) -> (-y, x) (turn 1).
 RowMatrixX2d turned_corners(const RowMatrixX2d& uv, double scale, int turn);
 
 // Every chart (corners in texels, all finite) at `scale`; `cell` texels per
-// side of a coarse cell. Runs on all OpenMP threads.
+// side of a coarse cell; keep_bare: also keep the rasters before padding.
+// Runs on all OpenMP threads.
 std::vector<ScaledChart> scale_charts(const std::vector<const RowMatrixX2d*>& chart_uv,
-                                      double scale, int padding, int cell,
+                                      double scale, int padding, int cell, bool keep_bare,
                                       const RunControl& control);
 
 }  // namespace atlas
