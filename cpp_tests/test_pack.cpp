@@ -345,7 +345,9 @@ TEST(PackCharts, EveryPageSideModeGivesPagesOfItsKind) {
         EXPECT_EQ(page.width & (page.width - 1), 0) << page.width;
         EXPECT_EQ(page.height & (page.height - 1), 0) << page.height;
       }
-      if (square) EXPECT_EQ(page.width, page.height);
+      if (square) {
+        EXPECT_EQ(page.width, page.height);
+      }
       EXPECT_DOUBLE_EQ(result.scale, 1.0);
       // Rounding costs at most 2x per side for powers of two, and the square
       // takes the longer side of a near-square page.
