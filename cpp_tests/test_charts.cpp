@@ -1,6 +1,8 @@
 // Chart graph and aggregation on small constructed meshes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <Eigen/Geometry>
 
 #include "charts/aggregate.hpp"
@@ -129,20 +131,46 @@ TEST(Aggregate, ClosedSurfacesEndAsDisks) {
   expect_all_disks(torus);
 }
 
-TEST(Aggregate, NoChartWiderThanAHemisphere) {
-  const ChartRun sphere = aggregate(atlas::testing::uv_sphere(24, 32, 1));
-  std::vector<Eigen::Vector3d> normal(sphere.aggregation.chart_count(), Eigen::Vector3d::Zero());
-  std::vector<double> area(sphere.aggregation.chart_count(), 0);
-  for (int f = 0; f < sphere.mesh.face_count(); ++f) {
-    const Eigen::Vector3d a = sphere.mesh.positions.row(sphere.mesh.triangles(f, 0));
-    const Eigen::Vector3d b = sphere.mesh.positions.row(sphere.mesh.triangles(f, 1));
-    const Eigen::Vector3d c = sphere.mesh.positions.row(sphere.mesh.triangles(f, 2));
+namespace {
+
+// Per aggregated chart: |sum_f A_f n_f| / sum_f A_f.
+std::vector<double> normal_coherence(const ChartRun& r) {
+  std::vector<Eigen::Vector3d> normal(r.aggregation.chart_count(), Eigen::Vector3d::Zero());
+  std::vector<double> area(r.aggregation.chart_count(), 0);
+  for (int f = 0; f < r.mesh.face_count(); ++f) {
+    const Eigen::Vector3d a = r.mesh.positions.row(r.mesh.triangles(f, 0));
+    const Eigen::Vector3d b = r.mesh.positions.row(r.mesh.triangles(f, 1));
+    const Eigen::Vector3d c = r.mesh.positions.row(r.mesh.triangles(f, 2));
     const Eigen::Vector3d n = 0.5 * (b - a).cross(c - a);
-    normal[sphere.aggregation.face_chart[f]] += n;
-    area[sphere.aggregation.face_chart[f]] += n.norm();
+    normal[r.aggregation.face_chart[f]] += n;
+    area[r.aggregation.face_chart[f]] += n.norm();
   }
+  std::vector<double> out;
+  for (size_t c = 0; c < normal.size(); ++c) out.push_back(normal[c].norm() / area[c]);
+  return out;
+}
+
+}  // namespace
+
+TEST(Aggregate, NoChartWiderThanAHemisphere) {
+  AggregateOptions gate_all;
+  gate_all.coherence_free_faces = 0;
+  const ChartRun sphere = aggregate(atlas::testing::uv_sphere(24, 32, 1), gate_all);
   EXPECT_GE(sphere.aggregation.chart_count(), 2);  // a closed sphere needs two hemispheres at least
-  for (int c = 0; c < sphere.aggregation.chart_count(); ++c) EXPECT_GE(normal[c].norm(), 0.5 * area[c]) << c;
+  const std::vector<double> coherence = normal_coherence(sphere);
+  for (size_t c = 0; c < coherence.size(); ++c) EXPECT_GE(coherence[c], 0.5) << c;
+  expect_all_disks(sphere);
+}
+
+// Below coherence_free_faces the gate does not apply: on a small sphere some
+// chart grows past a hemisphere.
+TEST(Aggregate, SmallChartsMergePastAHemisphere) {
+  const Mesh mesh = atlas::testing::uv_sphere(24, 32, 1);
+  AggregateOptions gate_large;
+  gate_large.coherence_free_faces = mesh.face_count();
+  const ChartRun sphere = aggregate(mesh, gate_large);
+  const std::vector<double> coherence = normal_coherence(sphere);
+  EXPECT_LT(*std::min_element(coherence.begin(), coherence.end()), 0.5);
   expect_all_disks(sphere);
 }
 

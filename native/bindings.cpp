@@ -199,8 +199,10 @@ PipelineOptions pipeline_options(const py::object& obj) {
       o.aggregate.weighting = w == "uv" ? Weighting::UV : Weighting::Surface;
     } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = option_value<double>(value, key, ">= 0");
     else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = option_value<double>(value, key, "0..1");
+    else if (key == "coherence_free_faces") o.aggregate.coherence_free_faces = option_value<int>(value, key, ">= 0");
     else if (key == "max_chart_faces") o.aggregate.max_chart_faces = option_value<int>(value, key, "0 (no cap) or >= 1");
     else if (key == "partial_merges") o.aggregate.partial_merges = bool_option(value, key);
+    else if (key == "relief_cuts") o.relief_cuts = option_value<int>(value, key, "0 (split at once) .. 8");
     else if (key == "refine_min_area_ratio") o.refine.min_area_ratio = option_value<double>(value, key, "0..1");
     else if (key == "padding") o.pack.padding = option_value<int>(value, key, "0..64 texels");
     else if (key == "fixed_page_size") o.pack.fixed_page_size = option_value<int>(value, key, "0 (automatic) or 64..16384 texels");
@@ -230,10 +232,12 @@ PipelineOptions pipeline_options(const py::object& obj) {
     throw py::value_error("texels_per_unit must be 0 (density_scale applies) or 0.001..1e9");
   if (!(o.refine.min_area_ratio >= 0 && o.refine.min_area_ratio <= 1))
     throw py::value_error("refine_min_area_ratio must be in [0, 1] (0: no seam refinement)");
+  if (o.relief_cuts < 0 || o.relief_cuts > 8) throw py::value_error("relief_cuts must be 0 (split at once) .. 8");
   if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be 0 (automatic) or >= 1");
   if (!(o.aggregate.min_chart_fraction >= 0)) throw py::value_error("min_chart_fraction must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");
+  if (o.aggregate.coherence_free_faces < 0) throw py::value_error("coherence_free_faces must be >= 0 (0: gate every merge)");
   if (o.aggregate.max_chart_faces < 0) throw py::value_error("max_chart_faces must be >= 0 (0: no cap)");
   if (o.pack.texel_budget < 0) throw py::value_error("texel_budget must be 0 (automatic) or >= 16");
   if (o.slim.max_iterations < 0) throw py::value_error("max_iterations must be >= 0");

@@ -138,7 +138,7 @@ std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<Fla
 // Every aggregated chart flattened (split where it must be), largest first
 // so the long ones start early.
 std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                                   const Aggregation& aggregation, const SlimOptions& slim,
+                                   const Aggregation& aggregation, const SlimOptions& slim, int relief_cuts,
                                    const RunControl& control, PipelineReport& report) {
   const auto chart_faces = faces_by_chart(graph.face_chart, graph.chart_count());
   std::vector<int> order(aggregation.chart_count());
@@ -152,11 +152,12 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
   for (int f = 0; f < mesh.face_count(); ++f)
     if (graph.face_chart[f] >= 0) area += mesh.area_3d(f);
   flatten_charts(mesh, topology, graph, chart_faces, aggregation, order,
-                 {slim, kStrictDensityLoss, kDensityAllowance * area}, control, pieces, stats);
+                 {slim, kStrictDensityLoss, kDensityAllowance * area, relief_cuts}, control, pieces, stats);
   for (double level = kStrictDensityLoss; level >= kStrictDensityLoss / 4; level /= 2) {
     std::vector<int> again = over_budget(mesh, pieces, level);
     std::sort(again.begin(), again.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
-    flatten_charts(mesh, topology, graph, chart_faces, aggregation, again, {slim, level}, control, pieces, stats);
+    flatten_charts(mesh, topology, graph, chart_faces, aggregation, again, {slim, level, 0, relief_cuts}, control,
+                   pieces, stats);
     report.density_reflattened += static_cast<int>(again.size());
   }
   std::vector<FlatChart> out;
@@ -416,7 +417,8 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   // The flattening keeps the arcs partial merges left open as seams.
   ChartGraph flat_graph = graph;
   flat_graph.self_seam = aggregation.kept_seam;
-  std::vector<FlatChart> charts = flatten_all(mesh, topology, flat_graph, aggregation, options.slim, control, report);
+  std::vector<FlatChart> charts = flatten_all(mesh, topology, flat_graph, aggregation, options.slim, options.relief_cuts,
+                                            control, report);
   clock.lap("flatten");
   // Before tiny charts are enlarged: the refinement compares texel areas.
   const std::vector<char> kept_seams = seams_in_flat_charts(mesh, topology, flat_graph.self_seam, charts);

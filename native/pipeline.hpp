@@ -17,6 +17,9 @@ struct PipelineOptions {
   AggregateOptions aggregate;
   RefineOptions refine;
   SlimOptions slim;
+  // Slits a chart that loses density may get before it is split (see
+  // FlattenOptions::relief_cuts); 0: split at once.
+  int relief_cuts = FlattenOptions().relief_cuts;
   // max_pages 0: as many pages as the group's faces use in the input (at least
   // 1), or as many of max_page_size as hold the input's texels times
   // density_scale^2 if that is more: charts shrink only when they would not fit.

@@ -145,7 +145,8 @@ class Aggregator {
         disks_.faces(a).size() + disks_.faces(b).size() > static_cast<size_t>(options_.max_chart_faces))
       return Gate::MaxChartFaces;
     const double area = ca.area_3d + cb.area_3d;
-    if (area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area)
+    const bool small = disks_.faces(a).size() + disks_.faces(b).size() <= static_cast<size_t>(options_.coherence_free_faces);
+    if (!small && area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area)
       return Gate::NormalCoherence;
     return Gate::Open;
   }

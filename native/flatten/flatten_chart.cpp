@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <exception>
+#include <limits>
 #include <optional>
 #include <queue>
 #include <unordered_map>
@@ -298,6 +299,36 @@ std::vector<std::vector<int>> undo_last_merge(const std::vector<std::pair<int, i
   return out;
 }
 
+double edges_length(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& edges) {
+  double length = 0;
+  for (int e : edges)
+    length += (mesh.positions.row(topology.edge_vertices(e, 0)) - mesh.positions.row(topology.edge_vertices(e, 1))).norm();
+  return length;
+}
+
+constexpr double kNoLimit = std::numeric_limits<double>::infinity();
+
+// 3D length of the edges between the faces of two groups of original charts.
+double shared_border_length(const Mesh& mesh, const MeshTopology& topology,
+                            const std::vector<std::vector<int>>& chart_faces,
+                            const std::vector<std::vector<int>>& groups) {
+  std::unordered_map<int, int> group_of_face;
+  for (int g = 0; g < 2; ++g)
+    for (int c : groups[g])
+      for (int f : chart_faces[c]) group_of_face[f] = g;
+  std::vector<int> border;
+  for (int c : groups[0])
+    for (int f : chart_faces[c])
+      for (int k = 0; k < 3; ++k) {
+        const int e = topology.corner_edge[3 * f + k];
+        for (int i = topology.edge_offsets[e]; i < topology.edge_offsets[e + 1]; ++i) {
+          const auto other = group_of_face.find(topology.edge_corners[i] / 3);
+          if (other != group_of_face.end() && other->second == 1) border.push_back(e);
+        }
+      }
+  return edges_length(mesh, topology, border);
+}
+
 // The 3D area of a flattened chart's faces that end with less than half their
 // original texel area (eq.: new UV area / original UV area < 1/2), and the
 // original chart that lost the most of it (-1 when none did). SLIM balances
@@ -381,10 +412,13 @@ struct Attempt {
   int culprit = -1;                           // the original chart to seed a split at, or -1
 };
 
+// max_cut_length: the 3D length relief cuts may add in all (the seam a split
+// would add instead); the chart is refused rather than cut longer.
 Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                      const std::vector<int>& faces, const FlattenOptions& options, const RunControl& control,
-                      FlattenStats& stats) {
+                      const std::vector<int>& faces, double max_cut_length, const FlattenOptions& options,
+                      const RunControl& control, FlattenStats& stats) {
   std::vector<int> cuts;
+  double cut_length = 0;
   for (int round = 0;; ++round) {
     LocalChart local = localize(mesh, topology, graph, faces, cuts);
     if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
@@ -398,7 +432,8 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
     if (loss.lost_area > options.max_density_loss * loss.total_area && loss.lost_area > options.density_loss_allowance) {
       if (round < options.relief_cuts) {
         const std::vector<int> cut = relief_cut(mesh, topology, local.faces, local.triangles, local.vertices, solution.uv);
-        if (!cut.empty()) {
+        cut_length += edges_length(mesh, topology, cut);
+        if (!cut.empty() && cut_length <= max_cut_length) {
           cuts.insert(cuts.end(), cut.begin(), cut.end());
           std::sort(cuts.begin(), cuts.end());
           ++stats.relief_cuts;
@@ -439,7 +474,8 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
     pending.pop_back();
     if (!folds_over(mesh, faces) && !original_boundary_crosses(mesh, topology, graph, faces)) {
       done.push_back(keep_original(mesh, faces));
-    } else if (Attempt attempt = flatten_faces(mesh, topology, graph, faces, options, control, stats); attempt.chart) {
+    } else if (Attempt attempt = flatten_faces(mesh, topology, graph, faces, kNoLimit, options, control, stats);
+               attempt.chart) {
       done.push_back(std::move(*attempt.chart));
     } else {
       ++stats.overlap_halved;
@@ -478,13 +514,18 @@ std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopol
   }
   std::vector<int> faces;
   for (int c : members) faces.insert(faces.end(), chart_faces[c].begin(), chart_faces[c].end());
-  Attempt attempt = flatten_faces(mesh, topology, graph, std::move(faces), options, control, stats);
+  // Relief cuts are worth it only while not much longer than the border a
+  // split opens: a split costs a chart as well.
+  constexpr double kCutPerSplitSeam = 3;
+  std::vector<std::vector<int>> pieces = undo_last_merge(merges, members);
+  const double split_seam =
+      pieces.empty() ? kNoLimit : kCutPerSplitSeam * shared_border_length(mesh, topology, chart_faces, pieces);
+  Attempt attempt = flatten_faces(mesh, topology, graph, faces, split_seam, options, control, stats);
   if (attempt.chart) {
     done.push_back(std::move(*attempt.chart));
     return done;
   }
   ++(stats.*attempt.refusal);
-  std::vector<std::vector<int>> pieces = undo_last_merge(merges, members);
   if (pieces.empty()) pieces = split_members(mesh, topology, graph, chart_faces, members, attempt.culprit);
   std::vector<std::vector<FlatChart>> parts(pieces.size());
   std::vector<FlattenStats> part_stats(pieces.size());
