@@ -1,12 +1,14 @@
 // The flatten stage (thesis 5.3-5.4). Takes one aggregated chart (its original
 // charts) on the cut surface. Gives FlatCharts: new UVs in texels that keep
 // each triangle's shape and texel density from the old atlas (SLIM on the
-// symmetric Dirichlet energy, SCAF where the boundary would cross), split
-// back until no piece overlaps or loses density (flatten_without_overlap);
+// symmetric Dirichlet energy, SCAF where the boundary would cross), cut
+// where it would lose density (relief_cut) and split back, undoing the last
+// merge, until no piece overlaps or loses density (flatten_without_overlap);
 // then faces move between neighbouring charts where that shortens the seam
 // (refine_seams).
 // slim, symmetric_dirichlet, tutte_embedding, reference_triangles,
-// scaffold_triangulation, disk_boundary and cut_to_disk are its internals.
+// scaffold_triangulation, disk_boundary, cut_to_disk and relief_cut are its
+// internals.
 #pragma once
 #include "flatten/flatten_chart.hpp"
 #include "flatten/refine_seams.hpp"

@@ -1,11 +1,12 @@
 // Overlaps (thesis 5.1). SLIM hands a chart whose boundary starts crossing
-// itself to SCAF (see slim.hpp), so overlaps are rare; a merged chart that
-// still overlaps is split back into two groups of its original charts, each
-// solved again. So is one whose flattening failed or lost too much texel density. A group holding a
-// single original chart keeps its original UVs, unless they overlap (fold over
-// or cross): then it is flattened, or cut into halves that are kept or
-// flattened (down to single faces if need be), so this always ends and leaves
-// no face flipped and no boundary crossing.
+// itself to SCAF (see slim.hpp), so overlaps are rare. A chart that loses too
+// much texel density is first slit open (relief_cut.hpp) and solved again; a
+// merged chart that still overlaps, fails or loses density is split back by
+// undoing the aggregation's last merge among its original charts, each part
+// solved again. A group holding a single original chart keeps its original
+// UVs, unless they overlap (fold over or cross): then it is flattened, or cut
+// into halves that are kept or flattened (down to single faces if need be),
+// so this always ends and leaves no face flipped and no boundary crossing.
 #pragma once
 #include <optional>
 #include <utility>
@@ -87,7 +88,9 @@ std::vector<char> charts_with_handles(const Mesh& mesh, const MeshTopology& topo
                                       const std::vector<std::vector<int>>& chart_faces);
 
 // Flattens one aggregated chart (its original charts `members`), splitting on
-// overlap or solver failure until every piece is valid.
+// overlap or solver failure until every piece is valid. merges: the
+// aggregation's (Aggregation::merges), which a split undoes from the last;
+// empty, or members that are not one cluster of them, regrow two groups instead.
 // chart_faces[c] lists the faces of original chart c.
 std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology,
                                                const ChartGraph& graph,
