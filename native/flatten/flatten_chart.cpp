@@ -490,8 +490,15 @@ std::vector<char> charts_with_handles(const Mesh& mesh, const MeshTopology& topo
                                       const std::vector<std::vector<int>>& chart_faces) {
   std::vector<char> out(chart_faces.size(), 0);
   parallel_for(static_cast<int>(chart_faces.size()), 16, [&](int c) {
+    if (chart_faces[c].empty()) return;
     LocalChart local = localize(mesh, topology, graph, chart_faces[c]);
-    out[c] = !chart_faces[c].empty() && !cut_to_disk(local.triangles, local.vertices);
+    // chi = V - E + F = 2 - 2 genus - loops is 1 for a disk only.
+    int edges = 0;
+    for_each_edge_run(corners_by_edge(static_cast<int>(3 * local.triangles.rows()),
+                                      [&](int k) { return corner_vertex(local.triangles, k); }),
+                      [&](int, int) { ++edges; });
+    const long long chi = static_cast<long long>(local.vertices.size()) - edges + local.triangles.rows();
+    out[c] = chi != 1 && !cut_to_disk(local.triangles, local.vertices);
   });
   return out;
 }
