@@ -11,6 +11,10 @@ namespace atlas {
 namespace {
 
 constexpr double kMinWeldedShare = 0.25;
+// A merge whose smaller chart has at most this many faces may weld any of
+// the arcs tried: a slit left inside a chart costs flattening time and splits
+// in proportion to the chart, and small charts are what is left unmerged.
+constexpr size_t kAnyArcFaces = 200;
 
 MergeCheck refused(MergeRefusal why) {
   MergeCheck out;
@@ -165,7 +169,8 @@ MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
 // seams for the time of one weld_all, which says whether the union is then
 // acceptable (two disks sharing k arcs make chi = 2 - k when all are welded,
 // and a disk when one is). The longest arcs are tried first, a few of them,
-// and only arcs with at least kMinWeldedShare of the shared length: a union
+// and, unless one chart is small (kAnyArcFaces), only arcs with at least
+// kMinWeldedShare of the shared length: a union
 // that keeps most of its border with the other chart as a slit inside costs
 // more to flatten (and splits more often) than it saves.
 MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& shared) {
@@ -193,7 +198,8 @@ MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& 
   std::sort(order.begin(), order.end(), [&](int x, int y) { return length[x] > length[y]; });
   constexpr int kArcsTried = 3;
   for (int t = 0; t < std::min(arc_count, kArcsTried); ++t) {
-    if (length[order[t]] < kMinWeldedShare * shared_length) break;
+    const bool small = std::min(faces_[a].size(), faces_[b].size()) <= kAnyArcFaces;
+    if (!small && length[order[t]] < kMinWeldedShare * shared_length) break;
     MergeCheck out;
     for (int i = 0; i < n; ++i)
       if (arc[i] != order[t]) out.left_open.push_back(shared[i]), out.open_length += edge_length[i];
