@@ -11,6 +11,11 @@
 namespace atlas {
 namespace {
 
+// A chart of at most this many faces may join any chart whatever the normal
+// coherence of the union: it bends the union little, and left alone it keeps
+// its whole border as seam.
+constexpr size_t kGateFreeFaces = 100;
+
 // What one cluster knows about its border with one neighbour.
 struct Link {
   double length_3d = 0;
@@ -145,7 +150,8 @@ class Aggregator {
         disks_.faces(a).size() + disks_.faces(b).size() > static_cast<size_t>(options_.max_chart_faces))
       return Gate::MaxChartFaces;
     const double area = ca.area_3d + cb.area_3d;
-    const bool small = disks_.faces(a).size() + disks_.faces(b).size() <= static_cast<size_t>(options_.coherence_free_faces);
+    const size_t fa = disks_.faces(a).size(), fb = disks_.faces(b).size();
+    const bool small = fa + fb <= static_cast<size_t>(options_.coherence_free_faces) || std::min(fa, fb) <= kGateFreeFaces;
     if (!small && area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area)
       return Gate::NormalCoherence;
     return Gate::Open;

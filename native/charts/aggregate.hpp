@@ -26,8 +26,8 @@ struct AggregateOptions {
   // texel density, and solving such a chart only to split it is what makes
   // large closed scans slow. 0 disables.
   double min_normal_coherence = 0.5;
-  // A merge whose union has at most this many faces is exempt from
-  // min_normal_coherence: a small chart bent past a hemisphere is cheap to
+  // A merge whose union has at most this many faces (or whose smaller chart
+  // has at most 100) is exempt from min_normal_coherence: a small chart bent past a hemisphere is cheap to
   // flatten, and a relief cut (flatten/relief_cut.hpp) opens it where it
   // would lose density. 0: the gate applies to every merge.
   int coherence_free_faces = 2000;
