@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include <Eigen/Geometry>
 
@@ -113,6 +114,45 @@ TEST(Aggregate, TwoChartsSharingTwoArcsMergeLeavingOneArcOpen) {
   expect_all_disks(r);
   const AggregationStops& s = r.aggregation.stops;
   EXPECT_EQ(s.non_manifold + s.not_disk + s.normal_coherence + s.max_chart_faces + s.min_chart_fraction + s.feasible, 0);
+}
+
+// A chart curled round to touch itself at the hub of a fan (two fans there),
+// and a triangle of that fan filling the notch between them: welding both
+// shared edges would close a ring round the hub, leaving a hole. The arc is
+// split at the hub, so one edge welds and the union is a disk.
+TEST(Aggregate, ArcsSplitWhereAChartTouchesItself) {
+  constexpr double kPi = 3.14159265358979323846;
+  RowMatrixX3d positions(17, 3);
+  positions.row(0) << 0, 0, 0;
+  for (int i = 0; i < 8; ++i)
+    for (int ring = 1; ring <= 2; ++ring)
+      positions.row(ring == 1 ? 1 + i : 9 + i) << ring * std::cos(kPi * i / 4), ring * std::sin(kPi * i / 4), 0;
+  std::vector<Eigen::Vector3i> tris;
+  std::vector<int> cluster;
+  auto w = [](int i) { return 1 + (i % 8); };
+  auto u = [](int i) { return 9 + (i % 8); };
+  for (int i = 0; i < 8; ++i) {  // the fan round the hub: 3 joins the notch, 7 is the hole
+    tris.emplace_back(0, w(i), w(i + 1));
+    cluster.push_back(i == 3 ? 1 : i == 7 ? -1 : 0);
+  }
+  for (int i : {6, 7, 0}) {  // the outer band that joins the fan's two sides
+    tris.emplace_back(w(i), u(i), u(i + 1));
+    tris.emplace_back(w(i), u(i + 1), w(i + 1));
+    cluster.push_back(0), cluster.push_back(0);
+  }
+  RowMatrixX3i triangles(static_cast<Eigen::Index>(tris.size()), 3);
+  for (size_t f = 0; f < tris.size(); ++f) triangles.row(f) = tris[f].transpose();
+  const Mesh mesh = atlas::testing::with_chart_uvs(positions, triangles, std::vector<int>(tris.size(), 0));
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const std::vector<char> no_seams(topology.edge_count(), 0);
+  DiskClusters whole(mesh, topology, cluster, 2, no_seams, false);
+  ASSERT_TRUE(whole.is_disk(0));
+  EXPECT_FALSE(whole.check_merge(0, 1));
+  DiskClusters partial(mesh, topology, cluster, 2, no_seams, true);
+  const MergeCheck check = partial.check_merge(0, 1);
+  ASSERT_TRUE(check);
+  EXPECT_EQ(check.left_open.size(), 1u);
+  EXPECT_TRUE(partial.is_disk(partial.merge(0, 1, check)));
 }
 
 TEST(Aggregate, ClosedSurfacesEndAsDisks) {

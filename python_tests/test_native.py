@@ -112,7 +112,9 @@ def test_energy_is_reported_per_chart(tetra_result):
     assert solved.sum() == result["report"]["charts_solved"] > 0
     assert (charts["energy_final"][solved] >= 4 - 1e-9).all()
     assert (charts["energy_final"][solved] <= charts["energy_initial"][solved]).all()
-    assert np.median(charts["energy_final"][solved]) < 4.4
+    # Merged charts bent past a hemisphere, opened by relief cuts, end further
+    # from isometric than flat ones: about 4.5 on tetra.
+    assert np.median(charts["energy_final"][solved]) < 4.7
     assert (charts["energy_final"][~solved] == 0).all()
 
 
@@ -253,7 +255,7 @@ def test_default_keeps_full_density_and_fewer_texels(native, scans, tetra_result
     report = result["report"]
     assert report["scale"] == 1.0 and not report["shrunk"]
     assert report["texels_after"] < report["texels_before"]
-    assert report["packing_efficiency"] > 0.53  # 55.2% when written; the padding alone bounds it at 71.7%
+    assert report["packing_efficiency"] > 0.47  # 49.2% with tetra's 25 charts; 55.2% with its 122 earlier
     m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
     assert m["map"]["density_loss_area_share"] < 0.01
 
@@ -299,10 +301,10 @@ def test_page_side_modes_and_texel_density_target(native, scans, tetra_result):
 
 
 def test_a_dense_atlas_keeps_its_density_by_default(native, scans):
-    # The tetra scan's charts on a page about 21x narrower: its atlas is then
-    # denser than the output can be with the default padding.
+    # The tetra scan's charts on a page 32x narrower: its atlas is then denser
+    # than the output can be with the default padding.
     scan = scans("tetra")
-    small = np.full_like(np.asarray(scan.page_sizes), 96)
+    small = np.full_like(np.asarray(scan.page_sizes), 64)
     dense = (scan.positions, scan.triangles, scan.uvs, scan.face_page, small)
     result = native.defragment(*dense)
     assert result["report"]["scale"] == 1.0 and not result["report"]["shrunk"]
@@ -316,7 +318,7 @@ def test_a_dense_atlas_keeps_its_density_by_default(native, scans):
 # output guarantees. The bounds are what the layout reaches today plus a small
 # margin; issue 12's own targets (90 / 300 / 80 charts, seam 10 / 40 / 19) are
 # tighter and judged in bench/RESULTS.md.
-SCAN_BOUNDS = {"meshroom": (100, 10.6), "smithsonian": (210, 44.5), "tetra": (50, 16.0)}
+SCAN_BOUNDS = {"meshroom": (97, 10.4), "smithsonian": (100, 40.5), "tetra": (32, 14.0)}
 
 
 @pytest.mark.parametrize("name", sorted(SCAN_BOUNDS))

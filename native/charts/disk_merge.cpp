@@ -180,9 +180,11 @@ MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& 
   std::unordered_map<int, std::vector<int>> edges_at_vertex;
   for (int i = 0; i < n; ++i)
     for (int end = 0; end < 2; ++end) edges_at_vertex[topology_.edge_vertices(shared[i], end)].push_back(i);
+  // Nor at a vertex where either chart touches itself: welded through it, the
+  // arc would close a ring round that vertex, leaving a hole.
   UnionFind arcs(n);
   for (const auto& [vertex, edges] : edges_at_vertex)
-    if (edges.size() == 2) arcs.unite(edges[0], edges[1]);
+    if (edges.size() == 2 && fan_count(vertex, a, a) == 1 && fan_count(vertex, b, b) == 1) arcs.unite(edges[0], edges[1]);
   const std::vector<int> arc = arcs.dense_labels();
   const int arc_count = *std::max_element(arc.begin(), arc.end()) + 1;
   if (arc_count == 1) return refused(MergeRefusal::NotDisk);
