@@ -9,7 +9,6 @@
 
 #include <Eigen/LU>
 #include <Eigen/OrderingMethods>
-#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -22,6 +21,7 @@
 #include "core/geometry.hpp"
 #include "core/segment_crossing.hpp"
 #include "flatten/disk_boundary.hpp"
+#include "flatten/pair_cholesky.hpp"
 #include "flatten/reference_triangles.hpp"
 #include "flatten/scaffold_triangulation.hpp"
 #include "flatten/symmetric_dirichlet.hpp"
@@ -67,12 +67,12 @@ Eigen::Matrix2d jacobian(const ProxyFace& face, const Eigen::VectorXd& x) {
 }
 
 // The SLIM global step, (H + lambda I) x = b. The pattern is fixed, and only
-// the upper triangle is stored: with natural ordering Eigen then factorizes
-// the matrix in place, without the permuted copy it makes otherwise.
+// the upper triangle is stored, already in fill-reducing order: the solver
+// factorizes it in place.
 struct ProxySystem {
   Eigen::SparseMatrix<double> matrix;
   std::vector<int> diagonal_slots;
-  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::NaturalOrdering<int>> solver;
+  PairCholesky solver;
   Eigen::VectorXd rhs, solution;
   double factorize_seconds = 0;  // in numeric factorizations, summed
 };
@@ -176,7 +176,7 @@ void prepare_proxy_system(std::vector<ProxyFace>& faces, int dof_count, ProxySys
   }
   system.diagonal_slots.resize(dof_count);
   for (int i = 0; i < dof_count; ++i) system.diagonal_slots[i] = value_slot(system.matrix, i, i);
-  system.solver.analyzePattern(system.matrix);
+  system.solver.analyze(system.matrix);
   system.rhs.resize(dof_count);
   system.solution.resize(dof_count);
 }
@@ -221,9 +221,9 @@ bool factorize_proxy(const std::vector<ProxyFace>& faces, const std::vector<Eige
   for (int attempt = 0; attempt < 4; ++attempt) {
     assemble_proxy(faces, jacobians, x, proximal_weight, system);
     const auto start = std::chrono::steady_clock::now();
-    system.solver.factorize(system.matrix);
+    const bool factorized = system.solver.factorize(system.matrix);
     system.factorize_seconds += seconds_since(start);
-    if (system.solver.info() == Eigen::Success) return true;
+    if (factorized) return true;
     double diagonal = 0;
     for (int slot : system.diagonal_slots) diagonal += system.matrix.valuePtr()[slot];
     proximal_weight = std::max(100 * proximal_weight, 1e-6 * diagonal / system.diagonal_slots.size());
@@ -354,7 +354,7 @@ SlimStep slim_step(const std::vector<ProxyFace>& faces, const SlimOptions& optio
     return {solve_failed(SolveFailure::round_off, "SLIM: a step flipped a face in round-off")};
   if (!factorize_proxy(faces, jacobians, x, options.proximal_weight, system))
     return {solve_failed(SolveFailure::system, "SLIM: proxy system is not positive definite")};
-  system.solution = system.solver.solve(system.rhs);
+  system.solver.solve(system.rhs, system.solution);
   const Eigen::VectorXd direction = system.solution - x;
   if (!direction.allFinite()) return {solve_failed(SolveFailure::system, "SLIM: proxy solve produced non-finite values")};
   const SearchLine line = search_line(faces, jacobians, direction);
