@@ -128,9 +128,10 @@ void PairCholesky::factorize_pair(const Eigen::SparseMatrix<double>& a, int k, d
     work_[2 * i] = work_[2 * i + 1] = 0;
     const int end = column_start_[i] + column_filled_[i];
     for (int p = column_start_[i] + 1; p < end; ++p) {
+      const double value = values_[p];  // loaded once: the stores to y could alias it
       double* y = &work_[2 * rows_[p]];
-      y[0] -= values_[p] * l0;
-      y[1] -= values_[p] * l1;
+      y[0] -= value * l0;
+      y[1] -= value * l1;
     }
     work_[2 * k + 1] -= l0 * l1;
     pivot0 -= l0 * l0;
