@@ -57,16 +57,32 @@ def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: li
         pngs.result()
 
 
-def job_input(scan) -> job.JobInput:
-    """The scan as the add-on's job takes it: one image map per page and role;
-    pages with the same roles form one material group, as read_bpy groups them."""
+class DecodingImage:
+    """A job.ImageData whose pixels a background thread decodes: the layout
+    needs only the image's size (from its header), so it runs meanwhile and
+    only the bake waits for the pixels."""
+
+    def __init__(self, name: str, source, colorspace: str, pool: ThreadPoolExecutor):
+        self.name, self.colorspace, self.is_float, self.alpha_mode = name, colorspace, False, "STRAIGHT"
+        self.size = scan_io.image_size(source)
+        self._pixels = pool.submit(scan_io.load_image, source)
+
+    @property
+    def pixels(self) -> np.ndarray:
+        return self._pixels.result()
+
+
+def job_input(scan, pool: ThreadPoolExecutor = None) -> job.JobInput:
+    """The scan as the add-on's job takes it: one image map per page and role,
+    decoded on pool (or here and now without one); pages with the same roles
+    form one material group, as read_bpy groups them."""
     images, pages, groups = {}, [], {}
     for p, roles in enumerate(scan.maps):
         maps = []
         for role in sorted(roles, key=job.role_sort_key):
-            name = f"page{p}_{role}"
-            images[name] = job.ImageData(name, scan_io.load_image(roles[role]),
-                                         colorspace="sRGB" if role == "base_color" else "Non-Color")
+            name, colorspace = f"page{p}_{role}", "sRGB" if role == "base_color" else "Non-Color"
+            images[name] = (DecodingImage(name, roles[role], colorspace, pool) if pool else
+                            job.ImageData(name, scan_io.load_image(roles[role]), colorspace=colorspace))
             maps.append(job.ImageMap(role, name, normal_map=role == "normal"))
         pages.append(job.SourcePage(maps, groups.setdefault(tuple(m.role for m in maps), len(groups))))
     mesh = job.MeshData(scan.positions, scan.triangles, scan.uvs, scan.face_page)
@@ -116,14 +132,16 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     t0 = time.perf_counter()
     scan = scan_io.load(args.input)
-    inp = job_input(scan)
-    t_load = time.perf_counter() - t0
     chosen = job.Options(**{o.name: getattr(args, o.name) for o in options.SCHEMA})
-    try:
-        result = job.run(inp, chosen, progress=progress_line, native=_native)
-    except job.DefragError as exc:
-        print(f"defrag_scan: error: {exc}", file=sys.stderr)
-        return 1
+    # Pillow decodes without the GIL, beside the layout.
+    with ThreadPoolExecutor(max_workers=1) as decoder:
+        inp = job_input(scan, decoder)
+        t_load = time.perf_counter() - t0
+        try:
+            result = job.run(inp, chosen, progress=progress_line, native=_native)
+        except job.DefragError as exc:
+            print(f"defrag_scan: error: {exc}", file=sys.stderr)
+            return 1
     if sys.stderr.isatty():
         print(file=sys.stderr)
     args.output.mkdir(parents=True, exist_ok=True)

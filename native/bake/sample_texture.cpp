@@ -71,7 +71,8 @@ inline void catmull_rom_weights(double t, double w[4]) {
   w[3] = 0.5 * t3 - 0.5 * t2;
 }
 
-inline int wrapped(int i, int n) { return (i % n + n) % n; }
+// i modulo n in [0, n); the division only where i leaves the page.
+inline int wrapped(int i, int n) { return i >= 0 && i < n ? i : (i % n + n) % n; }
 
 // Catmull-Rom over the 4 x 4 texels around the taps, each channel clamped to
 // the range of the four bilinear texels: no ringing past the values it blends.

@@ -9,7 +9,6 @@
 
 #include <Eigen/LU>
 #include <Eigen/OrderingMethods>
-#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -22,6 +21,7 @@
 #include "core/geometry.hpp"
 #include "core/segment_crossing.hpp"
 #include "flatten/disk_boundary.hpp"
+#include "flatten/pair_cholesky.hpp"
 #include "flatten/reference_triangles.hpp"
 #include "flatten/scaffold_triangulation.hpp"
 #include "flatten/symmetric_dirichlet.hpp"
@@ -67,12 +67,12 @@ Eigen::Matrix2d jacobian(const ProxyFace& face, const Eigen::VectorXd& x) {
 }
 
 // The SLIM global step, (H + lambda I) x = b. The pattern is fixed, and only
-// the upper triangle is stored: with natural ordering Eigen then factorizes
-// the matrix in place, without the permuted copy it makes otherwise.
+// the upper triangle is stored, already in fill-reducing order: the solver
+// factorizes it in place.
 struct ProxySystem {
   Eigen::SparseMatrix<double> matrix;
   std::vector<int> diagonal_slots;
-  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::NaturalOrdering<int>> solver;
+  PairCholesky solver;
   Eigen::VectorXd rhs, solution;
   double factorize_seconds = 0;  // in numeric factorizations, summed
 };
@@ -81,17 +81,64 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// The vertices joined to each vertex by a face edge, ascending, without
+// repeats: those of v are neighbour[start[v] .. start[v + 1]). corner(f, k)
+// gives the vertex at corner k of face f; a face's three corners differ.
+struct VertexNeighbours {
+  std::vector<int> start, neighbour;
+};
+
+template <class Corner>
+VertexNeighbours vertex_neighbours(size_t face_count, int vertex_count, Corner corner) {
+  VertexNeighbours near;
+  near.start.assign(vertex_count + 1, 0);
+  for (size_t f = 0; f < face_count; ++f)
+    for (int k = 0; k < 3; ++k) near.start[corner(f, k) + 1] += 2;
+  for (int v = 0; v < vertex_count; ++v) near.start[v + 1] += near.start[v];
+  near.neighbour.resize(near.start[vertex_count]);
+  std::vector<int> fill(near.start.begin(), near.start.end() - 1);
+  for (size_t f = 0; f < face_count; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = corner(f, k), b = corner(f, (k + 1) % 3);
+      near.neighbour[fill[a]++] = b, near.neighbour[fill[b]++] = a;
+    }
+  // Sorted and deduplicated in place, then packed.
+  int kept = 0;
+  for (int v = 0; v < vertex_count; ++v) {
+    const auto begin = near.neighbour.begin() + near.start[v], end = near.neighbour.begin() + near.start[v + 1];
+    std::sort(begin, end);
+    near.start[v] = kept;
+    kept = static_cast<int>(std::copy(begin, std::unique(begin, end), near.neighbour.begin() + kept) -
+                            near.neighbour.begin());
+  }
+  near.start[vertex_count] = kept;
+  near.neighbour.resize(kept);
+  return near;
+}
+
 // Fill-reducing (AMD) order of the vertex graph: x and y of a vertex always
 // couple, so ordering vertices and interleaving costs 4x less than ordering
 // the 2n unknowns, for the same fill. Returns the new index of each vertex.
 std::vector<int> fill_reducing_order(const RowMatrixX3i& triangles, int vertex_count) {
-  std::vector<Eigen::Triplet<double>> edges;
-  edges.reserve(3 * triangles.rows() + vertex_count);
-  for (int v = 0; v < vertex_count; ++v) edges.emplace_back(v, v, 1.0);
-  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
-    for (int k = 0; k < 3; ++k) edges.emplace_back(triangles(f, k), triangles(f, (k + 1) % 3), 1.0);
+  const VertexNeighbours near = vertex_neighbours(static_cast<size_t>(triangles.rows()), vertex_count,
+                                                  [&](size_t f, int k) { return triangles(f, k); });
+  // The graph with its diagonal, built compressed: AMD reads only the pattern.
   Eigen::SparseMatrix<double> graph(vertex_count, vertex_count);
-  graph.setFromTriplets(edges.begin(), edges.end());
+  graph.resizeNonZeros(static_cast<Eigen::Index>(near.neighbour.size()) + vertex_count);
+  int* outer = graph.outerIndexPtr();
+  int* inner = graph.innerIndexPtr();
+  std::fill(graph.valuePtr(), graph.valuePtr() + graph.nonZeros(), 1.0);
+  int at = 0;
+  for (int v = 0; v < vertex_count; ++v) {
+    outer[v] = at;
+    const int* begin = near.neighbour.data() + near.start[v];
+    const int* end = near.neighbour.data() + near.start[v + 1];
+    const int* below = std::lower_bound(begin, end, v);
+    at = static_cast<int>(std::copy(begin, below, inner + at) - inner);
+    inner[at++] = v;
+    at = static_cast<int>(std::copy(below, end, inner + at) - inner);
+  }
+  outer[vertex_count] = at;
   // Eigen's orderings return P^-1; P sends vertex v to row P(v).
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
   Eigen::AMDOrdering<int>()(graph, inverse);
@@ -139,44 +186,60 @@ std::vector<ProxyFace> proxy_faces(const RowMatrixX3i& triangles, const RowMatri
   return faces;
 }
 
-// Position of entry (row, col), row <= col, in the values of a compressed
-// column-major matrix (rows are sorted within a column).
-int value_slot(const Eigen::SparseMatrix<double>& m, int row, int col) {
-  const int* begin = m.innerIndexPtr() + m.outerIndexPtr()[col];
-  const int* end = m.innerIndexPtr() + m.outerIndexPtr()[col + 1];
-  return static_cast<int>(std::lower_bound(begin, end, row) - m.innerIndexPtr());
-}
-
-// The upper-triangle entries each face writes, in assemble_proxy's order:
-// for each edge (k, l) the full 2x2 block between the two vertices (the lower
-// dof gives the rows), then for each corner the 3 upper entries of its diagonal block.
-template <class Visit>
-void for_each_face_entry(const ProxyFace& face, Visit visit) {
-  for (int e = 0; e < 3; ++e) {
-    const int lo = std::min(face.dof[e], face.dof[(e + 1) % 3]), hi = std::max(face.dof[e], face.dof[(e + 1) % 3]);
-    visit(lo, hi), visit(lo, hi + 1), visit(lo + 1, hi), visit(lo + 1, hi + 1);
-  }
-  for (const int d : face.dof) visit(d, d), visit(d, d + 1), visit(d + 1, d + 1);
-}
-
 // Builds the pattern, records every face's value slots and runs the symbolic
-// analysis: all the per-chart work that the iterations then reuse.
+// analysis: all the per-chart work that the iterations then reuse. Vertex w
+// (dofs 2w, 2w + 1) couples with its neighbours u < w through full 2x2
+// blocks, so the upper triangle's column 2w holds rows 2u, 2u + 1 for each
+// such u, ascending, then 2w; column 2w + 1 the same rows, then 2w, 2w + 1.
+// (A vertex on no face keeps only its diagonal.)
 void prepare_proxy_system(std::vector<ProxyFace>& faces, int dof_count, ProxySystem& system) {
-  std::vector<Eigen::Triplet<double>> entries;
-  entries.reserve(21 * faces.size() + dof_count);
-  for (int i = 0; i < dof_count; ++i) entries.emplace_back(i, i, 0.0);
-  for (const ProxyFace& face : faces)
-    for_each_face_entry(face, [&](int row, int col) { entries.emplace_back(row, col, 0.0); });
+  const int vertex_count = dof_count / 2;
+  const VertexNeighbours near =
+      vertex_neighbours(faces.size(), vertex_count, [&](size_t f, int k) { return faces[f].dof[k] / 2; });
+  std::vector<int> below(vertex_count);  // neighbours below w: the first below[w] of its list
+  for (int w = 0; w < vertex_count; ++w)
+    below[w] = static_cast<int>(std::lower_bound(near.neighbour.begin() + near.start[w],
+                                                 near.neighbour.begin() + near.start[w + 1], w) -
+                                (near.neighbour.begin() + near.start[w]));
+  std::vector<int> outer(dof_count + 1, 0);
+  for (int w = 0; w < vertex_count; ++w) {
+    const bool on_face = near.start[w + 1] > near.start[w];
+    outer[2 * w + 1] = outer[2 * w] + 2 * below[w] + 1;
+    outer[2 * w + 2] = outer[2 * w + 1] + 2 * below[w] + (on_face ? 2 : 1);
+  }
   system.matrix.resize(dof_count, dof_count);
-  system.matrix.setFromTriplets(entries.begin(), entries.end());
-  system.matrix.makeCompressed();
+  system.matrix.resizeNonZeros(outer[dof_count]);
+  std::copy(outer.begin(), outer.end(), system.matrix.outerIndexPtr());
+  int* inner = system.matrix.innerIndexPtr();
+  for (int w = 0; w < vertex_count; ++w)
+    for (int column = 2 * w; column <= 2 * w + 1; ++column) {
+      int at = outer[column];
+      for (int j = 0; j < below[w]; ++j) {
+        const int u = near.neighbour[near.start[w] + j];
+        inner[at++] = 2 * u, inner[at++] = 2 * u + 1;
+      }
+      for (int row = 2 * w; at < outer[column + 1]; ++row) inner[at++] = row;
+    }
+  // Slots in the order assemble_proxy writes them: for each edge (k, l) the
+  // 2x2 block between the two vertices (the lower dof gives the rows), then
+  // for each corner the 3 upper entries of its diagonal block.
   for (ProxyFace& face : faces) {
     int* slot = face.slot;
-    for_each_face_entry(face, [&](int row, int col) { *slot++ = value_slot(system.matrix, row, col); });
+    for (int e = 0; e < 3; ++e) {
+      const int lo = std::min(face.dof[e], face.dof[(e + 1) % 3]), hi = std::max(face.dof[e], face.dof[(e + 1) % 3]);
+      const int* list = near.neighbour.data() + near.start[hi / 2];
+      const int rank = 2 * static_cast<int>(std::lower_bound(list, list + below[hi / 2], lo / 2) - list);
+      const int a = outer[hi] + rank, b = outer[hi + 1] + rank;
+      *slot++ = a, *slot++ = b, *slot++ = a + 1, *slot++ = b + 1;
+    }
+    for (const int d : face.dof) {
+      const int a = outer[d] + 2 * below[d / 2], b = outer[d + 1] + 2 * below[d / 2];
+      *slot++ = a, *slot++ = b, *slot++ = b + 1;
+    }
   }
   system.diagonal_slots.resize(dof_count);
-  for (int i = 0; i < dof_count; ++i) system.diagonal_slots[i] = value_slot(system.matrix, i, i);
-  system.solver.analyzePattern(system.matrix);
+  for (int i = 0; i < dof_count; ++i) system.diagonal_slots[i] = outer[i + 1] - 1;
+  system.solver.analyze(system.matrix);
   system.rhs.resize(dof_count);
   system.solution.resize(dof_count);
 }
@@ -221,9 +284,9 @@ bool factorize_proxy(const std::vector<ProxyFace>& faces, const std::vector<Eige
   for (int attempt = 0; attempt < 4; ++attempt) {
     assemble_proxy(faces, jacobians, x, proximal_weight, system);
     const auto start = std::chrono::steady_clock::now();
-    system.solver.factorize(system.matrix);
+    const bool factorized = system.solver.factorize(system.matrix);
     system.factorize_seconds += seconds_since(start);
-    if (system.solver.info() == Eigen::Success) return true;
+    if (factorized) return true;
     double diagonal = 0;
     for (int slot : system.diagonal_slots) diagonal += system.matrix.valuePtr()[slot];
     proximal_weight = std::max(100 * proximal_weight, 1e-6 * diagonal / system.diagonal_slots.size());
@@ -354,7 +417,7 @@ SlimStep slim_step(const std::vector<ProxyFace>& faces, const SlimOptions& optio
     return {solve_failed(SolveFailure::round_off, "SLIM: a step flipped a face in round-off")};
   if (!factorize_proxy(faces, jacobians, x, options.proximal_weight, system))
     return {solve_failed(SolveFailure::system, "SLIM: proxy system is not positive definite")};
-  system.solution = system.solver.solve(system.rhs);
+  system.solver.solve(system.rhs, system.solution);
   const Eigen::VectorXd direction = system.solution - x;
   if (!direction.allFinite()) return {solve_failed(SolveFailure::system, "SLIM: proxy solve produced non-finite values")};
   const SearchLine line = search_line(faces, jacobians, direction);
