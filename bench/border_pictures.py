@@ -21,11 +21,11 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 BUILD = Path(os.environ.get("ATLAS_BUILD_DIR", REPO / "build"))
-sys.path.insert(0, str(BUILD / "addon" / "atlas_defrag"))
+sys.path.insert(0, str(BUILD / "addon"))  # the package imports bpy only inside Blender
 sys.path.insert(0, str(REPO / "tools"))
 sys.path.insert(0, str(REPO / "python_tests"))
 
-import _native  # noqa: E402
+from atlas_defrag import _native  # noqa: E402  (scan_io reads OBJ through the same module)
 import scan_io  # noqa: E402
 
 SCANS = {

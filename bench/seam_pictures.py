@@ -20,11 +20,11 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 BUILD = Path(os.environ.get("ATLAS_BUILD_DIR", REPO / "build"))
-sys.path.insert(0, str(BUILD / "addon" / "atlas_defrag"))  # the module alone: the package imports bpy
+sys.path.insert(0, str(BUILD / "addon"))  # the package imports bpy only inside Blender
 sys.path.insert(0, str(REPO / "tools"))
 sys.path.insert(0, str(HERE))
 
-import _native  # noqa: E402
+from atlas_defrag import _native  # noqa: E402  (scan_io reads OBJ through the same module)
 import scan_io  # noqa: E402
 from run_benchmark import MODELS, _chart_boundary_edges, _sheet  # noqa: E402
 
