@@ -713,7 +713,7 @@ def write_results(results: list, mach: dict, args, path: Path, started: float) -
     add("")
     add("## Seams on the model")
     add("")
-    add("The input's UV seams and Atlas Defrag's drawn on the Meshroom and Smithsonian scans "
+    add("The input's UV seams and Atlas Defrag's drawn on the three scans "
         "(`bench/seam_pictures.py`, run separately, seconds), and on the Meshroom scan as Atlas Defrag left "
         "them before issue 12's partial merges and seam refinement (commit 887a553, "
         "`ATLAS_BUILD_DIR=<its build> bench/seam_pictures.py --tag 887a553`):")
@@ -723,6 +723,8 @@ def write_results(results: list, mach: dict, args, path: Path, started: float) -
     add("![Meshroom seams before issue 12](pictures/meshroom_seams_887a553.png)")
     add("")
     add("![Smithsonian seams](pictures/smithsonian_seams.png)")
+    add("")
+    add("![tetra seams](pictures/tetra_seams.png)")
     add("")
     add("## Notes")
     add("")
