@@ -29,8 +29,9 @@ struct AggregateOptions {
   // A merge whose union has at most this many faces (or whose smaller chart
   // has at most 100) is exempt from min_normal_coherence: a small chart bent past a hemisphere is cheap to
   // flatten, and a relief cut (flatten/relief_cut.hpp) opens it where it
-  // would lose density. 0: the gate applies to every merge.
-  int coherence_free_faces = 2000;
+  // would lose density. Larger, the merged charts bend further and lose
+  // colour detail (bench/README.md). 0: the gate applies to every merge.
+  int coherence_free_faces = 1000;
   // No merged chart grows beyond this many faces: the cost of flattening a
   // chart grows faster than its size (sparse Cholesky fill), and many
   // mid-sized charts keep both cores busy. 0 disables.
