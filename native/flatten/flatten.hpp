@@ -6,9 +6,9 @@
 // merge, until no piece overlaps or loses density (flatten_without_overlap);
 // then faces move between neighbouring charts where that shortens the seam
 // (refine_seams).
-// slim, symmetric_dirichlet, tutte_embedding, reference_triangles,
-// scaffold_triangulation, disk_boundary, cut_to_disk and relief_cut are its
-// internals.
+// slim, pair_cholesky, symmetric_dirichlet, tutte_embedding,
+// reference_triangles, scaffold_triangulation, disk_boundary, cut_to_disk and
+// relief_cut are its internals.
 #pragma once
 #include "flatten/flatten_chart.hpp"
 #include "flatten/refine_seams.hpp"
