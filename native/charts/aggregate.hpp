@@ -27,9 +27,9 @@ struct AggregateOptions {
   // large closed scans slow. 0 disables.
   double min_normal_coherence = 0.5;
   // A merge whose union has at most this many faces (or whose smaller chart
-  // has at most 100) is exempt from min_normal_coherence: a small chart bent past a hemisphere is cheap to
-  // flatten, and a relief cut (flatten/relief_cut.hpp) opens it where it
-  // would lose density. Larger, the merged charts bend further and lose
+  // has at most 100) is exempt from min_normal_coherence: a small chart bent
+  // past a hemisphere is cheap to flatten, and a relief cut
+  // (flatten/relief_cut.hpp) opens it where it would lose density. Larger, the merged charts bend further and lose
   // colour detail (bench/README.md). 0: the gate applies to every merge.
   int coherence_free_faces = 1000;
   // No merged chart grows beyond this many faces: the cost of flattening a

@@ -188,23 +188,22 @@ MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& 
   const std::vector<int> arc = arcs.dense_labels();
   const int arc_count = *std::max_element(arc.begin(), arc.end()) + 1;
   if (arc_count == 1) return refused(MergeRefusal::NotDisk);
-  std::vector<double> length(arc_count, 0.0), edge_length(n);
+  std::vector<double> length(arc_count, 0.0), edge_lengths(n);
   for (int i = 0; i < n; ++i) {
-    edge_length[i] = (mesh_.positions.row(topology_.edge_vertices(shared[i], 0)) -
-                      mesh_.positions.row(topology_.edge_vertices(shared[i], 1))).norm();
-    length[arc[i]] += edge_length[i];
+    edge_lengths[i] = edge_length(mesh_, topology_, shared[i]);
+    length[arc[i]] += edge_lengths[i];
   }
-  const double shared_length = std::accumulate(edge_length.begin(), edge_length.end(), 0.0);
+  const double shared_length = std::accumulate(edge_lengths.begin(), edge_lengths.end(), 0.0);
   std::vector<int> order(arc_count);
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int x, int y) { return length[x] > length[y]; });
   constexpr int kArcsTried = 3;
+  const bool small = std::min(faces_[a].size(), faces_[b].size()) <= kAnyArcFaces;
   for (int t = 0; t < std::min(arc_count, kArcsTried); ++t) {
-    const bool small = std::min(faces_[a].size(), faces_[b].size()) <= kAnyArcFaces;
     if (!small && length[order[t]] < kMinWeldedShare * shared_length) break;
     MergeCheck out;
     for (int i = 0; i < n; ++i)
-      if (arc[i] != order[t]) out.left_open.push_back(shared[i]), out.open_length += edge_length[i];
+      if (arc[i] != order[t]) out.left_open.push_back(shared[i]), out.open_length += edge_lengths[i];
     for (int e : out.left_open) seam_[e] = 1;
     const MergeCheck welded = weld_all(a, b, nullptr);
     for (int e : out.left_open) seam_[e] = 0;

@@ -24,6 +24,11 @@ struct MeshTopology {
 
 MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count);
 
+// 3D length of edge e.
+inline double edge_length(const Mesh& mesh, const MeshTopology& topology, int e) {
+  return (mesh.positions.row(topology.edge_vertices(e, 0)) - mesh.positions.row(topology.edge_vertices(e, 1))).norm();
+}
+
 // For a manifold edge e (valence 2): true when both faces put the edge's two
 // end vertices at the same UVs on the same page, i.e. the edge is not a seam.
 bool uv_continuous_across(const MeshTopology& topology, const RowMatrixX3i& triangles,

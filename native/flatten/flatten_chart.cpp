@@ -301,8 +301,7 @@ std::vector<std::vector<int>> undo_last_merge(const std::vector<std::pair<int, i
 
 double edges_length(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& edges) {
   double length = 0;
-  for (int e : edges)
-    length += (mesh.positions.row(topology.edge_vertices(e, 0)) - mesh.positions.row(topology.edge_vertices(e, 1))).norm();
+  for (int e : edges) length += edge_length(mesh, topology, e);
   return length;
 }
 
@@ -431,7 +430,7 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
     const DensityLoss loss = density_loss(mesh, graph, local, solution.uv);
     if (loss.lost_area > options.max_density_loss * loss.total_area && loss.lost_area > options.density_loss_allowance) {
       if (round < options.relief_cuts) {
-        const std::vector<int> cut = relief_cut(mesh, topology, local.faces, local.triangles, local.vertices, solution.uv);
+        const std::vector<int> cut = relief_cut(mesh, topology, local.faces, local.triangles, solution.uv);
         cut_length += edges_length(mesh, topology, cut);
         if (!cut.empty() && cut_length <= max_cut_length) {
           cuts.insert(cuts.end(), cut.begin(), cut.end());

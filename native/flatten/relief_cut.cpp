@@ -66,8 +66,7 @@ std::vector<int> squeezed_targets(const RowMatrixX3i& triangles, const Squeeze& 
 }  // namespace
 
 std::vector<int> relief_cut(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& faces,
-                            const RowMatrixX3i& triangles, const std::vector<int>& vertex_source,
-                            const RowMatrixX2d& uv) {
+                            const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
   const int n = static_cast<int>(uv.rows());
   std::vector<std::vector<HalfEdge>> out(n);
   const auto keyed = corners_by_edge(static_cast<int>(3 * triangles.rows()),
@@ -81,7 +80,7 @@ std::vector<int> relief_cut(const Mesh& mesh, const MeshTopology& topology, cons
       return;
     }
     const int e = topology.corner_edge[3 * faces[corner_face(c)] + c % 3];
-    const double length = (mesh.positions.row(vertex_source[a]) - mesh.positions.row(vertex_source[b])).norm();
+    const double length = edge_length(mesh, topology, e);
     out[a].push_back({b, e, length});
     out[b].push_back({a, e, length});
   });

@@ -13,15 +13,13 @@
 namespace atlas {
 
 // faces (F) mesh faces of a flattened chart; triangles (F,3) their local
-// vertices, corner k of row i being corner k of mesh face faces[i];
-// vertex_source (V) the mesh vertex of each local vertex; uv (V,2) the
-// flattening in texels. Returns the mesh edges of shortest 3D edge paths to
+// vertices, corner k of row i being corner k of mesh face faces[i]; uv
+// (V,2) the flattening in texels. Returns the mesh edges of shortest 3D edge paths to
 // the chart's boundary, one from each group of faces that kept less than half
 // their texel area, starting at the group's interior vertex of lowest
 //   score(v) = sum_f A3D(f) log(A_uv(f) / A_ref(f)) / sum_f A3D(f) over faces f at v;
 // nothing when no such group has an interior vertex.
 std::vector<int> relief_cut(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& faces,
-                            const RowMatrixX3i& triangles, const std::vector<int>& vertex_source,
-                            const RowMatrixX2d& uv);
+                            const RowMatrixX3i& triangles, const RowMatrixX2d& uv);
 
 }  // namespace atlas
