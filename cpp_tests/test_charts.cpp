@@ -155,6 +155,47 @@ TEST(Aggregate, ArcsSplitWhereAChartTouchesItself) {
   EXPECT_TRUE(partial.is_disk(partial.merge(0, 1, check)));
 }
 
+// Two triangles touching at a vertex, together one hole in a grid chart:
+// welding either alone leaves the hole (chi stays 0), the second closes it.
+// Scanners leave such pairs inside their charts; each must be allowed to
+// merge even though the first merge alone makes no disk.
+TEST(Aggregate, IslandsThatFillOneHoleTogetherMerge) {
+  const Mesh mesh = atlas::testing::grid_disk(6);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  auto shares = [&](int f, int g) {
+    int n = 0;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) n += mesh.triangles(f, i) == mesh.triangles(g, j);
+    return n;
+  };
+  auto interior = [&](int f) {
+    for (int k = 0; k < 3; ++k)
+      if (topology.edge_valence(topology.corner_edge[3 * f + k]) != 2) return false;
+    return true;
+  };
+  const int first = 2 * (2 * 6 + 2);  // a triangle of quad (2, 2)
+  int second = -1;
+  for (int g = 0; g < mesh.face_count() && second < 0; ++g)
+    if (shares(first, g) == 1 && interior(g)) {
+      bool apart = true;  // no third triangle touches both across edges
+      for (int h = 0; h < mesh.face_count(); ++h) apart = apart && !(h != g && h != first && shares(first, h) == 3);
+      if (apart) second = g;
+    }
+  ASSERT_TRUE(interior(first));
+  ASSERT_GE(second, 0);
+  std::vector<int> cluster(mesh.face_count(), 0);
+  cluster[first] = 1, cluster[second] = 2;
+  DiskClusters disks(mesh, topology, cluster, 3, std::vector<char>(topology.edge_count(), 0));
+  ASSERT_FALSE(disks.is_disk(0));
+  const MergeCheck one = disks.check_merge(0, 1);
+  ASSERT_TRUE(one);
+  const int grown = disks.merge(0, 1, one);
+  EXPECT_FALSE(disks.is_disk(grown));
+  const MergeCheck two = disks.check_merge(grown, 2);
+  ASSERT_TRUE(two);
+  EXPECT_TRUE(disks.is_disk(disks.merge(grown, 2, two)));
+}
+
 TEST(Aggregate, ClosedSurfacesEndAsDisks) {
   AggregateOptions topology_only;
   topology_only.min_normal_coherence = 0;
