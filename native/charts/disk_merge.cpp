@@ -81,13 +81,6 @@ bool DiskClusters::manifold_inside(int c) {
   return true;
 }
 
-// True when e joins two faces of cluster c (the caller checks seams).
-bool DiskClusters::joined_inside(int e, int c) const {
-  if (topology_.edge_valence(e) != 2) return false;
-  const int i = topology_.edge_offsets[e];
-  return face_cluster_[topology_.edge_corners[i] / 3] == c && face_cluster_[topology_.edge_corners[i + 1] / 3] == c;
-}
-
 // Number of edge-connected fans that the faces of clusters a and b form around v.
 int DiskClusters::fan_count(int v, int a, int b) const {
   const int begin = topology_.vertex_offsets[v], end = topology_.vertex_offsets[v + 1];
@@ -132,11 +125,10 @@ MergeCheck DiskClusters::check_merge(int a, int b) {
 MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
   if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
   ++stamp_;
-  int shared_edges = 0, fans_joined = 0, border_sides = 0;
+  int shared_edges = 0, fans_joined = 0;
   for (int f : faces_[a])
     for (int k = 0; k < 3; ++k) {
       const int c = 3 * f + k, e = topology_.corner_edge[c], v = mesh_.triangles(f, k);
-      border_sides += seam_[e] || !joined_inside(e, a);
       if (edge_stamp_[e] != stamp_) {
         edge_stamp_[e] = stamp_;
         for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
@@ -165,12 +157,12 @@ MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
   // A disk, or a step towards one: a chart with holes (chi < 1) absorbing an
   // island fills a hole and raises chi. Anything else adds a hole or a handle.
   // chi == 2 would close a sphere: no boundary left to flatten.
-  // Several islands that fill one hole together (touching at vertices) each
-  // leave chi as it was: an island welded along its whole border adds no
-  // hole, so it may merge as long as chi does not fall.
-  const bool enclosed = euler_[a] == 1 && border_sides == shared_edges;
+  // A disk joining a chart with holes along one arc leaves chi as it was: it
+  // adds no hole, and it may be one of several islands that fill a hole
+  // together (touching at vertices), which no single one of them closes.
   const int worse = std::min(euler_[a], euler_[b]);
-  if (euler == 1 || (euler < 1 && (euler > worse || (enclosed && euler == worse)))) {
+  const bool with_disk = euler_[a] == 1 || euler_[b] == 1;
+  if (euler == 1 || (euler < 1 && (euler > worse || (with_disk && euler == worse)))) {
     MergeCheck out;
     out.euler = euler;
     return out;

@@ -45,8 +45,8 @@ class DiskClusters {
   // vertex once per fan of faces around it (pinches are split), when the shared
   // edges are manifold and consistently wound and the union is a disk
   // (chi == 1) or has fewer holes than the worse of the two (an island filling
-  // a hole), or no more when the smaller is a disk welded along all its
-  // border (one of several islands filling a hole); the refusal otherwise. Clusters that did not start manifold never merge.
+  // a hole), or as many when one of them is a disk (joined along one arc, it
+  // adds no hole); the refusal otherwise. Clusters that did not start manifold never merge.
   MergeCheck check_merge(int a, int b);
   // Merges the smaller cluster into the larger; returns the survivor. The
   // check's left_open edges become seams the union keeps.
@@ -76,7 +76,6 @@ class DiskClusters {
   int local_euler(int f, int c) const;
   bool manifold_inside(int c);
   int fan_count(int v, int a, int b) const;
-  bool joined_inside(int e, int c) const;
   bool in(int f, int a, int b) const { return face_cluster_[f] == a || face_cluster_[f] == b; }
   // Faces of a cluster are joined across e: manifold and not a seam the cluster keeps.
   bool joins(int e) const { return topology_.edge_valence(e) == 2 && !seam_[e]; }
