@@ -1,12 +1,14 @@
 #include "pack/pack.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <optional>
 #include <sstream>
 #include <utility>
 
+#include "core/parallel_for.hpp"
 #include "pack/page_filling.hpp"
 #include "pack/scaled_chart.hpp"
 
@@ -105,22 +107,44 @@ double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, i
   return extent > 0.0 ? room / extent : std::numeric_limits<double>::infinity();
 }
 
+// Orders the default sizing tries, keeping the smallest page: which one
+// packs best depends on the charts' shapes. They are tried two at a time
+// (one per core of a small machine), the second pair only if the first
+// found a page: charts that need more than one page cost no more than before.
+constexpr std::array<ChartSize, 4> kOrders = {ChartSize::BoxArea, ChartSize::Texels,
+                                              ChartSize::LongSide, ChartSize::Perimeter};
+constexpr int kOrdersAtOnce = 2;
+
 // Default sizing at one scale: the smallest page, else the fewest max pages
 // (unless max_pages is 1: then the overflow is all a scale search needs).
 Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale, const Frame& frame,
                   int max_side, int max_pages, const RunControl& control) {
   Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, frame.gap, control), {}};
-  const std::vector<int> order = largest_first(packing.charts);
-  double placed_share = 0.0;
-  if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control, &placed_share)) {
-    packing.layout = std::move(*single);
-  } else if (max_pages == 1) {
+  std::array<std::optional<Layout>, kOrders.size()> single;
+  double placed_share = 0.0;  // of the first order
+  auto area = [](const Layout& layout) {
+    return static_cast<long long>(layout.pages[0].width) * layout.pages[0].height;
+  };
+  for (int first = 0; first < static_cast<int>(kOrders.size()); first += kOrdersAtOnce) {
+    if (first > 0 && packing.layout.pages.empty()) break;
+    parallel_for(kOrdersAtOnce, 1, [&](int i) {
+      const int k = first + i;
+      single[k] = pack_smallest_page(largest_first(packing.charts, kOrders[k]), packing.charts,
+                                     frame, max_side, control, k == 0 ? &placed_share : nullptr);
+    });
+    for (int k = first; k < first + kOrdersAtOnce; ++k)
+      if (single[k] && (packing.layout.pages.empty() || area(*single[k]) < area(packing.layout)))
+        packing.layout = std::move(*single[k]);
+  }
+  if (!packing.layout.pages.empty()) return packing;
+  if (max_pages == 1) {
     double padded = 0.0;
     for (const ScaledChart& chart : packing.charts) padded += static_cast<double>(chart.footprint);
     const double side = max_side + 2.0 * frame.margin;
     packing.overflow = placed_share > 0.0 ? 1.0 / placed_share : padded / (kFullPage * side * side);
   } else {
-    packing.layout = pack_many_pages(order, packing.charts, frame, max_side, control);
+    packing.layout = pack_many_pages(largest_first(packing.charts), packing.charts, frame, max_side,
+                                     control);
   }
   return packing;
 }
@@ -247,7 +271,7 @@ PackResult to_result(const std::vector<const RowMatrixX2d*>& chart_uv, const Pac
   result.pages = layout.pages;
   result.placed_uv.resize(chart_uv.size());
   result.chart_page.resize(chart_uv.size());
-  result.chart_rotated.resize(chart_uv.size());
+  result.chart_turns.resize(chart_uv.size());
   result.chart_translation.resize(static_cast<Eigen::Index>(chart_uv.size()), 2);
   long long chart_texels = 0;
   for (size_t c = 0; c < chart_uv.size(); ++c) {
@@ -266,7 +290,7 @@ PackResult to_result(const std::vector<const RowMatrixX2d*>& chart_uv, const Pac
     corners.col(1) /= page.height;
     result.placed_uv[c] = std::move(corners);
     result.chart_page[c] = at.page;
-    result.chart_rotated[c] = at.turn == 1;
+    result.chart_turns[c] = at.turn;
     result.chart_translation.row(static_cast<Eigen::Index>(c)) = translation;
     chart_texels += chart.raster_texels[at.turn];
   }

@@ -46,15 +46,15 @@ struct PackResult {
   bool shrunk = false;                  // scale < density_scale: the charts lost texel density
   double efficiency = 0.0;              // chart texels / page texels
   // The exact transform, per chart: page texel = scale * R * input texel + translation,
-  // R turning 90 degrees counter-clockwise ((x, y) -> (-y, x)) when chart_rotated.
+  // R turning chart_turns quarter turns counter-clockwise (one: (x, y) -> (-y, x)).
   // The translation is whole texels, so at scale 1 texels copy 1:1.
-  std::vector<bool> chart_rotated;
+  std::vector<int> chart_turns;  // 0..3
   RowMatrixX2d chart_translation;  // C x 2, texels
 };
 
 // chart_uv[c] holds chart c's corner UVs in texels (3 rows per face, any placement).
 // Charts are rasterised conservatively, grown by options.padding, and placed
-// largest first, at 0 or 90 degrees: dropped onto the horizon of what is
+// largest first, at any quarter turn: dropped onto the horizon of what is
 // already placed, or lower, into a hole under it (searched on a 2-texel grid).
 // A grown raster may not meet another grown raster or, with
 // padding_between_charts, another chart's raster before growing.
