@@ -109,33 +109,44 @@ double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, i
 
 // Orders the default sizing tries, keeping the smallest page: which one
 // packs best depends on the charts' shapes. They are tried two at a time
-// (one per core of a small machine), the second pair only if the first
-// found a page: charts that need more than one page cost no more than before.
+// (one per core of a small machine), further pairs only once one found a
+// page, and scale searches use the first order alone (see shrink_to_limits).
 constexpr std::array<ChartSize, 4> kOrders = {ChartSize::BoxArea, ChartSize::Texels,
                                               ChartSize::LongSide, ChartSize::Perimeter};
 constexpr int kOrdersAtOnce = 2;
 
-// Default sizing at one scale: the smallest page, else the fewest max pages
-// (unless max_pages is 1: then the overflow is all a scale search needs).
-Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale, const Frame& frame,
-                  int max_side, int max_pages, const RunControl& control) {
-  Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, frame.gap, control), {}};
-  std::array<std::optional<Layout>, kOrders.size()> single;
-  double placed_share = 0.0;  // of the first order
+// Packs packing.charts on one page in orders [first, last) of kOrders and
+// keeps the smallest page, the one of packing.layout included (if any);
+// placed_share (if given) is that of order 0, see pack_smallest_page.
+void keep_smallest_page(Packing& packing, int first, int last, const Frame& frame, int max_side,
+                        const RunControl& control, double* placed_share = nullptr) {
+  if (packing.layout.pages.size() > 1) return;
   auto area = [](const Layout& layout) {
     return static_cast<long long>(layout.pages[0].width) * layout.pages[0].height;
   };
-  for (int first = 0; first < static_cast<int>(kOrders.size()); first += kOrdersAtOnce) {
-    if (first > 0 && packing.layout.pages.empty()) break;
-    parallel_for(kOrdersAtOnce, 1, [&](int i) {
-      const int k = first + i;
+  std::array<std::optional<Layout>, kOrders.size()> single;
+  for (int pair = first; pair < last; pair += kOrdersAtOnce) {
+    if (pair > 0 && packing.layout.pages.empty()) break;
+    const int end = std::min(last, pair + kOrdersAtOnce);
+    parallel_for(end - pair, 1, [&](int i) {
+      const int k = pair + i;
       single[k] = pack_smallest_page(largest_first(packing.charts, kOrders[k]), packing.charts,
-                                     frame, max_side, control, k == 0 ? &placed_share : nullptr);
+                                     frame, max_side, control, k == 0 ? placed_share : nullptr);
     });
-    for (int k = first; k < first + kOrdersAtOnce; ++k)
+    for (int k = pair; k < end; ++k)
       if (single[k] && (packing.layout.pages.empty() || area(*single[k]) < area(packing.layout)))
         packing.layout = std::move(*single[k]);
   }
+}
+
+// Default sizing at one scale: the smallest page over the first `orders` of
+// kOrders, else the fewest max pages (unless max_pages is 1: then the
+// overflow is all a scale search needs).
+Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale, const Frame& frame,
+                  int max_side, int max_pages, int orders, const RunControl& control) {
+  Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, frame.gap, control), {}};
+  double placed_share = 0.0;
+  keep_smallest_page(packing, 0, orders, frame, max_side, control, &placed_share);
   if (!packing.layout.pages.empty()) return packing;
   if (max_pages == 1) {
     double padded = 0.0;
@@ -230,8 +241,10 @@ struct PageLimits {
 Packing shrink_to_limits(const std::vector<const RowMatrixX2d*>& chart_uv, double start, double cap,
                          double failed, const Frame& frame, int max_side, const PageLimits& limits,
                          const RunControl& control) {
+  // One order: the search ends within its tolerance of the limit, where
+  // the order gains little and many tries would each pay for all orders.
   auto try_scale = [&](double s) {
-    Packing packing = pack_free(chart_uv, s, frame, max_side, limits.pages, control);
+    Packing packing = pack_free(chart_uv, s, frame, max_side, limits.pages, 1, control);
     const double ratio = limits.ratio(packing, max_side);
     return std::make_pair(std::move(packing), ratio);
   };
@@ -353,11 +366,16 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
     packing = shrink_to_limits(uv, scale * std::sqrt(kExpectedFill * texel_limit / area), scale,
                                scale, frame, max_side, limits, control);
   } else {
-    packing = pack_free(uv, scale, frame, max_side, limits.pages, control);
+    // The first pair of orders, then the others only if the charts fit:
+    // a page that broke the limits is shrunk in one order.
+    packing = pack_free(uv, scale, frame, max_side, limits.pages, kOrdersAtOnce, control);
     const double ratio = limits.ratio(packing, max_side);
     if (ratio > 1.0)
       packing = shrink_to_limits(uv, kAimBelow * scale / std::sqrt(ratio), scale, scale, frame,
                                  max_side, limits, control);
+    else  // a smaller page keeps within the limits too
+      keep_smallest_page(packing, kOrdersAtOnce, static_cast<int>(kOrders.size()), frame, max_side,
+                         control);
   }
   PackResult result = to_result(uv, packing, frame);
   result.shrunk = result.scale < options.density_scale * (1.0 - 1e-9);
