@@ -55,8 +55,9 @@ struct OnePage {
   PageSize used;                     // extent used in the virtual frame
 };
 
-// What "largest" means when ordering charts.
-enum class ChartSize { BoxArea, Texels, LongSide, Perimeter };
+// What "largest" means when ordering charts (of the box at turn 0: its
+// area, its shorter side, its width + height; or the padded texels).
+enum class ChartSize { BoxArea, Texels, ShortSide, Perimeter };
 
 // Charts, largest first (bounding box area by default): big charts shape the
 // page, small ones fill gaps.
