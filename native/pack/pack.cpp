@@ -112,7 +112,7 @@ double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, i
 // (one per core of a small machine), further pairs only once one found a
 // page, and scale searches use the first order alone (see shrink_to_limits).
 constexpr std::array<ChartSize, 4> kOrders = {ChartSize::BoxArea, ChartSize::Texels,
-                                              ChartSize::ShortSide, ChartSize::Perimeter};
+                                              ChartSize::LongSide, ChartSize::Perimeter};
 constexpr int kOrdersAtOnce = 2;
 
 // Packs packing.charts on one page in orders [first, last) of kOrders and

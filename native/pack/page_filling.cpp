@@ -105,8 +105,8 @@ std::vector<int> largest_first(const std::vector<ScaledChart>& charts, ChartSize
         break;
       case ChartSize::Texels:
         return charts[c].footprint;
-      case ChartSize::ShortSide:
-        return std::min(m.width, m.height);
+      case ChartSize::LongSide:
+        return std::max(m.width, m.height);
       case ChartSize::Perimeter:
         return m.width + m.height;
     }

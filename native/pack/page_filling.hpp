@@ -56,8 +56,8 @@ struct OnePage {
 };
 
 // What "largest" means when ordering charts (of the box at turn 0: its
-// area, its shorter side, its width + height; or the padded texels).
-enum class ChartSize { BoxArea, Texels, ShortSide, Perimeter };
+// area, its longer side, its width + height; or the padded texels).
+enum class ChartSize { BoxArea, Texels, LongSide, Perimeter };
 
 // Charts, largest first (bounding box area by default): big charts shape the
 // page, small ones fill gaps.
