@@ -58,8 +58,10 @@ struct PackResult {
 // already placed, or lower, into a hole under it (searched on a 2-texel grid).
 // A grown raster may not meet another grown raster or, with
 // padding_between_charts, another chart's raster before growing.
-// Page size: by default the smallest near-square page (sides multiples of 4) or,
-// beyond max_page_size, the fewest pages of that size (the last one shrunk);
+// Page size: by default the smallest near-square page (sides multiples of 4),
+// over four orders of "largest" (box area, padded texels, long side,
+// perimeter), or, beyond max_page_size, the fewest pages of that size (the
+// last one shrunk; box area order);
 // fixed_page_size: one page of exactly that side, charts scaled as large as fit
 // (density_scale is then ignored). Charts keep at least padding / 2 texels from
 // page borders (pages wrap, so both borders together give the full padding).
