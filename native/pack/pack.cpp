@@ -1,12 +1,14 @@
 #include "pack/pack.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <optional>
 #include <sstream>
 #include <utility>
 
+#include "core/parallel_for.hpp"
 #include "pack/page_filling.hpp"
 #include "pack/scaled_chart.hpp"
 
@@ -105,22 +107,55 @@ double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, i
   return extent > 0.0 ? room / extent : std::numeric_limits<double>::infinity();
 }
 
-// Default sizing at one scale: the smallest page, else the fewest max pages
-// (unless max_pages is 1: then the overflow is all a scale search needs).
+// Orders the default sizing tries, keeping the smallest page: which one
+// packs best depends on the charts' shapes. They are tried two at a time
+// (one per core of a small machine), further pairs only once one found a
+// page, and scale searches use the first order alone (see shrink_to_limits).
+constexpr std::array<ChartSize, 4> kOrders = {ChartSize::BoxArea, ChartSize::Texels,
+                                              ChartSize::LongSide, ChartSize::Perimeter};
+constexpr int kOrdersAtOnce = 2;
+
+// Packs packing.charts on one page in orders [first, last) of kOrders and
+// keeps the smallest page, the one of packing.layout included (if any);
+// placed_share (if given) is that of order 0, see pack_smallest_page.
+void keep_smallest_page(Packing& packing, int first, int last, const Frame& frame, int max_side,
+                        const RunControl& control, double* placed_share = nullptr) {
+  if (packing.layout.pages.size() > 1) return;
+  auto area = [](const Layout& layout) {
+    return static_cast<long long>(layout.pages[0].width) * layout.pages[0].height;
+  };
+  std::array<std::optional<Layout>, kOrders.size()> single;
+  for (int pair = first; pair < last; pair += kOrdersAtOnce) {
+    if (pair > 0 && packing.layout.pages.empty()) break;
+    const int end = std::min(last, pair + kOrdersAtOnce);
+    parallel_for(end - pair, 1, [&](int i) {
+      const int k = pair + i;
+      single[k] = pack_smallest_page(largest_first(packing.charts, kOrders[k]), packing.charts,
+                                     frame, max_side, control, k == 0 ? placed_share : nullptr);
+    });
+    for (int k = pair; k < end; ++k)
+      if (single[k] && (packing.layout.pages.empty() || area(*single[k]) < area(packing.layout)))
+        packing.layout = std::move(*single[k]);
+  }
+}
+
+// Default sizing at one scale: the smallest page over the first `orders` of
+// kOrders, else the fewest max pages (unless max_pages is 1: then the
+// overflow is all a scale search needs).
 Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale, const Frame& frame,
-                  int max_side, int max_pages, const RunControl& control) {
+                  int max_side, int max_pages, int orders, const RunControl& control) {
   Packing packing{scale, scale_charts(chart_uv, scale, frame.padding, kHoleCell, frame.gap, control), {}};
-  const std::vector<int> order = largest_first(packing.charts);
   double placed_share = 0.0;
-  if (auto single = pack_smallest_page(order, packing.charts, frame, max_side, control, &placed_share)) {
-    packing.layout = std::move(*single);
-  } else if (max_pages == 1) {
+  keep_smallest_page(packing, 0, orders, frame, max_side, control, &placed_share);
+  if (!packing.layout.pages.empty()) return packing;
+  if (max_pages == 1) {
     double padded = 0.0;
     for (const ScaledChart& chart : packing.charts) padded += static_cast<double>(chart.footprint);
     const double side = max_side + 2.0 * frame.margin;
     packing.overflow = placed_share > 0.0 ? 1.0 / placed_share : padded / (kFullPage * side * side);
   } else {
-    packing.layout = pack_many_pages(order, packing.charts, frame, max_side, control);
+    packing.layout = pack_many_pages(largest_first(packing.charts), packing.charts, frame, max_side,
+                                     control);
   }
   return packing;
 }
@@ -206,8 +241,10 @@ struct PageLimits {
 Packing shrink_to_limits(const std::vector<const RowMatrixX2d*>& chart_uv, double start, double cap,
                          double failed, const Frame& frame, int max_side, const PageLimits& limits,
                          const RunControl& control) {
+  // One order: the search ends within its tolerance of the limit, where
+  // the order gains little and many tries would each pay for all orders.
   auto try_scale = [&](double s) {
-    Packing packing = pack_free(chart_uv, s, frame, max_side, limits.pages, control);
+    Packing packing = pack_free(chart_uv, s, frame, max_side, limits.pages, 1, control);
     const double ratio = limits.ratio(packing, max_side);
     return std::make_pair(std::move(packing), ratio);
   };
@@ -247,7 +284,7 @@ PackResult to_result(const std::vector<const RowMatrixX2d*>& chart_uv, const Pac
   result.pages = layout.pages;
   result.placed_uv.resize(chart_uv.size());
   result.chart_page.resize(chart_uv.size());
-  result.chart_rotated.resize(chart_uv.size());
+  result.chart_turns.resize(chart_uv.size());
   result.chart_translation.resize(static_cast<Eigen::Index>(chart_uv.size()), 2);
   long long chart_texels = 0;
   for (size_t c = 0; c < chart_uv.size(); ++c) {
@@ -266,7 +303,7 @@ PackResult to_result(const std::vector<const RowMatrixX2d*>& chart_uv, const Pac
     corners.col(1) /= page.height;
     result.placed_uv[c] = std::move(corners);
     result.chart_page[c] = at.page;
-    result.chart_rotated[c] = at.turn == 1;
+    result.chart_turns[c] = at.turn;
     result.chart_translation.row(static_cast<Eigen::Index>(c)) = translation;
     chart_texels += chart.raster_texels[at.turn];
   }
@@ -329,11 +366,16 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
     packing = shrink_to_limits(uv, scale * std::sqrt(kExpectedFill * texel_limit / area), scale,
                                scale, frame, max_side, limits, control);
   } else {
-    packing = pack_free(uv, scale, frame, max_side, limits.pages, control);
+    // The first pair of orders, then the others only if the charts fit:
+    // a page that broke the limits is shrunk in one order.
+    packing = pack_free(uv, scale, frame, max_side, limits.pages, kOrdersAtOnce, control);
     const double ratio = limits.ratio(packing, max_side);
     if (ratio > 1.0)
       packing = shrink_to_limits(uv, kAimBelow * scale / std::sqrt(ratio), scale, scale, frame,
                                  max_side, limits, control);
+    else  // a smaller page keeps within the limits too
+      keep_smallest_page(packing, kOrdersAtOnce, static_cast<int>(kOrders.size()), frame, max_side,
+                         control);
   }
   PackResult result = to_result(uv, packing, frame);
   result.shrunk = result.scale < options.density_scale * (1.0 - 1e-9);

@@ -46,20 +46,22 @@ struct PackResult {
   bool shrunk = false;                  // scale < density_scale: the charts lost texel density
   double efficiency = 0.0;              // chart texels / page texels
   // The exact transform, per chart: page texel = scale * R * input texel + translation,
-  // R turning 90 degrees counter-clockwise ((x, y) -> (-y, x)) when chart_rotated.
+  // R turning chart_turns quarter turns counter-clockwise (one: (x, y) -> (-y, x)).
   // The translation is whole texels, so at scale 1 texels copy 1:1.
-  std::vector<bool> chart_rotated;
+  std::vector<int> chart_turns;  // 0..3
   RowMatrixX2d chart_translation;  // C x 2, texels
 };
 
 // chart_uv[c] holds chart c's corner UVs in texels (3 rows per face, any placement).
 // Charts are rasterised conservatively, grown by options.padding, and placed
-// largest first, at 0 or 90 degrees: dropped onto the horizon of what is
+// largest first, at any quarter turn: dropped onto the horizon of what is
 // already placed, or lower, into a hole under it (searched on a 2-texel grid).
 // A grown raster may not meet another grown raster or, with
 // padding_between_charts, another chart's raster before growing.
-// Page size: by default the smallest near-square page (sides multiples of 4) or,
-// beyond max_page_size, the fewest pages of that size (the last one shrunk);
+// Page size: by default the smallest near-square page (sides multiples of 4),
+// over four orders of "largest" (box area, padded texels, long side,
+// perimeter), or, beyond max_page_size, the fewest pages of that size (the
+// last one shrunk; box area order);
 // fixed_page_size: one page of exactly that side, charts scaled as large as fit
 // (density_scale is then ignored). Charts keep at least padding / 2 texels from
 // page borders (pages wrap, so both borders together give the full padding).

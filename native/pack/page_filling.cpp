@@ -66,8 +66,11 @@ void occupy(Page& page, const ScaledChart& chart, int turn, Eigen::Vector2i at) 
 // (always: skipping them for charts as large as one that lately found no
 // hole saves little time and loses the holes that chart's shape missed).
 bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
-  const int flat_first = chart.turned[1].mask.height < chart.turned[0].mask.height ? 1 : 0;
-  const std::array<int, 2> turns = {flat_first, 1 - flat_first};
+  std::array<int, kTurns> turns;
+  std::iota(turns.begin(), turns.end(), 0);
+  std::stable_sort(turns.begin(), turns.end(), [&](int a, int b) {
+    return chart.turned[a].mask.height < chart.turned[b].mask.height;
+  });
   std::optional<Eigen::Vector2i> best;
   int best_turn = 0, best_top = page.texels.height() + 1;
   auto keep_if_lower = [&](int turn, const std::optional<Eigen::Vector2i>& at) {
@@ -92,14 +95,24 @@ long long area(const PageSize& page) { return static_cast<long long>(page.width)
 
 }  // namespace
 
-std::vector<int> largest_first(const std::vector<ScaledChart>& charts) {
+std::vector<int> largest_first(const std::vector<ScaledChart>& charts, ChartSize size) {
   std::vector<int> order(charts.size());
   std::iota(order.begin(), order.end(), 0);
-  auto box = [&](int c) {
+  auto key = [&](int c) -> long long {
     const TexelMask& m = charts[c].turned[0].mask;
+    switch (size) {
+      case ChartSize::BoxArea:
+        break;
+      case ChartSize::Texels:
+        return charts[c].footprint;
+      case ChartSize::LongSide:
+        return std::max(m.width, m.height);
+      case ChartSize::Perimeter:
+        return m.width + m.height;
+    }
     return static_cast<long long>(m.width) * m.height;
   };
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return box(a) > box(b); });
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return key(a) > key(b); });
   return order;
 }
 

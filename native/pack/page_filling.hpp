@@ -55,8 +55,14 @@ struct OnePage {
   PageSize used;                     // extent used in the virtual frame
 };
 
-// Charts, largest bounding box first: big charts shape the page, small ones fill gaps.
-std::vector<int> largest_first(const std::vector<ScaledChart>& charts);
+// What "largest" means when ordering charts (of the box at turn 0: its
+// area, its longer side, its width + height; or the padded texels).
+enum class ChartSize { BoxArea, Texels, LongSide, Perimeter };
+
+// Charts, largest first (bounding box area by default): big charts shape the
+// page, small ones fill gaps.
+std::vector<int> largest_first(const std::vector<ScaledChart>& charts,
+                               ChartSize size = ChartSize::BoxArea);
 
 // Page holding `used` virtual texels, its sides of the frame's kind.
 PageSize trimmed_page(PageSize used, const Frame& frame);

@@ -9,25 +9,28 @@
 
 namespace atlas {
 
+// Quarter turns a chart may be placed at: 0, 90, 180 and 270 degrees
+// counter-clockwise, never mirrored.
+constexpr int kTurns = 4;
+
 struct ScaledChart {
-  // Turn 0 is the chart as given, turn 1 turned 90 degrees counter-clockwise.
-  std::array<PlacementShape, 2> turned;  // conservative raster grown by the padding
-  std::array<PlacementShape, 2> cells;   // the same on a grid of coarser cells
+  // Turn k is the chart turned k quarter turns counter-clockwise.
+  std::array<PlacementShape, kTurns> turned;  // conservative raster grown by the padding
+  std::array<PlacementShape, kTurns> cells;   // the same on a grid of coarser cells
   // Whole texels subtracted from scale * R * uv before rasterising, so that
   // mask coordinates stay small: mask texel (0, 0) is texel mask.origin of
   // scale * R * uv - shift.
-  std::array<Eigen::RowVector2d, 2> shift = {Eigen::RowVector2d::Zero(),
-                                             Eigen::RowVector2d::Zero()};
-  std::array<long long, 2> raster_texels = {0, 0};  // set before padding
+  std::array<Eigen::RowVector2d, kTurns> shift;
+  std::array<long long, kTurns> raster_texels = {};  // set before padding
   // Page texels the chart takes, for sizing pages: its padded texels, or with
   // a gap padding (half of it each side) halfway between those and the bare ones.
   long long footprint = 0;
   // Only when the padding is a gap between charts: the raster before padding,
   // its texel (0, 0) on texel (padding, padding) of `turned`.
-  std::array<TexelMask, 2> bare;
+  std::array<TexelMask, kTurns> bare;
 };
 
-// scale * R * uv with R = identity (turn 0) or (x, y) -> (-y, x) (turn 1).
+// scale * R^turn * uv, R the quarter turn (x, y) -> (-y, x).
 RowMatrixX2d turned_corners(const RowMatrixX2d& uv, double scale, int turn);
 
 // Every chart (corners in texels, all finite) at `scale`; `cell` texels per
