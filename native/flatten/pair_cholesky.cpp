@@ -36,16 +36,15 @@ bool pairs_with_next(const Eigen::SparseMatrix<double>& a, int k) {
 void PairCholesky::analyze(const Eigen::SparseMatrix<double>& a) {
   const int n = static_cast<int>(a.rows());
   parent_.assign(n, -1);
-  tags_.assign(n, -1);
-  std::vector<int> counts(n, 0);
+  std::vector<int> tags(n, -1), counts(n, 0);
   for (int k = 0; k < n; ++k) {
-    tags_[k] = k;
+    tags[k] = k;
     const ColumnRows rows = column_rows(a, k);
     for (const int* row = rows.begin; row != rows.end; ++row)
-      for (int i = *row; i < k && tags_[i] != k; i = parent_[i]) {
+      for (int i = *row; i < k && tags[i] != k; i = parent_[i]) {
         if (parent_[i] == -1) parent_[i] = k;
         ++counts[i];
-        tags_[i] = k;
+        tags[i] = k;
       }
   }
   column_start_.assign(n + 1, 0);
@@ -56,42 +55,56 @@ void PairCholesky::analyze(const Eigen::SparseMatrix<double>& a) {
   pairs_next_.assign(n, 0);
   for (int k = 0; k + 1 < n; ++k) pairs_next_[k] = pairs_with_next(a, k);
   work_.assign(2 * static_cast<size_t>(n), 0.0);
-  pattern_.resize(n);
+  record_row_patterns(a);
 }
 
-// Scatters A(0:k, k) into the even work_ slots (A(i, k) at 2i) and writes the pattern of row k of L into pattern_[top..n), in topological
-// order (each node before its ancestors). Returns top.
-int PairCholesky::row_pattern(const Eigen::SparseMatrix<double>& a, int k) {
+// Row k of L holds every node reached from the rows i < k of A(:, k) by
+// walking up the tree, each node before its ancestors. That depends on the
+// pattern alone, so it is found here once for every row factorize walks
+// (a pair's second row it does not) and factorize only reads it.
+void PairCholesky::record_row_patterns(const Eigen::SparseMatrix<double>& a) {
   const int n = static_cast<int>(a.rows());
-  int top = n;
-  tags_[k] = k;
+  std::vector<int> tags(n, -1), walk(n), pattern(n);
+  pattern_start_.assign(n + 1, 0);
+  patterns_.clear();
+  for (int k = 0; k < n; ++k) {
+    pattern_start_[k] = static_cast<int>(patterns_.size());
+    int top = n;
+    tags[k] = k;
+    const ColumnRows rows = column_rows(a, k);
+    for (const int* row = rows.begin; row != rows.end; ++row) {
+      if (*row > k) continue;
+      int length = 0;
+      for (int i = *row; tags[i] != k; i = parent_[i]) {
+        walk[length++] = i;
+        tags[i] = k;
+      }
+      while (length > 0) pattern[--top] = walk[--length];
+    }
+    patterns_.insert(patterns_.end(), pattern.begin() + top, pattern.end());
+    if (pairs_next_[k]) pattern_start_[++k] = static_cast<int>(patterns_.size());
+  }
+  pattern_start_[n] = static_cast<int>(patterns_.size());
+}
+
+// Adds A(0:k, k) into the even work_ slots, A(i, k) at 2i.
+void PairCholesky::scatter_column(const Eigen::SparseMatrix<double>& a, int k) {
   const ColumnRows rows = column_rows(a, k);
   const double* value = a.valuePtr() + a.outerIndexPtr()[k];
-  for (const int* row = rows.begin; row != rows.end; ++row, ++value) {
-    int i = *row;
-    if (i > k) continue;
-    work_[2 * i] += *value;
-    int length = 0;
-    for (; tags_[i] != k; i = parent_[i]) {
-      pattern_[length++] = i;
-      tags_[i] = k;
-    }
-    while (length > 0) pattern_[--top] = pattern_[--length];
-  }
-  return top;
+  for (const int* row = rows.begin; row != rows.end; ++row, ++value)
+    if (*row <= k) work_[2 * *row] += *value;
 }
 
 // Row k of L: the sparse triangular solve L(0:k, 0:k) l = A(0:k, k), column
 // by column of L along the pattern; pivot = A(k,k) - |l|^2.
 void PairCholesky::factorize_row(const Eigen::SparseMatrix<double>& a, int k, double& pivot) {
-  const int n = static_cast<int>(a.rows());
   work_[2 * k] = 0;
   column_filled_[k] = 0;
-  int top = row_pattern(a, k);
+  scatter_column(a, k);
   pivot = work_[2 * k];
   work_[2 * k] = 0;
-  for (; top < n; ++top) {
-    const int i = pattern_[top];
+  for (int at = pattern_start_[k]; at < pattern_start_[k + 1]; ++at) {
+    const int i = patterns_[at];
     const double l = work_[2 * i] / values_[column_start_[i]];
     work_[2 * i] = 0;
     const int end = column_start_[i] + column_filled_[i];
@@ -107,11 +120,10 @@ void PairCholesky::factorize_row(const Eigen::SparseMatrix<double>& a, int k, do
 // the odd work_ slots. Along row k's pattern both rows read the same column
 // of L; then row k + 1 meets L(k, i), just appended, and finally column k.
 void PairCholesky::factorize_pair(const Eigen::SparseMatrix<double>& a, int k, double& pivot0, double& pivot1) {
-  const int n = static_cast<int>(a.rows());
   work_[2 * k] = 0;
   column_filled_[k] = 0;
   column_filled_[k + 1] = 0;
-  int top = row_pattern(a, k);
+  scatter_column(a, k);
   // Column k + 1 scattered into the odd slots; its pattern is not needed.
   const ColumnRows rows = column_rows(a, k + 1);
   const double* value = a.valuePtr() + a.outerIndexPtr()[k + 1];
@@ -121,14 +133,27 @@ void PairCholesky::factorize_pair(const Eigen::SparseMatrix<double>& a, int k, d
   work_[2 * k] = 0;
   pivot1 = work_[2 * (k + 1) + 1];
   work_[2 * (k + 1) + 1] = 0;
-  for (; top < n; ++top) {
-    const int i = pattern_[top];
+  for (int at = pattern_start_[k]; at < pattern_start_[k + 1]; ++at) {
+    const int i = patterns_[at];
     const double diagonal = values_[column_start_[i]];
     const double l0 = work_[2 * i] / diagonal, l1 = work_[2 * i + 1] / diagonal;
     work_[2 * i] = work_[2 * i + 1] = 0;
     const int end = column_start_[i] + column_filled_[i];
-    for (int p = column_start_[i] + 1; p < end; ++p) {
+    // Entries of consecutive rows (a pair, most of them) update four
+    // consecutive work_ slots: one index load and one contiguous block for both.
+    int p = column_start_[i] + 1;
+    for (; p + 1 < end; ++p) {
       const double value = values_[p];  // loaded once: the stores to y could alias it
+      double* y = &work_[2 * rows_[p]];
+      y[0] -= value * l0;
+      y[1] -= value * l1;
+      if (rows_[p + 1] != rows_[p] + 1) continue;
+      const double next = values_[++p];
+      y[2] -= next * l0;
+      y[3] -= next * l1;
+    }
+    if (p < end) {
+      const double value = values_[p];
       double* y = &work_[2 * rows_[p]];
       y[0] -= value * l0;
       y[1] -= value * l1;
@@ -152,10 +177,8 @@ bool PairCholesky::factorize(const Eigen::SparseMatrix<double>& a) {
     values_[p] = std::sqrt(pivot);
     return true;
   };
-  // A failed factorization leaves work_ dirty; the tags must all be below
-  // the row being computed, and a pair's second row sets none.
+  // A failed factorization leaves work_ dirty.
   std::fill(work_.begin(), work_.end(), 0.0);
-  std::fill(tags_.begin(), tags_.end(), -1);
   for (int k = 0; k < n; ++k) {
     if (!pairs_next_[k]) {
       double pivot;

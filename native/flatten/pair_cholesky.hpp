@@ -30,7 +30,8 @@ class PairCholesky {
  private:
   void factorize_row(const Eigen::SparseMatrix<double>& a, int k, double& pivot);
   void factorize_pair(const Eigen::SparseMatrix<double>& a, int k, double& pivot0, double& pivot1);
-  int row_pattern(const Eigen::SparseMatrix<double>& a, int k);
+  void record_row_patterns(const Eigen::SparseMatrix<double>& a);
+  void scatter_column(const Eigen::SparseMatrix<double>& a, int k);
 
   std::vector<int> parent_;         // elimination tree, -1 at a root
   std::vector<int> column_start_;   // n + 1: where column j of L starts in rows_ / values_
@@ -38,10 +39,12 @@ class PairCholesky {
   std::vector<char> pairs_next_;    // row k pairs with row k + 1 (see pairs_with_next)
   std::vector<int> rows_;           // row index of each entry of L, column by column
   std::vector<double> values_;      // the entries of L; the diagonal first in each column
-  // Work space of factorize: the dense row(s) being computed (interleaved for
-  // a pair), the visit marks and the row pattern.
+  // The pattern of row k of L, in the order factorize visits its columns:
+  // patterns_[pattern_start_[k] .. pattern_start_[k + 1]) (empty for the
+  // second row of a pair, which follows the first's).
+  std::vector<int> pattern_start_, patterns_;
+  // Work space of factorize: the dense row(s) being computed (interleaved for a pair).
   std::vector<double> work_;
-  std::vector<int> tags_, pattern_;
 };
 
 }  // namespace atlas

@@ -294,14 +294,19 @@ bool factorize_proxy(const std::vector<ProxyFace>& faces, const std::vector<Eige
   return false;
 }
 
-// sum_f A_f psi(J_f); +inf as soon as one face flips or degenerates.
-double total_energy(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x) {
-  double energy = 0;
-  for (const ProxyFace& face : faces) {
-    energy += face.area * symmetric_dirichlet_density(jacobian(face, x));
+// energy + sum_f A_f psi(J_f) over faces [begin, end), summed in order; +inf
+// as soon as one face flips or degenerates.
+double partial_energy(const std::vector<ProxyFace>& faces, size_t begin, size_t end, const Eigen::VectorXd& x,
+                      double energy) {
+  for (size_t f = begin; f < end; ++f) {
+    energy += faces[f].area * symmetric_dirichlet_density(jacobian(faces[f], x));
     if (!(energy < kInfinity)) return kInfinity;
   }
   return energy;
+}
+
+double total_energy(const std::vector<ProxyFace>& faces, const Eigen::VectorXd& x) {
+  return partial_energy(faces, 0, faces.size(), x, 0);
 }
 
 // Smallest t > 0 with a t^2 + b t + c = 0, for c > 0 (+inf if none), using
@@ -501,8 +506,10 @@ SolveStatus minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
                                    const std::vector<int>& loop, const SlimOptions& options,
                                    const RunControl& control, RowMatrixX2d& uv, ChartSolution& solution) {
   const int n = static_cast<int>(uv.rows());
-  auto chart_energy = [&] { return total_energy(chart_faces, to_solver(uv, chart_order)); };
-  double energy_before = chart_energy();
+  // The chart's faces come first in `faces`, with the chart's references, so
+  // the chart's energy is also the first part of the sum over all faces.
+  const size_t chart_face_count = static_cast<size_t>(triangles.rows());
+  double energy_before = total_energy(chart_faces, to_solver(uv, chart_order));
   RowMatrixX2d points(n + 4, 2);
   RowMatrixX3i all;
   std::vector<int> order;
@@ -531,14 +538,14 @@ SolveStatus minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
       prepare_proxy_system(faces, 2 * (n + 4), *system);  // the pattern needs every face's corners
     }
     Eigen::VectorXd x = to_solver(points, order);
-    double energy = total_energy(faces, x);
+    double energy = partial_energy(faces, chart_face_count, faces.size(), x, energy_before);
     // A system that breaks down (scaffold slivers) ends the solve; uv, the
     // last accepted iterate, is valid all the same.
     if (!slim_step(faces, options, *system, x, energy).moved) return {};
     points = from_solver(x, order);
     uv = points.topRows(n);
     ++solution.iterations;
-    const double energy_after = chart_energy();
+    const double energy_after = partial_energy(faces, 0, chart_face_count, x, 0);
     const double decrease = (energy_before - energy_after) / energy_before;
     energy_before = energy_after;
     if (decrease >= 0 && decrease < kScaffoldToleranceFactor * options.relative_tolerance) return {};
