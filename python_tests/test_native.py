@@ -316,8 +316,8 @@ def test_a_dense_atlas_keeps_its_density_by_default(native, scans):
     assert limited["report"]["texels_after"] <= limited["report"]["texels_before"]
 # Issue 12: upper bounds on charts and seam per scan (default options), with the
 # output guarantees. The bounds are what the layout reaches today plus a small
-# margin; issue 12's own targets (90 / 300 / 80 charts, seam 10 / 40 / 19) are
-# tighter and judged in bench/RESULTS.md.
+# margin, within issue 12's own targets (90 / 300 / 80 charts, seam 10 / 40 /
+# 19), which bench/RESULTS.md judges.
 SCAN_BOUNDS = {"meshroom": (80, 9.5), "smithsonian": (110, 40.0), "tetra": (36, 14.8)}
 
 

@@ -154,12 +154,12 @@ MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
   // Inclusion-exclusion with pinches split: every shared edge joins two faces'
   // sides into one, every fan that merges with another removes a vertex.
   const int euler = euler_[a] + euler_[b] - fans_joined + shared_edges;
-  // A disk, or a step towards one: a chart with holes (chi < 1) absorbing an
-  // island fills a hole and raises chi. Anything else adds a hole or a handle.
+  // Accepted: a disk; a chart with holes (chi < 1) absorbing an island, which
+  // fills a hole and raises chi; or a disk joining a chart with holes along
+  // one arc, which leaves chi as it was: it adds no hole, and it may be one of
+  // several islands that fill a hole together (touching at vertices), which
+  // no single one of them closes. Anything else adds a hole or a handle, and
   // chi == 2 would close a sphere: no boundary left to flatten.
-  // A disk joining a chart with holes along one arc leaves chi as it was: it
-  // adds no hole, and it may be one of several islands that fill a hole
-  // together (touching at vertices), which no single one of them closes.
   const int worse = std::min(euler_[a], euler_[b]);
   const bool with_disk = euler_[a] == 1 || euler_[b] == 1;
   if (euler == 1 || (euler < 1 && (euler > worse || (with_disk && euler == worse)))) {

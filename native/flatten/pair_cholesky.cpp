@@ -141,22 +141,15 @@ void PairCholesky::factorize_pair(const Eigen::SparseMatrix<double>& a, int k, d
     const int end = column_start_[i] + column_filled_[i];
     // Entries of consecutive rows (a pair, most of them) update four
     // consecutive work_ slots: one index load and one contiguous block for both.
-    int p = column_start_[i] + 1;
-    for (; p + 1 < end; ++p) {
+    for (int p = column_start_[i] + 1; p < end; ++p) {
       const double value = values_[p];  // loaded once: the stores to y could alias it
       double* y = &work_[2 * rows_[p]];
       y[0] -= value * l0;
       y[1] -= value * l1;
-      if (rows_[p + 1] != rows_[p] + 1) continue;
+      if (p + 1 == end || rows_[p + 1] != rows_[p] + 1) continue;
       const double next = values_[++p];
       y[2] -= next * l0;
       y[3] -= next * l1;
-    }
-    if (p < end) {
-      const double value = values_[p];
-      double* y = &work_[2 * rows_[p]];
-      y[0] -= value * l0;
-      y[1] -= value * l1;
     }
     work_[2 * k + 1] -= l0 * l1;
     pivot0 -= l0 * l0;
