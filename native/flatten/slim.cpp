@@ -161,18 +161,23 @@ RowMatrixX2d from_solver(const Eigen::VectorXd& x, const std::vector<int>& order
 
 // One face of the proxy, weight |W (J - R)|^2 with J measured against the
 // reference triangle (a, b, c); its matrix slots are left as they were.
-void set_proxy_face(const Eigen::Vector3i& corners, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
-                    const Eigen::Vector2d& c, double weight, const std::vector<int>& order, ProxyFace& face) {
-  for (int k = 0; k < 3; ++k) face.dof[k] = 2 * order[corners[k]];
-  Eigen::Matrix2d edges;
-  edges << b - a, c - a;
+// Gives the face the reference whose edge matrix inverts to inverse_edges.
+void set_face_reference(const Eigen::Matrix2d& inverse_edges, double weight, ProxyFace& face) {
   face.area = weight;
-  face.inverse_edges = edges.inverse();
+  face.inverse_edges = inverse_edges;
   const Eigen::Vector2d g[3] = {corner_gradient(face, 0), corner_gradient(face, 1), corner_gradient(face, 2)};
   for (int e = 0; e < 3; ++e) {
     face.stiffness[e] = weight * g[e].dot(g[(e + 1) % 3]);
     face.stiffness[3 + e] = weight * g[e].squaredNorm();
   }
+}
+
+void set_proxy_face(const Eigen::Vector3i& corners, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                    const Eigen::Vector2d& c, double weight, const std::vector<int>& order, ProxyFace& face) {
+  for (int k = 0; k < 3; ++k) face.dof[k] = 2 * order[corners[k]];
+  Eigen::Matrix2d edges;
+  edges << b - a, c - a;
+  set_face_reference(edges.inverse(), weight, face);
 }
 
 // The chart's faces, each weighted by its reference area.
@@ -433,6 +438,68 @@ SlimStep slim_step(const std::vector<ProxyFace>& faces, const SlimOptions& optio
   return {{}, true};
 }
 
+// Progressive references (after Liu et al. 2018, "Progressive
+// Parameterizations"). From a Tutte start a few faces are nearly degenerate,
+// their SLIM weights dwarf the rest, and every step stops where one of them
+// would flip. So the solve first aims at intermediate references: with
+// J = U S V^T the map from a face's reference to its current triangle, the
+// intermediate reference is V S^(1-t) V^T applied to the reference, so the map
+// from it is U S^t V^T. One t in (0, 1] serves every face: the largest with
+// psi(S^t) <= bound on all of them. As the map improves t grows, and at t = 1
+// the references are the real ones.
+
+// The t in (0, 1] with psi(diag(s1, s2)^t) = bound, for a face above it:
+// psi(S^t) = 2 cosh(2 t ln s1) + 2 cosh(2 t ln s2) grows with t, and Newton
+// from t = 1 comes down to the root without overshooting (psi is convex in t).
+double exponent_at_bound(double s1, double s2, double bound) {
+  const double a = 2 * std::log(s1), b = 2 * std::log(s2);
+  double t = 1;
+  for (int k = 0; k < 50; ++k) {
+    const double value = 2 * std::cosh(t * a) + 2 * std::cosh(t * b) - bound;
+    const double rate = 2 * a * std::sinh(t * a) + 2 * b * std::sinh(t * b);
+    if (!(rate > 0) || value < 1e-9 * bound) break;
+    t -= value / rate;
+  }
+  return std::clamp(t, 0.0, 1.0);
+}
+
+// Singular values of J, largest first (see slim_proxy_target).
+Eigen::Vector2d singular_values(const Eigen::Matrix2d& J) {
+  const double E = (J(0, 0) + J(1, 1)) / 2, F = (J(0, 0) - J(1, 1)) / 2;
+  const double G = (J(1, 0) + J(0, 1)) / 2, H = (J(1, 0) - J(0, 1)) / 2;
+  const double Q = std::sqrt(E * E + H * H), P = std::sqrt(F * F + G * G);
+  return {Q + P, Q - P};
+}
+
+// The largest t with psi(S_f^t) <= bound on every face (1 when all are within).
+double progressive_exponent(const std::vector<Eigen::Matrix2d>& jacobians, double bound) {
+  double t = 1;
+  for (const Eigen::Matrix2d& J : jacobians)
+    if (symmetric_dirichlet_density(J) > bound) {
+      const Eigen::Vector2d s = singular_values(J);
+      t = std::min(t, exponent_at_bound(s[0], s[1], bound));
+    }
+  return t;
+}
+
+// Each face of `intermediate` gets its intermediate reference for exponent t,
+// from the real one in `faces`: inverse_edges V S^(t-1) V^T, where
+// V S^(t-1) V^T = (J^T J)^((t-1)/2) = alpha I + beta J^T J for the eigenvalues
+// l1, l2 of J^T J, beta = (f(l1) - f(l2)) / (l1 - l2), alpha = f(l1) - beta l1.
+void set_intermediate_references(const std::vector<ProxyFace>& faces, const std::vector<Eigen::Matrix2d>& jacobians,
+                                 double t, std::vector<ProxyFace>& intermediate) {
+  for (size_t f = 0; f < faces.size(); ++f) {
+    const Eigen::Matrix2d& J = jacobians[f];
+    const Eigen::Vector2d s = singular_values(J);
+    const double l1 = s[0] * s[0], l2 = s[1] * s[1];
+    const double f1 = std::pow(s[0], t - 1), f2 = std::pow(s[1], t - 1);
+    const double beta = l1 - l2 > 1e-12 * l1 ? (f1 - f2) / (l1 - l2) : 0;
+    const double alpha = f1 - beta * l1;
+    const Eigen::Matrix2d root = alpha * Eigen::Matrix2d::Identity() + beta * J.transpose() * J;
+    set_face_reference(faces[f].inverse_edges * root, faces[f].area, intermediate[f]);
+  }
+}
+
 // Whether the boundary loop (the dof of each loop vertex, in order) crosses itself at x.
 bool loop_crosses(const std::vector<int>& loop_dofs, const Eigen::VectorXd& x) {
   const int n = static_cast<int>(loop_dofs.size());
@@ -440,6 +507,50 @@ bool loop_crosses(const std::vector<int>& loop_dofs, const Eigen::VectorXd& x) {
   std::vector<Segment> segments(n);
   for (int i = 0; i < n; ++i) points[i] = x.segment<2>(loop_dofs[i]), segments[i] = {i, (i + 1) % n};
   return first_crossing(points, segments).has_value();
+}
+
+// The progressive stage of a solve: faces aim at intermediate references
+// while on. It ends at t = 1, or when it stalls short of it: some face of the
+// best map then exceeds the bound, and the real references take over. The
+// first iterations may not stall it: from a Tutte start t and the energy can
+// stand still for a while before the worst faces open up, and ending the
+// stage there leaves charts that lose density (measured on the shared scans).
+constexpr int kMinProgressiveIterations = 15;
+struct ProgressiveStage {
+  bool on = false;
+  double t = 1, t_before = 0;
+  std::vector<ProxyFace> intermediate;
+};
+
+// One SLIM step from x towards the references the stage gives (the
+// intermediate ones while stage.on stays true); energy is the real energy,
+// before and after.
+SlimStep progressive_step(const std::vector<ProxyFace>& faces, const SlimOptions& options, ProxySystem& system,
+                          ProgressiveStage& stage, Eigen::VectorXd& x, double& energy) {
+  stage.t = 1;
+  if (stage.on) {
+    const std::vector<Eigen::Matrix2d> jacobians = face_jacobians(faces, x);
+    stage.t = progressive_exponent(jacobians, options.progressive_bound);
+    stage.on = stage.t < 1;
+    if (stage.on) set_intermediate_references(faces, jacobians, stage.t, stage.intermediate);
+  }
+  if (!stage.on) return slim_step(faces, options, system, x, energy);
+  double intermediate_energy = total_energy(stage.intermediate, x);
+  const SlimStep step = slim_step(stage.intermediate, options, system, x, intermediate_energy);
+  energy = total_energy(faces, x);
+  return step;
+}
+
+// Whether the solve is done after an iteration that took the energy from
+// before to after; ends a stalled progressive stage.
+bool converged(double before, double after, int iterations, const SlimOptions& options, ProgressiveStage& stage) {
+  const double decrease = (before - after) / before;
+  if (!stage.on) return decrease < options.relative_tolerance;
+  const bool stalled = std::abs(decrease) < options.relative_tolerance &&
+                       stage.t < (1 + options.relative_tolerance) * stage.t_before;
+  if (iterations >= kMinProgressiveIterations && stalled) stage.on = false;
+  stage.t_before = stage.t;
+  return false;
 }
 
 // Minimizes E from x (flip-free, in solver numbering, with E(x) = energy),
@@ -453,23 +564,31 @@ SolveStatus minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int
   ProxySystem system;
   prepare_proxy_system(faces, static_cast<int>(x.size()), system);
   Eigen::VectorXd previous;
+  ProgressiveStage stage;
+  stage.on = options.progressive_bound > 0;
+  if (stage.on) stage.intermediate = faces;
   for (solution.iterations = 0; solution.iterations < options.max_iterations;) {
     control.throw_if_cancelled();
     if (!loop_dofs.empty()) previous = x;
     const double energy_before = energy;
     const auto start = std::chrono::steady_clock::now();
     const double factorized_before = system.factorize_seconds;
-    const SlimStep step = slim_step(faces, options, system, x, energy);
+    const SlimStep step = progressive_step(faces, options, system, stage, x, energy);
     solution.iteration_seconds += seconds_since(start);
     solution.factorize_seconds += system.factorize_seconds - factorized_before;
-    if (!step.status.ok() || !step.moved) return step.status;
+    if (!step.status.ok()) return step.status;
+    if (!step.moved) {
+      if (!stage.on) return {};
+      stage.on = false;  // the intermediate problem is solved: on to the real one
+      continue;
+    }
     if (!loop_dofs.empty() && loop_crosses(loop_dofs, x)) {
       x.swap(previous);
       crossed = true;
       return {};
     }
     ++solution.iterations;
-    if ((energy_before - energy) / energy_before < options.relative_tolerance) return {};
+    if (converged(energy_before, energy, solution.iterations, options, stage)) return {};
   }
   return {};
 }

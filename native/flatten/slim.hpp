@@ -33,6 +33,10 @@ struct SlimOptions {
   // steps), but it spares splitting the chart. false: plain SLIM, which never
   // looks at the boundary and may leave it crossing itself.
   bool scaffold_on_crossing = true;
+  // SLIM first aims at intermediate references whose symmetric Dirichlet
+  // energy from the current map stays below this bound on every face (see
+  // slim.cpp); 4 is isometric. 0: the real references from the start.
+  double progressive_bound = 48;
 };
 
 struct ChartSolution {
