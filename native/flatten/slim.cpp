@@ -448,19 +448,20 @@ SlimStep slim_step(const std::vector<ProxyFace>& faces, const SlimOptions& optio
 // psi(S^t) <= bound on all of them. As the map improves t grows, and at t = 1
 // the references are the real ones.
 
-// The t in (0, 1] with psi(diag(s1, s2)^t) = bound, for a face above it:
-// psi(S^t) = 2 cosh(2 t ln s1) + 2 cosh(2 t ln s2) grows with t, and Newton
-// from t = 1 comes down to the root without overshooting (psi is convex in t).
-double exponent_at_bound(double s1, double s2, double bound) {
+// The t in (0, upper] with psi(diag(s1, s2)^t) <= bound, largest, for a face:
+// psi(S^t) = 2 cosh(t a) + 2 cosh(t b), a = 2 ln s1, b = 2 ln s2, grows with
+// t, and Newton from above comes down to the root without overshooting (psi
+// is convex in t). A face within the bound at upper keeps upper.
+double exponent_at_bound(double s1, double s2, double bound, double upper) {
   const double a = 2 * std::log(s1), b = 2 * std::log(s2);
-  double t = 1;
+  double t = upper;
   for (int k = 0; k < 50; ++k) {
     const double value = 2 * std::cosh(t * a) + 2 * std::cosh(t * b) - bound;
     const double rate = 2 * a * std::sinh(t * a) + 2 * b * std::sinh(t * b);
-    if (!(rate > 0) || value < 1e-9 * bound) break;
+    if (!(rate > 0) || value < 1e-6 * bound) break;
     t -= value / rate;
   }
-  return std::clamp(t, 0.0, 1.0);
+  return std::clamp(t, 0.0, upper);
 }
 
 // Singular values of J, largest first (see slim_proxy_target).
@@ -477,7 +478,7 @@ double progressive_exponent(const std::vector<Eigen::Matrix2d>& jacobians, doubl
   for (const Eigen::Matrix2d& J : jacobians)
     if (symmetric_dirichlet_density(J) > bound) {
       const Eigen::Vector2d s = singular_values(J);
-      t = std::min(t, exponent_at_bound(s[0], s[1], bound));
+      t = exponent_at_bound(s[0], s[1], bound, t);
     }
   return t;
 }
