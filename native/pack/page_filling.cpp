@@ -60,11 +60,13 @@ void occupy(Page& page, const ScaledChart& chart, int turn, Eigen::Vector2i at) 
   if (cells.width > 0) page.cells.occupy(cells, cells.origin_x, cells.origin_y);
 }
 
-// Both orientations are tried; the one whose top ends lowest wins (a long
-// chart lies down), which keeps the packed region low and compact. Each is
-// dropped onto the horizon, then holes below are searched for a lower spot
-// (always: skipping them for charts as large as one that lately found no
-// hole saves little time and loses the holes that chart's shape missed).
+// Every quarter turn is tried; the spot whose centroid ends lowest wins
+// (the lowest gravity centre: it keeps the packed region low and compact,
+// and unlike the lowest top it lets a tall chart stand where it leaves
+// room beside it). Each turn is dropped onto the horizon, then holes below
+// are searched for a lower spot (always: skipping them for charts as large
+// as one that lately found no hole saves little time and loses the holes
+// that chart's shape missed).
 bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
   std::array<int, kTurns> turns;
   std::iota(turns.begin(), turns.end(), 0);
@@ -72,16 +74,21 @@ bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
     return chart.turned[a].mask.height < chart.turned[b].mask.height;
   });
   std::optional<Eigen::Vector2i> best;
-  int best_turn = 0, best_top = page.texels.height() + 1;
+  int best_turn = 0, best_centroid = page.texels.height() + 1;
+  // Spots whose centroid row is below the best one's end at most this high.
+  auto top_limit = [&](int turn) {
+    const PlacementShape& shape = chart.turned[turn];
+    return best_centroid - 1 - shape.centroid_row + shape.mask.height;
+  };
   auto keep_if_lower = [&](int turn, const std::optional<Eigen::Vector2i>& at) {
     if (!at) return;
     best = at;
     best_turn = turn;
-    best_top = at->y() + chart.turned[turn].mask.height;
+    best_centroid = at->y() + chart.turned[turn].centroid_row;
   };
   for (int turn : turns)
-    keep_if_lower(turn, page.texels.lowest_drop(chart.turned[turn], best_top - 1));
-  for (int turn : turns) keep_if_lower(turn, spot_in_hole(page, chart, turn, best_top - 1));
+    keep_if_lower(turn, page.texels.lowest_drop(chart.turned[turn], top_limit(turn)));
+  for (int turn : turns) keep_if_lower(turn, spot_in_hole(page, chart, turn, top_limit(turn)));
   if (!best) return false;
   occupy(page, chart, best_turn, *best);
   placement.x = best->x();
