@@ -182,10 +182,12 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
   const int to_virtual = 2 * frame.margin, max_virtual = max_side + to_virtual;
   double dilated_texels = 0.0;
   int narrowest = 1;  // the page must be at least this wide in virtual texels
+  int longest = 1;    // longest side of a chart, in virtual texels
   for (int c : order) {
     dilated_texels += static_cast<double>(charts[c].footprint);
     const TexelMask& m = charts[c].turned[0].mask;
     narrowest = std::max(narrowest, std::min(m.width, m.height));
+    longest = std::max(longest, std::max(m.width, m.height));
   }
   if (placed_share) *placed_share = 0.0;
   if (dilated_texels > static_cast<double>(max_virtual) * max_virtual) return std::nullopt;
@@ -218,6 +220,13 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
     if (!candidate) break;
     height = candidate->pages[0].height;
     if (area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
+  }
+  // A chart longer than the page is wide stands in it, and the page is at
+  // least as tall as that chart: a page as wide as it may hold it lying
+  // down, on a smaller page (a large chart with a few smaller ones).
+  if (width_for(longest) > best->pages[0].width) {
+    auto candidate = pack(width_for(longest));
+    if (candidate && area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
   }
   // Power-of-two widths step by 2x, past what the probes above look at: the
   // neighbouring widths may hold the charts on half the page.
