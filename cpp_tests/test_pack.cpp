@@ -492,6 +492,43 @@ TEST(PackCharts, FixedPageSizeFitsOnePageAsLargeAsPossible) {
   EXPECT_GT(grown.scale, 5.0);
 }
 
+// A chart longer than a near-square page would be wide lies across a page
+// as wide as it instead of standing and setting the page's height.
+TEST(PackCharts, LongestChartLiesAcrossTheDefaultPage) {
+  std::vector<RowMatrixX2d> charts = {rectangle(60, 600, 5, 5)};
+  for (int i = 0; i < 20; ++i) charts.push_back(rectangle(20, 20, 30.0 * i, 700));
+  PackOptions options;
+  options.padding = 4;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  ASSERT_EQ(result.pages.size(), 1u);
+  EXPECT_EQ(result.chart_turns[0] % 2, 1);
+  EXPECT_LT(result.pages[0].height, 600);
+  EXPECT_GE(result.pages[0].width, 600);
+  expect_valid_packing(charts, result, options.padding);
+  expect_reported_transform(charts, result);
+}
+
+// A small chart goes into the mouth of a U-shaped one (a concavity of a
+// placed chart), so the page is no larger than the U's alone.
+TEST(PackCharts, SmallChartFillsTheGapOfAConcaveChart) {
+  RowMatrixX2d u(18, 2);
+  u << rectangle(40, 200, 0, 0), rectangle(40, 200, 160, 0), rectangle(120, 40, 40, 0);
+  PackOptions options;
+  options.padding = 4;
+  const PackResult alone = pack_charts({u}, options, RunControl());
+  const std::vector<RowMatrixX2d> charts = {u, rectangle(60, 60, 300, 300)};
+  const PackResult result = pack_charts(charts, options, RunControl());
+  ASSERT_EQ(result.pages.size(), 1u);
+  EXPECT_EQ(total_page_texels(result), total_page_texels(alone));
+  // The small chart's box lies inside the U's box.
+  const Eigen::RowVector2d u_lo = result.placed_uv[0].colwise().minCoeff();
+  const Eigen::RowVector2d u_hi = result.placed_uv[0].colwise().maxCoeff();
+  EXPECT_TRUE((result.placed_uv[1].colwise().minCoeff().array() > u_lo.array()).all());
+  EXPECT_TRUE((result.placed_uv[1].colwise().maxCoeff().array() < u_hi.array()).all());
+  expect_valid_packing(charts, result, options.padding);
+  expect_reported_transform(charts, result);
+}
+
 TEST(PackCharts, LongChartIsRotatedToFit) {
   // At the largest scale (set by the wide chart's width) the tall chart only
   // fits lying down in the strip above the wide one.
