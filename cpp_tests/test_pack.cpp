@@ -7,6 +7,7 @@
 #include "pack/chart_raster.hpp"
 #include "pack/coarse_mask.hpp"
 #include "pack/pack.hpp"
+#include "pack/page_filling.hpp"
 #include "pack/page_occupancy.hpp"
 #include "pack/scaled_chart.hpp"
 #include "pack/smallest_box_turn.hpp"
@@ -208,6 +209,29 @@ TEST(PageOccupancy, DropRestsOnTheDeckAndFirstFitFindsThePocket) {
   EXPECT_FALSE(page.lowest_drop(shape, 7));
   page.occupy(square, 9, 0);
   EXPECT_EQ(*page.first_fit(shape, page.height()), Eigen::Vector2i(17, 0));
+}
+
+// A long chart lying on top of a tall one sets the page's height; standing
+// beside it, it does not: lowering the page moves it there.
+TEST(LowerSinglePage, TheChartSettingTheHeightStandsBesideTheOthers) {
+  const RowMatrixX2d tall = rectangle(60, 100), long_chart = rectangle(100, 20);
+  const Frame frame{4, 2};
+  const std::vector<ScaledChart> charts =
+      scale_charts({&tall, &long_chart}, 1.0, frame.padding, kHoleCell, false, RunControl());
+  const int tall_height = charts[0].turned[0].mask.height;
+  Layout layout;
+  layout.placement = {{0, 0, 0, 0}, {0, 0, tall_height, 0}};  // the long chart on top
+  const PageSize stacked = trimmed_page(
+      {charts[1].turned[0].mask.width, tall_height + charts[1].turned[0].mask.height}, frame);
+  layout.pages = {stacked};
+  lower_single_page(layout, charts, frame, RunControl());
+  ASSERT_EQ(layout.pages.size(), 1u);
+  EXPECT_LE(layout.pages[0].width, stacked.width);
+  EXPECT_EQ(layout.pages[0].height, trimmed_page({1, tall_height}, frame).height);
+  const Placement& moved = layout.placement[1];
+  EXPECT_EQ(moved.turn % 2, 1);
+  EXPECT_GE(moved.x, charts[0].turned[0].mask.width);  // beside, not over, the tall chart
+  EXPECT_EQ(layout.placement[0].y, 0);
 }
 
 TEST(PackCharts, RandomRectanglesNeverShareATexel) {

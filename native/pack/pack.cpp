@@ -388,6 +388,7 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
       keep_smallest_page(packing, kOrdersAtOnce, static_cast<int>(kOrders.size()), frame, max_side,
                          control);
   }
+  lower_single_page(packing.layout, packing.charts, frame, control);
   PackResult result = to_result(uv, packing, frame);
   result.shrunk = result.scale < options.density_scale * (1.0 - 1e-9);
   return result;

@@ -18,6 +18,8 @@ namespace {
 constexpr double kExpectedDensity = 0.8;
 constexpr int kSquareProbes = 2;  // widths tried after the first one
 constexpr double kSquareTolerance = 0.03;
+// Charts setting a page's height moved lower at most, once all are placed.
+constexpr int kLoweringTries = 4;
 
 // A page being filled: its texels, for drops, and the same on the hole grid
 // (a cell is occupied when any of its texels is), for hole searches.
@@ -34,6 +36,8 @@ struct Page {
         cells(width / kHoleCell, height / kHoleCell),
         gap_padding(frame.gap ? frame.padding : 0) {}
 };
+
+long long area(const PageSize& page) { return static_cast<long long>(page.width) * page.height; }
 
 // Lowest spot in a hole for one orientation, with its top below top_limit.
 // Cell spot (X, Y) is texel spot (kHoleCell X, kHoleCell Y): the chart's
@@ -60,45 +64,98 @@ void occupy(Page& page, const ScaledChart& chart, int turn, Eigen::Vector2i at) 
   if (cells.width > 0) page.cells.occupy(cells, cells.origin_x, cells.origin_y);
 }
 
-// Every quarter turn is tried; the spot whose centroid ends lowest wins
-// (the lowest gravity centre: it keeps the packed region low and compact,
-// and unlike the lowest top it lets a tall chart stand where it leaves
-// room beside it). Each turn is dropped onto the horizon, then holes below
-// are searched for a lower spot (always: skipping them for charts as large
-// as one that lately found no hole saves little time and loses the holes
-// that chart's shape missed).
-bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
+// What makes a spot low: where the chart's centroid row or its top ends.
+enum class Rest { Centroid, Top };
+
+int rest_row(const PlacementShape& shape, Rest rest) {
+  return rest == Rest::Top ? shape.mask.height : shape.centroid_row;
+}
+
+// Every quarter turn is tried; the lowest spot by `rest` wins, if lower
+// than `below` (the rest row). Each turn is dropped onto the horizon, then
+// holes below are searched for a lower spot (always: skipping them for
+// charts as large as one that lately found no hole saves little time and
+// loses the holes that chart's shape missed).
+std::optional<Placement> lowest_spot(const Page& page, const ScaledChart& chart, Rest rest,
+                                     int below) {
   std::array<int, kTurns> turns;
   std::iota(turns.begin(), turns.end(), 0);
   std::stable_sort(turns.begin(), turns.end(), [&](int a, int b) {
     return chart.turned[a].mask.height < chart.turned[b].mask.height;
   });
-  std::optional<Eigen::Vector2i> best;
-  int best_turn = 0, best_centroid = page.texels.height() + 1;
-  // Spots whose centroid row is below the best one's end at most this high.
+  std::optional<Placement> best;
+  // Spots resting below `below` end at most this high.
   auto top_limit = [&](int turn) {
     const PlacementShape& shape = chart.turned[turn];
-    return best_centroid - 1 - shape.centroid_row + shape.mask.height;
+    return below - 1 - rest_row(shape, rest) + shape.mask.height;
   };
   auto keep_if_lower = [&](int turn, const std::optional<Eigen::Vector2i>& at) {
     if (!at) return;
-    best = at;
-    best_turn = turn;
-    best_centroid = at->y() + chart.turned[turn].centroid_row;
+    best = Placement{0, at->x(), at->y(), turn};
+    below = at->y() + rest_row(chart.turned[turn], rest);
   };
   for (int turn : turns)
     keep_if_lower(turn, page.texels.lowest_drop(chart.turned[turn], top_limit(turn)));
   for (int turn : turns) keep_if_lower(turn, spot_in_hole(page, chart, turn, top_limit(turn)));
-  if (!best) return false;
-  occupy(page, chart, best_turn, *best);
-  placement.x = best->x();
-  placement.y = best->y();
-  placement.turn = best_turn;
+  return best;
+}
+
+// Charts go where their centroid ends lowest (the lowest gravity centre: it
+// keeps the packed region low and compact, and unlike the lowest top it
+// lets a tall chart stand where it leaves room beside it).
+bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
+  const auto spot = lowest_spot(page, chart, Rest::Centroid, page.texels.height() + 1);
+  if (!spot) return false;
+  occupy(page, chart, spot->turn, {spot->x, spot->y});
+  placement.x = spot->x;
+  placement.y = spot->y;
+  placement.turn = spot->turn;
   return true;
 }
 
+int top_of(const ScaledChart& chart, const Placement& at) {
+  return at.y + chart.turned[at.turn].mask.height;
+}
 
-long long area(const PageSize& page) { return static_cast<long long>(page.width) * page.height; }
+// Extent of the charts of `order` at their placements, in virtual texels.
+PageSize extent_of(const std::vector<int>& order, const std::vector<ScaledChart>& charts,
+                   const std::vector<Placement>& placement) {
+  PageSize used{0, 0};
+  for (int c : order) {
+    const TexelMask& mask = charts[c].turned[placement[c].turn].mask;
+    used = {std::max(used.width, placement[c].x + mask.width),
+            std::max(used.height, placement[c].y + mask.height)};
+  }
+  return used;
+}
+
+// A chart standing for its low centroid may set the page's height where
+// lying down, elsewhere, it would not: the highest chart is moved, while
+// that lowers the extent and widens it not, to where its top ends lowest
+// among the others (each try rebuilds the page without it).
+void lower_highest_charts(const std::vector<int>& order, const std::vector<ScaledChart>& charts,
+                          const Frame& frame, int width, int height,
+                          std::vector<Placement>& placement, const RunControl& control) {
+  PageSize used = extent_of(order, charts, placement);
+  for (int attempt = 0; attempt < kLoweringTries && !order.empty(); ++attempt) {
+    control.throw_if_cancelled();
+    int highest = order.front();
+    for (int c : order)
+      if (top_of(charts[c], placement[c]) > top_of(charts[highest], placement[highest])) highest = c;
+    Page page(width, height, frame);
+    for (int c : order)
+      if (c != highest) occupy(page, charts[c], placement[c].turn, {placement[c].x, placement[c].y});
+    const auto spot =
+        lowest_spot(page, charts[highest], Rest::Top, top_of(charts[highest], placement[highest]));
+    if (!spot) return;
+    occupy(page, charts[highest], spot->turn, {spot->x, spot->y});
+    if (page.extent.width > used.width || page.extent.height >= used.height) return;
+    placement[highest].x = spot->x;
+    placement[highest].y = spot->y;
+    placement[highest].turn = spot->turn;
+    used = page.extent;
+  }
+}
 
 }  // namespace
 
@@ -239,6 +296,17 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
     }
   }
   return best;
+}
+
+void lower_single_page(Layout& layout, const std::vector<ScaledChart>& charts, const Frame& frame,
+                       const RunControl& control) {
+  if (layout.pages.size() != 1) return;
+  std::vector<int> all(charts.size());
+  std::iota(all.begin(), all.end(), 0);
+  const PageSize page = layout.pages[0];
+  lower_highest_charts(all, charts, frame, page.width + 2 * frame.margin,
+                       page.height + 2 * frame.margin, layout.placement, control);
+  layout.pages[0] = trimmed_page(extent_of(all, charts, layout.placement), frame);
 }
 
 Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledChart>& charts,
