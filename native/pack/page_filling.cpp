@@ -18,8 +18,6 @@ namespace {
 constexpr double kExpectedDensity = 0.8;
 constexpr int kSquareProbes = 2;  // widths tried after the first one
 constexpr double kSquareTolerance = 0.03;
-// Charts setting a page's height moved lower at most, once all are placed.
-constexpr int kLoweringTries = 4;
 
 // A page being filled: its texels, for drops, and the same on the hole grid
 // (a cell is occupied when any of its texels is), for hole searches.
@@ -130,31 +128,32 @@ PageSize extent_of(const std::vector<int>& order, const std::vector<ScaledChart>
 }
 
 // A chart standing for its low centroid may set the page's height where
-// lying down, elsewhere, it would not: the highest chart is moved, while
-// that lowers the extent and widens it not, to where its top ends lowest
-// among the others (each try rebuilds the page without it).
-void lower_highest_charts(const std::vector<int>& order, const std::vector<ScaledChart>& charts,
-                          const Frame& frame, int width, int height,
-                          std::vector<Placement>& placement, const RunControl& control) {
-  PageSize used = extent_of(order, charts, placement);
-  for (int attempt = 0; attempt < kLoweringTries && !order.empty(); ++attempt) {
-    control.throw_if_cancelled();
-    int highest = order.front();
-    for (int c : order)
-      if (top_of(charts[c], placement[c]) > top_of(charts[highest], placement[highest])) highest = c;
-    Page page(width, height, frame);
-    for (int c : order)
-      if (c != highest) occupy(page, charts[c], placement[c].turn, {placement[c].x, placement[c].y});
-    const auto spot =
-        lowest_spot(page, charts[highest], Rest::Top, top_of(charts[highest], placement[highest]));
-    if (!spot) return;
-    occupy(page, charts[highest], spot->turn, {spot->x, spot->y});
-    if (page.extent.width > used.width || page.extent.height >= used.height) return;
-    placement[highest].x = spot->x;
-    placement[highest].y = spot->y;
-    placement[highest].turn = spot->turn;
-    used = page.extent;
-  }
+// lying down, elsewhere, it would not: the highest chart, if no other is as
+// high, is moved to where its top ends lowest among the others, if that
+// lowers the extent and widens it not. (The page is rebuilt without it:
+// once more per move, so one move only, which is where the gain lies.)
+void lower_highest_chart(const std::vector<int>& order, const std::vector<ScaledChart>& charts,
+                         const Frame& frame, int width, int height,
+                         std::vector<Placement>& placement, const RunControl& control) {
+  if (order.empty()) return;
+  control.throw_if_cancelled();
+  int highest = order.front();
+  for (int c : order)
+    if (top_of(charts[c], placement[c]) > top_of(charts[highest], placement[highest])) highest = c;
+  const int top = top_of(charts[highest], placement[highest]);
+  for (int c : order)
+    if (c != highest && top_of(charts[c], placement[c]) == top) return;
+  Page page(width, height, frame);
+  for (int c : order)
+    if (c != highest) occupy(page, charts[c], placement[c].turn, {placement[c].x, placement[c].y});
+  const auto spot = lowest_spot(page, charts[highest], Rest::Top, top);
+  if (!spot) return;
+  const PageSize used = extent_of(order, charts, placement);
+  occupy(page, charts[highest], spot->turn, {spot->x, spot->y});
+  if (page.extent.width > used.width || page.extent.height >= used.height) return;
+  placement[highest].x = spot->x;
+  placement[highest].y = spot->y;
+  placement[highest].turn = spot->turn;
 }
 
 }  // namespace
@@ -304,8 +303,8 @@ void lower_single_page(Layout& layout, const std::vector<ScaledChart>& charts, c
   std::vector<int> all(charts.size());
   std::iota(all.begin(), all.end(), 0);
   const PageSize page = layout.pages[0];
-  lower_highest_charts(all, charts, frame, page.width + 2 * frame.margin,
-                       page.height + 2 * frame.margin, layout.placement, control);
+  lower_highest_chart(all, charts, frame, page.width + 2 * frame.margin,
+                      page.height + 2 * frame.margin, layout.placement, control);
   layout.pages[0] = trimmed_page(extent_of(all, charts, layout.placement), frame);
 }
 

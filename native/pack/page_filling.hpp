@@ -86,8 +86,8 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
                                          double* placed_share = nullptr);
 
 // A one-page layout (else unchanged) with the page lowered where it can be:
-// the chart setting its height moved, while that lowers the page, to where
-// its top ends lowest (see place_chart: charts rest by their centroid).
+// the chart setting its height alone moved, if that lowers the page, to
+// where its top ends lowest (see place_chart: charts rest by their centroid).
 void lower_single_page(Layout& layout, const std::vector<ScaledChart>& charts, const Frame& frame,
                        const RunControl& control);
 
