@@ -7,6 +7,7 @@
 #include "pack/chart_raster.hpp"
 #include "pack/coarse_mask.hpp"
 #include "pack/pack.hpp"
+#include "pack/page_filling.hpp"
 #include "pack/page_occupancy.hpp"
 #include "pack/scaled_chart.hpp"
 #include "pack/smallest_box_turn.hpp"
@@ -208,6 +209,29 @@ TEST(PageOccupancy, DropRestsOnTheDeckAndFirstFitFindsThePocket) {
   EXPECT_FALSE(page.lowest_drop(shape, 7));
   page.occupy(square, 9, 0);
   EXPECT_EQ(*page.first_fit(shape, page.height()), Eigen::Vector2i(17, 0));
+}
+
+// A long chart lying on top of a tall one sets the page's height; standing
+// beside it, it does not: lowering the page moves it there.
+TEST(LowerSinglePage, TheChartSettingTheHeightStandsBesideTheOthers) {
+  const RowMatrixX2d tall = rectangle(60, 100), long_chart = rectangle(100, 20);
+  const Frame frame{4, 2};
+  const std::vector<ScaledChart> charts =
+      scale_charts({&tall, &long_chart}, 1.0, frame.padding, kHoleCell, false, RunControl());
+  const int tall_height = charts[0].turned[0].mask.height;
+  Layout layout;
+  layout.placement = {{0, 0, 0, 0}, {0, 0, tall_height, 0}};  // the long chart on top
+  const PageSize stacked = trimmed_page(
+      {charts[1].turned[0].mask.width, tall_height + charts[1].turned[0].mask.height}, frame);
+  layout.pages = {stacked};
+  lower_single_page(layout, charts, frame, RunControl());
+  ASSERT_EQ(layout.pages.size(), 1u);
+  EXPECT_LE(layout.pages[0].width, stacked.width);
+  EXPECT_EQ(layout.pages[0].height, trimmed_page({1, tall_height}, frame).height);
+  const Placement& moved = layout.placement[1];
+  EXPECT_EQ(moved.turn % 2, 1);
+  EXPECT_GE(moved.x, charts[0].turned[0].mask.width);  // beside, not over, the tall chart
+  EXPECT_EQ(layout.placement[0].y, 0);
 }
 
 TEST(PackCharts, RandomRectanglesNeverShareATexel) {
@@ -490,6 +514,43 @@ TEST(PackCharts, FixedPageSizeFitsOnePageAsLargeAsPossible) {
   // Small charts are scaled up to fill the page.
   const PackResult grown = pack_charts({rectangle(10, 10), rectangle(5, 20)}, options, RunControl());
   EXPECT_GT(grown.scale, 5.0);
+}
+
+// A chart longer than a near-square page would be wide lies across a page
+// as wide as it instead of standing and setting the page's height.
+TEST(PackCharts, LongestChartLiesAcrossTheDefaultPage) {
+  std::vector<RowMatrixX2d> charts = {rectangle(60, 600, 5, 5)};
+  for (int i = 0; i < 20; ++i) charts.push_back(rectangle(20, 20, 30.0 * i, 700));
+  PackOptions options;
+  options.padding = 4;
+  const PackResult result = pack_charts(charts, options, RunControl());
+  ASSERT_EQ(result.pages.size(), 1u);
+  EXPECT_EQ(result.chart_turns[0] % 2, 1);
+  EXPECT_LT(result.pages[0].height, 600);
+  EXPECT_GE(result.pages[0].width, 600);
+  expect_valid_packing(charts, result, options.padding);
+  expect_reported_transform(charts, result);
+}
+
+// A small chart goes into the mouth of a U-shaped one (a concavity of a
+// placed chart), so the page is no larger than the U's alone.
+TEST(PackCharts, SmallChartFillsTheGapOfAConcaveChart) {
+  RowMatrixX2d u(18, 2);
+  u << rectangle(40, 200, 0, 0), rectangle(40, 200, 160, 0), rectangle(120, 40, 40, 0);
+  PackOptions options;
+  options.padding = 4;
+  const PackResult alone = pack_charts({u}, options, RunControl());
+  const std::vector<RowMatrixX2d> charts = {u, rectangle(60, 60, 300, 300)};
+  const PackResult result = pack_charts(charts, options, RunControl());
+  ASSERT_EQ(result.pages.size(), 1u);
+  EXPECT_EQ(total_page_texels(result), total_page_texels(alone));
+  // The small chart's box lies inside the U's box.
+  const Eigen::RowVector2d u_lo = result.placed_uv[0].colwise().minCoeff();
+  const Eigen::RowVector2d u_hi = result.placed_uv[0].colwise().maxCoeff();
+  EXPECT_TRUE((result.placed_uv[1].colwise().minCoeff().array() > u_lo.array()).all());
+  EXPECT_TRUE((result.placed_uv[1].colwise().maxCoeff().array() < u_hi.array()).all());
+  expect_valid_packing(charts, result, options.padding);
+  expect_reported_transform(charts, result);
 }
 
 TEST(PackCharts, LongChartIsRotatedToFit) {

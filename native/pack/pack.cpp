@@ -243,14 +243,25 @@ Packing shrink_to_limits(const std::vector<const RowMatrixX2d*>& chart_uv, doubl
                          const RunControl& control) {
   // One order: the search ends within its tolerance of the limit, where
   // the order gains little and many tries would each pay for all orders.
+  double smallest = std::numeric_limits<double>::infinity();  // scale tried
   auto try_scale = [&](double s) {
+    smallest = std::min(smallest, s);
     Packing packing = pack_free(chart_uv, s, frame, max_side, limits.pages, 1, control);
     const double ratio = limits.ratio(packing, max_side);
     return std::make_pair(std::move(packing), ratio);
   };
-  return largest_fitting_packing(try_scale, start, cap, failed,
-                                 "the charts with their padding do not fit the texel budget or the "
-                                 "page count at any scale");
+  try {
+    return largest_fitting_packing(try_scale, start, cap, failed,
+                                   "the charts with their padding do not fit the texel budget or the "
+                                   "page count at any scale");
+  } catch (const ChartsDoNotFit&) {
+    // Charts shrunk to a texel or two are their padding alone and pack the
+    // same at any smaller scale: only the order can still make them fit.
+    Packing packing = pack_free(chart_uv, smallest, frame, max_side, limits.pages,
+                                static_cast<int>(kOrders.size()), control);
+    if (limits.ratio(packing, max_side) <= 1.0) return packing;
+    throw;
+  }
 }
 
 // fixed_page_size: the largest scale at which the charts fit one side x side
@@ -377,6 +388,7 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
       keep_smallest_page(packing, kOrdersAtOnce, static_cast<int>(kOrders.size()), frame, max_side,
                          control);
   }
+  lower_single_page(packing.layout, packing.charts, frame, control);
   PackResult result = to_result(uv, packing, frame);
   result.shrunk = result.scale < options.density_scale * (1.0 - 1e-9);
   return result;

@@ -54,8 +54,9 @@ struct PackResult {
 
 // chart_uv[c] holds chart c's corner UVs in texels (3 rows per face, any placement).
 // Charts are rasterised conservatively, grown by options.padding, and placed
-// largest first, at any quarter turn: dropped onto the horizon of what is
-// already placed, or lower, into a hole under it (searched on a 2-texel grid).
+// largest first, at any quarter turn, where its centroid ends lowest: dropped
+// onto the horizon of what is already placed, or lower, into a hole under it
+// (searched on a 2-texel grid).
 // A grown raster may not meet another grown raster or, with
 // padding_between_charts, another chart's raster before growing.
 // Page size: by default the smallest near-square page (sides multiples of 4),

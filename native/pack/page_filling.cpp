@@ -35,6 +35,8 @@ struct Page {
         gap_padding(frame.gap ? frame.padding : 0) {}
 };
 
+long long area(const PageSize& page) { return static_cast<long long>(page.width) * page.height; }
+
 // Lowest spot in a hole for one orientation, with its top below top_limit.
 // Cell spot (X, Y) is texel spot (kHoleCell X, kHoleCell Y): the chart's
 // cells are aligned with the page's there, and free cells mean free texels.
@@ -60,38 +62,99 @@ void occupy(Page& page, const ScaledChart& chart, int turn, Eigen::Vector2i at) 
   if (cells.width > 0) page.cells.occupy(cells, cells.origin_x, cells.origin_y);
 }
 
-// Both orientations are tried; the one whose top ends lowest wins (a long
-// chart lies down), which keeps the packed region low and compact. Each is
-// dropped onto the horizon, then holes below are searched for a lower spot
-// (always: skipping them for charts as large as one that lately found no
-// hole saves little time and loses the holes that chart's shape missed).
-bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
+// What makes a spot low: where the chart's centroid row or its top ends.
+enum class Rest { Centroid, Top };
+
+int rest_row(const PlacementShape& shape, Rest rest) {
+  return rest == Rest::Top ? shape.mask.height : shape.centroid_row;
+}
+
+// Every quarter turn is tried; the lowest spot by `rest` wins, if lower
+// than `below` (the rest row). Each turn is dropped onto the horizon, then
+// holes below are searched for a lower spot (always: skipping them for
+// charts as large as one that lately found no hole saves little time and
+// loses the holes that chart's shape missed).
+std::optional<Placement> lowest_spot(const Page& page, const ScaledChart& chart, Rest rest,
+                                     int below) {
   std::array<int, kTurns> turns;
   std::iota(turns.begin(), turns.end(), 0);
   std::stable_sort(turns.begin(), turns.end(), [&](int a, int b) {
     return chart.turned[a].mask.height < chart.turned[b].mask.height;
   });
-  std::optional<Eigen::Vector2i> best;
-  int best_turn = 0, best_top = page.texels.height() + 1;
+  std::optional<Placement> best;
+  // Spots resting below `below` end at most this high.
+  auto top_limit = [&](int turn) {
+    const PlacementShape& shape = chart.turned[turn];
+    return below - 1 - rest_row(shape, rest) + shape.mask.height;
+  };
   auto keep_if_lower = [&](int turn, const std::optional<Eigen::Vector2i>& at) {
     if (!at) return;
-    best = at;
-    best_turn = turn;
-    best_top = at->y() + chart.turned[turn].mask.height;
+    best = Placement{0, at->x(), at->y(), turn};
+    below = at->y() + rest_row(chart.turned[turn], rest);
   };
   for (int turn : turns)
-    keep_if_lower(turn, page.texels.lowest_drop(chart.turned[turn], best_top - 1));
-  for (int turn : turns) keep_if_lower(turn, spot_in_hole(page, chart, turn, best_top - 1));
-  if (!best) return false;
-  occupy(page, chart, best_turn, *best);
-  placement.x = best->x();
-  placement.y = best->y();
-  placement.turn = best_turn;
+    keep_if_lower(turn, page.texels.lowest_drop(chart.turned[turn], top_limit(turn)));
+  for (int turn : turns) keep_if_lower(turn, spot_in_hole(page, chart, turn, top_limit(turn)));
+  return best;
+}
+
+// Charts go where their centroid ends lowest (the lowest gravity centre: it
+// keeps the packed region low and compact, and unlike the lowest top it
+// lets a tall chart stand where it leaves room beside it).
+bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
+  const auto spot = lowest_spot(page, chart, Rest::Centroid, page.texels.height() + 1);
+  if (!spot) return false;
+  occupy(page, chart, spot->turn, {spot->x, spot->y});
+  placement.x = spot->x;
+  placement.y = spot->y;
+  placement.turn = spot->turn;
   return true;
 }
 
+int top_of(const ScaledChart& chart, const Placement& at) {
+  return at.y + chart.turned[at.turn].mask.height;
+}
 
-long long area(const PageSize& page) { return static_cast<long long>(page.width) * page.height; }
+// Extent of the charts of `order` at their placements, in virtual texels.
+PageSize extent_of(const std::vector<int>& order, const std::vector<ScaledChart>& charts,
+                   const std::vector<Placement>& placement) {
+  PageSize used{0, 0};
+  for (int c : order) {
+    const TexelMask& mask = charts[c].turned[placement[c].turn].mask;
+    used = {std::max(used.width, placement[c].x + mask.width),
+            std::max(used.height, placement[c].y + mask.height)};
+  }
+  return used;
+}
+
+// A chart standing for its low centroid may set the page's height where
+// lying down, elsewhere, it would not: the highest chart, if no other is as
+// high, is moved to where its top ends lowest among the others, if that
+// lowers the extent and widens it not. (The page is rebuilt without it:
+// once more per move, so one move only, which is where the gain lies.)
+void lower_highest_chart(const std::vector<int>& order, const std::vector<ScaledChart>& charts,
+                         const Frame& frame, int width, int height,
+                         std::vector<Placement>& placement, const RunControl& control) {
+  if (order.empty()) return;
+  control.throw_if_cancelled();
+  int highest = order.front();
+  for (int c : order)
+    if (top_of(charts[c], placement[c]) > top_of(charts[highest], placement[highest])) highest = c;
+  const int top = top_of(charts[highest], placement[highest]);
+  for (int c : order)
+    if (c != highest && top_of(charts[c], placement[c]) == top) return;
+  Page page(width, height, frame);
+  for (int c : order)
+    if (c != highest) occupy(page, charts[c], placement[c].turn, {placement[c].x, placement[c].y});
+  const auto spot = lowest_spot(page, charts[highest], Rest::Top, top);
+  if (!spot) return;
+  const PageSize used = extent_of(order, charts, placement);
+  occupy(page, charts[highest], spot->turn, {spot->x, spot->y});
+  if (page.extent.width > used.width || page.extent.height >= used.height) return;
+  placement[highest].x = spot->x;
+  placement[highest].y = spot->y;
+  placement[highest].turn = spot->turn;
+}
 
 }  // namespace
 
@@ -175,10 +238,12 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
   const int to_virtual = 2 * frame.margin, max_virtual = max_side + to_virtual;
   double dilated_texels = 0.0;
   int narrowest = 1;  // the page must be at least this wide in virtual texels
+  int longest = 1;    // longest side of a chart, in virtual texels
   for (int c : order) {
     dilated_texels += static_cast<double>(charts[c].footprint);
     const TexelMask& m = charts[c].turned[0].mask;
     narrowest = std::max(narrowest, std::min(m.width, m.height));
+    longest = std::max(longest, std::max(m.width, m.height));
   }
   if (placed_share) *placed_share = 0.0;
   if (dilated_texels > static_cast<double>(max_virtual) * max_virtual) return std::nullopt;
@@ -212,6 +277,13 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
     height = candidate->pages[0].height;
     if (area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
   }
+  // A chart longer than the page is wide stands in it, and the page is at
+  // least as tall as that chart: a page as wide as it may hold it lying
+  // down, on a smaller page (a large chart with a few smaller ones).
+  if (width_for(longest) > best->pages[0].width) {
+    auto candidate = pack(width_for(longest));
+    if (candidate && area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
+  }
   // Power-of-two widths step by 2x, past what the probes above look at: the
   // neighbouring widths may hold the charts on half the page.
   if (frame.sides == PageSides::PowerOfTwo) {
@@ -223,6 +295,17 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
     }
   }
   return best;
+}
+
+void lower_single_page(Layout& layout, const std::vector<ScaledChart>& charts, const Frame& frame,
+                       const RunControl& control) {
+  if (layout.pages.size() != 1) return;
+  std::vector<int> all(charts.size());
+  std::iota(all.begin(), all.end(), 0);
+  const PageSize page = layout.pages[0];
+  lower_highest_chart(all, charts, frame, page.width + 2 * frame.margin,
+                      page.height + 2 * frame.margin, layout.placement, control);
+  layout.pages[0] = trimmed_page(extent_of(all, charts, layout.placement), frame);
 }
 
 Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledChart>& charts,

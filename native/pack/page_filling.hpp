@@ -85,6 +85,12 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
                                          const RunControl& control,
                                          double* placed_share = nullptr);
 
+// A one-page layout (else unchanged) with the page lowered where it can be:
+// the chart setting its height alone moved, if that lowers the page, to
+// where its top ends lowest (see place_chart: charts rest by their centroid).
+void lower_single_page(Layout& layout, const std::vector<ScaledChart>& charts, const Frame& frame,
+                       const RunControl& control);
+
 // First fit over pages of max_side; the last page is then made as small as it
 // can be. Every chart must fit an empty page.
 Layout pack_many_pages(const std::vector<int>& order, const std::vector<ScaledChart>& charts,

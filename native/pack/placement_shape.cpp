@@ -10,6 +10,7 @@ constexpr int kKeyColumns = 8;
 // Runs of every row, their count and, per row, the longest one.
 void collect_runs(const TexelMask& mask, PlacementShape& shape, std::vector<Span>& longest) {
   shape.row_start.reserve(mask.height + 1);
+  long long row_sum = 0;  // over set texels, of their row
   for (int r = 0; r < mask.height; ++r) {
     shape.row_start.push_back(static_cast<int>(shape.runs.size()));
     const std::uint64_t* row = mask.row(r);
@@ -18,6 +19,7 @@ void collect_runs(const TexelMask& mask, PlacementShape& shape, std::vector<Span
       const int end = find_bit(row, x, mask.width, false);
       shape.runs.push_back({x, end});
       shape.texels += end - x;
+      row_sum += static_cast<long long>(end - x) * r;
       if (end - x > longest[r].end - longest[r].begin) longest[r] = {x, end};
       x = find_bit(row, end, mask.width, true);
     }
@@ -25,6 +27,7 @@ void collect_runs(const TexelMask& mask, PlacementShape& shape, std::vector<Span
     if (shape.longest_run[r] > shape.longest_run[shape.widest_row]) shape.widest_row = r;
   }
   shape.row_start.push_back(static_cast<int>(shape.runs.size()));
+  if (shape.texels > 0) shape.centroid_row = static_cast<int>(row_sum / shape.texels);
 }
 
 // Widest row first, then rows spread over the height (0, h-1, h/2, h/4,

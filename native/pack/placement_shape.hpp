@@ -15,6 +15,7 @@ struct Span {
 struct PlacementShape {
   TexelMask mask;
   long long texels = 0;           // set texels
+  int centroid_row = 0;           // row of the set texels' centroid, rounded down
   std::vector<Span> runs;         // runs of set texels, row by row, left to right
   std::vector<int> row_start;     // runs of row r: runs[row_start[r], row_start[r + 1])
   std::vector<int> longest_run;   // per row
