@@ -107,15 +107,26 @@ double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, i
   return extent > 0.0 ? room / extent : std::numeric_limits<double>::infinity();
 }
 
-// Orders the default sizing tries, keeping the smallest page: which one
-// packs best depends on the charts' shapes. They are tried two at a time
-// (one per core of a small machine), further pairs only once one found a
-// page, and scale searches use the first order alone (see shrink_to_limits).
-constexpr std::array<ChartSize, 4> kOrders = {ChartSize::BoxArea, ChartSize::Texels,
-                                              ChartSize::LongSide, ChartSize::Perimeter};
-constexpr int kOrdersAtOnce = 2;
+// Recipes (a chart order and how charts rest) the default sizing tries,
+// keeping the smallest page: which one packs best depends on the charts'
+// shapes. They are tried two at a time (one per core of a small machine),
+// further pairs only once one found a page, and scale searches use the
+// first recipe alone (see shrink_to_limits).
+struct Recipe {
+  ChartSize order;
+  Rest rest;
+};
+constexpr std::array<Recipe, 8> kRecipes = {{{ChartSize::BoxArea, Rest::Centroid},
+                                            {ChartSize::BoxArea, Rest::Top},
+                                            {ChartSize::Texels, Rest::Centroid},
+                                            {ChartSize::Texels, Rest::Top},
+                                            {ChartSize::LongSide, Rest::Centroid},
+                                            {ChartSize::LongSide, Rest::Top},
+                                            {ChartSize::Perimeter, Rest::Centroid},
+                                            {ChartSize::Perimeter, Rest::Top}}};
+constexpr int kRecipesAtOnce = 2;
 
-// Packs packing.charts on one page in orders [first, last) of kOrders and
+// Packs packing.charts on one page with recipes [first, last) of kRecipes and
 // keeps the smallest page, the one of packing.layout included (if any);
 // placed_share (if given) is that of order 0, see pack_smallest_page.
 void keep_smallest_page(Packing& packing, int first, int last, const Frame& frame, int max_side,
@@ -124,14 +135,16 @@ void keep_smallest_page(Packing& packing, int first, int last, const Frame& fram
   auto area = [](const Layout& layout) {
     return static_cast<long long>(layout.pages[0].width) * layout.pages[0].height;
   };
-  std::array<std::optional<Layout>, kOrders.size()> single;
-  for (int pair = first; pair < last; pair += kOrdersAtOnce) {
+  std::array<std::optional<Layout>, kRecipes.size()> single;
+  for (int pair = first; pair < last; pair += kRecipesAtOnce) {
     if (pair > 0 && packing.layout.pages.empty()) break;
-    const int end = std::min(last, pair + kOrdersAtOnce);
+    const int end = std::min(last, pair + kRecipesAtOnce);
     parallel_for(end - pair, 1, [&](int i) {
       const int k = pair + i;
-      single[k] = pack_smallest_page(largest_first(packing.charts, kOrders[k]), packing.charts,
-                                     frame, max_side, control, k == 0 ? placed_share : nullptr);
+      Frame resting = frame;
+      resting.rest = kRecipes[k].rest;
+      single[k] = pack_smallest_page(largest_first(packing.charts, kRecipes[k].order), packing.charts,
+                                     resting, max_side, control, k == 0 ? placed_share : nullptr);
     });
     for (int k = pair; k < end; ++k)
       if (single[k] && (packing.layout.pages.empty() || area(*single[k]) < area(packing.layout)))
@@ -139,8 +152,8 @@ void keep_smallest_page(Packing& packing, int first, int last, const Frame& fram
   }
 }
 
-// Default sizing at one scale: the smallest page over the first `orders` of
-// kOrders, else the fewest max pages (unless max_pages is 1: then the
+// Default sizing at one scale: the smallest page over the first `orders` recipes of
+// kRecipes, else the fewest max pages (unless max_pages is 1: then the
 // overflow is all a scale search needs).
 Packing pack_free(const std::vector<const RowMatrixX2d*>& chart_uv, double scale, const Frame& frame,
                   int max_side, int max_pages, int orders, const RunControl& control) {
@@ -258,7 +271,7 @@ Packing shrink_to_limits(const std::vector<const RowMatrixX2d*>& chart_uv, doubl
     // Charts shrunk to a texel or two are their padding alone and pack the
     // same at any smaller scale: only the order can still make them fit.
     Packing packing = pack_free(chart_uv, smallest, frame, max_side, limits.pages,
-                                static_cast<int>(kOrders.size()), control);
+                                static_cast<int>(kRecipes.size()), control);
     if (limits.ratio(packing, max_side) <= 1.0) return packing;
     throw;
   }
@@ -379,13 +392,13 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
   } else {
     // The first pair of orders, then the others only if the charts fit:
     // a page that broke the limits is shrunk in one order.
-    packing = pack_free(uv, scale, frame, max_side, limits.pages, kOrdersAtOnce, control);
+    packing = pack_free(uv, scale, frame, max_side, limits.pages, kRecipesAtOnce, control);
     const double ratio = limits.ratio(packing, max_side);
     if (ratio > 1.0)
       packing = shrink_to_limits(uv, kAimBelow * scale / std::sqrt(ratio), scale, scale, frame,
                                  max_side, limits, control);
     else  // a smaller page keeps within the limits too
-      keep_smallest_page(packing, kOrdersAtOnce, static_cast<int>(kOrders.size()), frame, max_side,
+      keep_smallest_page(packing, kRecipesAtOnce, static_cast<int>(kRecipes.size()), frame, max_side,
                          control);
   }
   lower_single_page(packing.layout, packing.charts, frame, control);

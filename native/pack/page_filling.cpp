@@ -27,12 +27,14 @@ struct Page {
   PageOccupancy texels;
   PageOccupancy cells;
   int gap_padding;  // > 0: the padding is a gap, charts occupy their bare rasters
+  Rest rest;
   PageSize extent = {0, 0};
 
   Page(int width, int height, const Frame& frame)
       : texels(width, height),
         cells(width / kHoleCell, height / kHoleCell),
-        gap_padding(frame.gap ? frame.padding : 0) {}
+        gap_padding(frame.gap ? frame.padding : 0),
+        rest(frame.rest) {}
 };
 
 long long area(const PageSize& page) { return static_cast<long long>(page.width) * page.height; }
@@ -61,9 +63,6 @@ void occupy(Page& page, const ScaledChart& chart, int turn, Eigen::Vector2i at) 
                                        page.cells.height());
   if (cells.width > 0) page.cells.occupy(cells, cells.origin_x, cells.origin_y);
 }
-
-// What makes a spot low: where the chart's centroid row or its top ends.
-enum class Rest { Centroid, Top };
 
 int rest_row(const PlacementShape& shape, Rest rest) {
   return rest == Rest::Top ? shape.mask.height : shape.centroid_row;
@@ -98,11 +97,10 @@ std::optional<Placement> lowest_spot(const Page& page, const ScaledChart& chart,
   return best;
 }
 
-// Charts go where their centroid ends lowest (the lowest gravity centre: it
-// keeps the packed region low and compact, and unlike the lowest top it
-// lets a tall chart stand where it leaves room beside it).
+// Charts go where they rest lowest, by the page's Rest: the packed region
+// stays low and compact.
 bool place_chart(Page& page, const ScaledChart& chart, Placement& placement) {
-  const auto spot = lowest_spot(page, chart, Rest::Centroid, page.texels.height() + 1);
+  const auto spot = lowest_spot(page, chart, page.rest, page.texels.height() + 1);
   if (!spot) return false;
   occupy(page, chart, spot->turn, {spot->x, spot->y});
   placement.x = spot->x;

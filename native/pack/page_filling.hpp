@@ -21,6 +21,11 @@ constexpr int kHoleCell = 2;
 // Pages are packed in a virtual frame reaching `margin` texels beyond every
 // border: dilated masks must stay inside it, so a chart's own texels keep
 // padding - margin texels from the border.
+// What makes a spot low for a chart: where its centroid row ends (a tall
+// chart may stand where it leaves room beside it) or where its top ends (a
+// long chart lies down). Which packs tighter depends on the charts.
+enum class Rest { Centroid, Top };
+
 struct Frame {
   int padding = 0;
   int margin = 0;
@@ -30,6 +35,7 @@ struct Frame {
   // meet another's raster before padding, so charts are `padding` apart
   // (not 2 * padding, as when every chart owns a ring of padding).
   bool gap = false;
+  Rest rest = Rest::Centroid;  // how place_chart ranks the spots of a chart
 };
 
 // Smallest side >= `side` (and >= 1) of the kind `sides` allows.
