@@ -116,14 +116,14 @@ struct Recipe {
   ChartSize order;
   Rest rest;
 };
-constexpr std::array<Recipe, 8> kRecipes = {{{ChartSize::BoxArea, Rest::Centroid},
-                                            {ChartSize::BoxArea, Rest::Top},
-                                            {ChartSize::Texels, Rest::Centroid},
+constexpr std::array<Recipe, 8> kRecipes = {{{ChartSize::BoxArea, Rest::Top},
+                                            {ChartSize::BoxArea, Rest::Centroid},
                                             {ChartSize::Texels, Rest::Top},
-                                            {ChartSize::LongSide, Rest::Centroid},
+                                            {ChartSize::Texels, Rest::Centroid},
                                             {ChartSize::LongSide, Rest::Top},
-                                            {ChartSize::Perimeter, Rest::Centroid},
-                                            {ChartSize::Perimeter, Rest::Top}}};
+                                            {ChartSize::LongSide, Rest::Centroid},
+                                            {ChartSize::Perimeter, Rest::Top},
+                                            {ChartSize::Perimeter, Rest::Centroid}}};
 constexpr int kRecipesAtOnce = 2;
 
 // Packs packing.charts on one page with recipes [first, last) of kRecipes and
