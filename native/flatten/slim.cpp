@@ -464,21 +464,13 @@ double exponent_at_bound(double s1, double s2, double bound, double upper) {
   return std::clamp(t, 0.0, upper);
 }
 
-// Singular values of J, largest first (see slim_proxy_target).
-Eigen::Vector2d singular_values(const Eigen::Matrix2d& J) {
-  const double E = (J(0, 0) + J(1, 1)) / 2, F = (J(0, 0) - J(1, 1)) / 2;
-  const double G = (J(1, 0) + J(0, 1)) / 2, H = (J(1, 0) - J(0, 1)) / 2;
-  const double Q = std::sqrt(E * E + H * H), P = std::sqrt(F * F + G * G);
-  return {Q + P, Q - P};
-}
-
 // The largest t with psi(S_f^t) <= bound on every face (1 when all are within).
 double progressive_exponent(const std::vector<Eigen::Matrix2d>& jacobians, double bound) {
   double t = 1;
   for (const Eigen::Matrix2d& J : jacobians)
     if (symmetric_dirichlet_density(J) > bound) {
-      const Eigen::Vector2d s = singular_values(J);
-      t = exponent_at_bound(s[0], s[1], bound, t);
+      const SimilaritySplit s = similarity_split(J);
+      t = exponent_at_bound(s.largest(), s.smallest(), bound, t);
     }
   return t;
 }
@@ -491,9 +483,10 @@ void set_intermediate_references(const std::vector<ProxyFace>& faces, const std:
                                  double t, std::vector<ProxyFace>& intermediate) {
   for (size_t f = 0; f < faces.size(); ++f) {
     const Eigen::Matrix2d& J = jacobians[f];
-    const Eigen::Vector2d s = singular_values(J);
-    const double l1 = s[0] * s[0], l2 = s[1] * s[1];
-    const double f1 = std::pow(s[0], t - 1), f2 = std::pow(s[1], t - 1);
+    const SimilaritySplit s = similarity_split(J);
+    const double s1 = s.largest(), s2 = s.smallest();
+    const double l1 = s1 * s1, l2 = s2 * s2;
+    const double f1 = std::pow(s1, t - 1), f2 = std::pow(s2, t - 1);
     const double beta = l1 - l2 > 1e-12 * l1 ? (f1 - f2) / (l1 - l2) : 0;
     const double alpha = f1 - beta * l1;
     const Eigen::Matrix2d root = alpha * Eigen::Matrix2d::Identity() + beta * J.transpose() * J;

@@ -53,10 +53,23 @@ inline double slim_weight_squared(double s) { return (s + 1) * (s * s + 1) / (s 
 // rotation is [E -H; H E] / Q, and U is the rotation by phi with
 // 2 phi = atan2(G, F) + atan2(H, E), so cos 2phi = (FE - GH) / (PQ), sin 2phi = (GE + FH) / (PQ).
 // U diag(p, q) U^T = (p+q)/2 I + (p-q)/2 [cos 2phi, sin 2phi; sin 2phi, -cos 2phi].
+struct SimilaritySplit {
+  double E, F, G, H, Q, P;
+  double largest() const { return Q + P; }   // s1
+  double smallest() const { return Q - P; }  // s2
+};
+
+inline SimilaritySplit similarity_split(const Eigen::Matrix2d& J) {
+  SimilaritySplit split;
+  split.E = (J(0, 0) + J(1, 1)) / 2, split.F = (J(0, 0) - J(1, 1)) / 2;
+  split.G = (J(1, 0) + J(0, 1)) / 2, split.H = (J(1, 0) - J(0, 1)) / 2;
+  split.Q = std::sqrt(split.E * split.E + split.H * split.H);
+  split.P = std::sqrt(split.F * split.F + split.G * split.G);
+  return split;
+}
+
 inline SlimProxyTarget slim_proxy_target(const Eigen::Matrix2d& J) {
-  const double E = (J(0, 0) + J(1, 1)) / 2, F = (J(0, 0) - J(1, 1)) / 2;
-  const double G = (J(1, 0) + J(0, 1)) / 2, H = (J(1, 0) - J(0, 1)) / 2;
-  const double Q = std::sqrt(E * E + H * H), P = std::sqrt(F * F + G * G);
+  const auto [E, F, G, H, Q, P] = similarity_split(J);
   SlimProxyTarget target;
   target.rotation << E / Q, -H / Q, H / Q, E / Q;
   const double p = slim_weight_squared(Q + P), q = slim_weight_squared(Q - P);
