@@ -54,17 +54,18 @@ struct PackResult {
 
 // chart_uv[c] holds chart c's corner UVs in texels (3 rows per face, any placement).
 // Charts are rasterised conservatively, grown by options.padding, and placed
-// largest first, at any quarter turn, where its centroid ends lowest: dropped
-// onto the horizon of what is already placed, or lower, into a hole under it
-// (searched on a 2-texel grid).
+// largest first, at any quarter turn, where its top or its centroid ends
+// lowest (see the page sizes below): dropped onto the horizon of what is
+// already placed, or lower, into a hole under it (searched on a 2-texel grid).
 // A grown raster may not meet another grown raster or, with
 // padding_between_charts, another chart's raster before growing.
 // Page size: by default the smallest near-square page (sides multiples of 4),
 // over four orders of "largest" (box area, padded texels, long side,
-// perimeter), or, beyond max_page_size, the fewest pages of that size (the
-// last one shrunk; box area order);
-// fixed_page_size: one page of exactly that side, charts scaled as large as fit
-// (density_scale is then ignored). Charts keep at least padding / 2 texels from
+// perimeter), each with charts resting by their top and by their centroid,
+// or, beyond max_page_size, the fewest pages of that size (the
+// last one shrunk; box area order, resting by the centroid);
+// fixed_page_size: one page of exactly that side (resting by the centroid),
+// charts scaled as large as fit (density_scale is then ignored). Charts keep at least padding / 2 texels from
 // page borders (pages wrap, so both borders together give the full padding).
 // Throws InputError on bad options, rows not a multiple of 3, or a budget or
 // fixed page too small for the charts' padding alone; non-finite corners are

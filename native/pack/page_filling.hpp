@@ -18,14 +18,14 @@ constexpr int kSideQuantum = 4;  // page sides are multiples of this in PageSide
 // small charts would fill, and save little: drops dominate the time).
 constexpr int kHoleCell = 2;
 
-// Pages are packed in a virtual frame reaching `margin` texels beyond every
-// border: dilated masks must stay inside it, so a chart's own texels keep
-// padding - margin texels from the border.
 // What makes a spot low for a chart: where its centroid row ends (a tall
 // chart may stand where it leaves room beside it) or where its top ends (a
 // long chart lies down). Which packs tighter depends on the charts.
 enum class Rest { Centroid, Top };
 
+// Pages are packed in a virtual frame reaching `margin` texels beyond every
+// border: dilated masks must stay inside it, so a chart's own texels keep
+// padding - margin texels from the border.
 struct Frame {
   int padding = 0;
   int margin = 0;
@@ -93,7 +93,7 @@ std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
 
 // A one-page layout (else unchanged) with the page lowered where it can be:
 // the chart setting its height alone moved, if that lowers the page, to
-// where its top ends lowest (see place_chart: charts rest by their centroid).
+// where its top ends lowest, whatever the frame's Rest.
 void lower_single_page(Layout& layout, const std::vector<ScaledChart>& charts, const Frame& frame,
                        const RunControl& control);
 
