@@ -65,8 +65,9 @@ struct PackResult {
 // or, beyond max_page_size, the fewest pages of that size (the
 // last one shrunk; box area order, resting by the centroid);
 // fixed_page_size: one page of exactly that side (resting by the centroid),
-// charts scaled as large as fit (density_scale is then ignored). Charts keep at least padding / 2 texels from
-// page borders (pages wrap, so both borders together give the full padding).
+// charts scaled as large as fit (density_scale is then ignored). Charts keep
+// at least padding / 2 texels from page borders (pages wrap, so both borders
+// together give the full padding).
 // Throws InputError on bad options, rows not a multiple of 3, or a budget or
 // fixed page too small for the charts' padding alone; non-finite corners are
 // pulled onto their chart's mean corner.
