@@ -570,5 +570,35 @@ TEST(Bake, RejectsBadInputAndHonoursCancel) {
   EXPECT_THROW(bake(sc.old_layout, sc.old_views(), sc.new_layout, sc.new_pages, cancelled), Cancelled);
 }
 
+// A colour map (4 channels) and a normal map (3 channels) baked in one pass come
+// out bit for bit as each baked alone, and the stats count both maps.
+TEST(Bake, MapsBakedInOnePassEqualEachBakedAlone) {
+  auto colour = [](int, const Eigen::Vector2d& xy) { return linear_colour(xy); };
+  auto normal = [](int c, const Eigen::Vector2d& xy) {
+    return Colour{0.5 + 0.3 * xy.x(), 0.5 - 0.2 * c / 4.0, 0.9, 1.0};
+  };
+  const Scene<std::uint8_t> base = scene<std::uint8_t>(old_placements(), reoriented_placements(), 128, {{128, 128}},
+                                                       4, 3.0, colour, Colour{1.0, 0.0, 1.0, 1.0});
+  const Scene<std::uint8_t> normals = scene<std::uint8_t>(old_placements(), reoriented_placements(), 128,
+                                                          {{128, 128}}, 3, 3.0, normal, Colour{0.5, 0.5, 1.0, 1.0});
+  BakeOptions normal_options;
+  normal_options.normal_map = true;
+  BakeStats alone_stats;
+  const Image<std::uint8_t> base_alone = base.bake({}, &alone_stats)[0];
+  const Image<std::uint8_t> normal_alone = normals.bake(normal_options)[0];
+
+  const std::vector<PageSize> old_pages = sizes_of(base.old_views());
+  BakeStats stats;
+  const auto together = bake_maps<std::uint8_t>(base.old_layout.view(old_pages),
+                                                {{base.old_views(), false}, {normals.old_views(), true}},
+                                                base.new_layout.view(base.new_pages), 4, RunControl(), &stats);
+  ASSERT_EQ(together.size(), 2u);
+  EXPECT_EQ(together[0][0].channels, 4);
+  EXPECT_EQ(together[1][0].channels, 3);
+  EXPECT_EQ(together[0][0].texels, base_alone.texels);
+  EXPECT_EQ(together[1][0].texels, normal_alone.texels);
+  EXPECT_EQ(stats.covered_texels, 2 * alone_stats.covered_texels);
+}
+
 }  // namespace
 }  // namespace atlas

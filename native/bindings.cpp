@@ -457,19 +457,28 @@ py::array_t<T> image_array(Image<T>&& image) {
   return py::array_t<T>({image.height, image.width, image.channels}, texels->data(), owner);
 }
 
+// maps[m] is one map's list of old page images, all of one dtype T, named
+// names[m] in errors.
 template <class T>
-py::list bake_typed(LayoutArrays& old_l, const py::list& images, const LayoutArrays& new_l,
-                    const BakeOptions& options, const RunControl& control, BakeStats& stats) {
+py::list bake_typed(LayoutArrays& old_l, const py::list& maps, const std::vector<std::string>& names,
+                    const std::vector<bool>& normal_maps, const LayoutArrays& new_l, int padding,
+                    const RunControl& control, BakeStats& stats) {
   std::vector<py::array> keep;
-  const auto views = image_views<T>(images, "images", keep);
-  for (const ImageView<T>& v : views) old_l.pages.push_back({v.width, v.height});
-  std::vector<Image<T>> baked;
+  std::vector<BakeSource<T>> sources;
+  for (size_t m = 0; m < maps.size(); ++m)
+    sources.push_back({image_views<T>(maps[m].cast<py::list>(), names[m].c_str(), keep), normal_maps[m]});
+  for (const ImageView<T>& v : sources.front().old_pages) old_l.pages.push_back({v.width, v.height});
+  std::vector<std::vector<Image<T>>> baked;
   {
     py::gil_scoped_release release;
-    baked = bake_map<T>(old_l.view(), views, new_l.view(), options, control, &stats);
+    baked = bake_maps<T>(old_l.view(), sources, new_l.view(), padding, control, &stats);
   }
   py::list result;
-  for (auto& image : baked) result.append(image_array(std::move(image)));
+  for (auto& images : baked) {
+    py::list pages;
+    for (auto& image : images) pages.append(image_array(std::move(image)));
+    result.append(pages);
+  }
   return result;
 }
 
@@ -490,28 +499,65 @@ void drop_repeated_faces(LayoutArrays& old_l, LayoutArrays& new_l) {
   }
 }
 
-py::object bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
-                   const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
-                   bool normal_map, int padding, const py::object& progress, const py::object& cancel,
-                   bool with_stats) {
+// dtype of the first image of the first map: every image must share it
+// (image_views names the first that does not).
+bool is_uint8_maps(const py::list& maps, const std::vector<std::string>& names) {
+  if (maps.empty()) throw py::value_error("maps must hold at least one map");
+  return is_uint8_images(maps[0].cast<py::list>(), names[0].c_str());
+}
+
+// bake_maps, its maps named in errors as names gives.
+py::object bake_named_maps(const py::object& old_uvs, const py::object& old_face_page, const py::list& maps,
+                           const std::vector<std::string>& names, const py::object& new_uvs,
+                           const py::object& new_face_page, const py::object& out_sizes,
+                           const py::object& normal_maps, int padding, const py::object& progress,
+                           const py::object& cancel, bool with_stats) {
   const Eigen::Index faces = checked<double>(old_uvs, "old_uvs", {3, 2}, "(F, 3, 2)").shape(0);
   LayoutArrays old_l = layout_arrays(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
   LayoutArrays new_l =
       layout_arrays(new_uvs, new_face_page, faces, "new_uvs", "new_face_page", page_sizes(out_sizes, "out_sizes"));
   if (padding < 0 || padding > 64) throw py::value_error("padding must be 0..64 texels");
+  std::vector<bool> normal(maps.size(), false);
+  if (!normal_maps.is_none()) {
+    normal = normal_maps.cast<std::vector<bool>>();
+    if (normal.size() != maps.size()) throw py::value_error("normal_maps must hold one flag per map");
+  }
   drop_repeated_faces(old_l, new_l);
-  const BakeOptions options{normal_map, padding};
   const RunControl control = control_from(progress, cancel);
   BakeStats stats;
-  const py::list baked = is_uint8_images(images, "images")
-                             ? bake_typed<std::uint8_t>(old_l, images, new_l, options, control, stats)
-                             : bake_typed<float>(old_l, images, new_l, options, control, stats);
+  const py::list baked = is_uint8_maps(maps, names)
+                             ? bake_typed<std::uint8_t>(old_l, maps, names, normal, new_l, padding, control, stats)
+                             : bake_typed<float>(old_l, maps, names, normal, new_l, padding, control, stats);
   if (!with_stats) return baked;
   py::dict d;
   d["covered_texels"] = stats.covered_texels;
   d["copied_texels"] = stats.copied_texels;
   d["copied_share"] = stats.covered_texels > 0 ? static_cast<double>(stats.copied_texels) / stats.covered_texels : 0.0;
   return py::make_tuple(baked, d);
+}
+
+py::object bake_maps_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& maps,
+                        const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
+                        const py::object& normal_maps, int padding, const py::object& progress,
+                        const py::object& cancel, bool with_stats) {
+  std::vector<std::string> names;
+  for (size_t m = 0; m < maps.size(); ++m) names.push_back("maps[" + std::to_string(m) + "]");
+  return bake_named_maps(old_uvs, old_face_page, maps, names, new_uvs, new_face_page, out_sizes, normal_maps,
+                         padding, progress, cancel, with_stats);
+}
+
+py::object bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
+                   const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
+                   bool normal_map, int padding, const py::object& progress, const py::object& cancel,
+                   bool with_stats) {
+  py::list maps;
+  maps.append(images);
+  const py::object baked = bake_named_maps(old_uvs, old_face_page, maps, {"images"}, new_uvs, new_face_page,
+                                           out_sizes, py::cast(std::vector<bool>{normal_map}), padding, progress,
+                                           cancel, with_stats);
+  if (!with_stats) return baked.cast<py::list>()[0];
+  const py::tuple pair = baked.cast<py::tuple>();
+  return py::make_tuple(pair[0].cast<py::list>()[0], pair[1]);
 }
 
 py::dict atlas_dict(const AtlasMeasures& m) {
@@ -675,6 +721,17 @@ normal_map re-orients tangent-space XY per face. with_stats: returns (images,
 dict(covered_texels, copied_texels, copied_share)), copied texels being taken
 unresampled from the old texel they land on (faces moved by whole texels and
 quarter turns only).)");
+
+  m.def("bake_maps", &bake_maps_py, py::arg("old_uvs"), py::arg("old_face_page"), py::arg("maps"),
+        py::arg("new_uvs"), py::arg("new_face_page"), py::arg("out_sizes"), py::kw_only(),
+        py::arg("normal_maps") = py::none(), py::arg("padding") = 4, py::arg("progress") = py::none(),
+        py::arg("cancel") = py::none(), py::arg("with_stats") = false,
+        R"(Bakes several maps of the same pages through the new layout in one pass.
+
+maps: per map, one (H,W,C) uint8 or float32 array per old page (every map one
+dtype; each map's images the same sizes as every other map's; channels may
+differ). normal_maps: one flag per map (default all False). Returns per map one
+array per entry of out_sizes; with_stats as bake, summed over the maps.)");
 
   m.def("read_obj", &read_obj_py, py::arg("path"),
         R"(Reads a Wavefront OBJ file: dict(positions (V,3) float64, texcoords (T,2) float64,

@@ -267,7 +267,7 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     calls = _NativeCalls(native, progress, cancel)
     t_start = time.perf_counter()
     # Share of the progress bar: layout first, then every bake call alike.
-    bake_calls = [(g, role) for g in range(_group_count(job)) for role in _group_roles(job, g)]
+    bake_calls = _bake_batches(job)
     layout_share = 0.5 if bake_calls else 1.0
     bake_share = (1.0 - layout_share) / max(1, len(bake_calls))
 
@@ -276,9 +276,9 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     t_layout = time.perf_counter()
     images: List[OutputImage] = []
     texels = {"covered_texels": 0, "copied_texels": 0}
-    for i, (g, role) in enumerate(bake_calls):
-        baked, stats = _bake_group_role(layout, g, role, options.padding, calls,
-                                        calls.share(layout_share + i * bake_share, bake_share))
+    for i, (g, roles) in enumerate(bake_calls):
+        baked, stats = _bake_group_roles(layout, g, roles, options.padding, calls,
+                                         calls.share(layout_share + i * bake_share, bake_share))
         images.extend(baked)
         for key in texels:
             texels[key] += stats[key]
@@ -310,6 +310,20 @@ def _group_roles(job: JobInput, group: int) -> Tuple[str, ...]:
         if page.group == group:
             return page.roles()
     return ()
+
+
+def _bake_batches(job: JobInput) -> List[Tuple[int, Tuple[str, ...]]]:
+    """(group, roles) per bake call: the roles of a group whose images have the
+    same sizes, page for page, bake in one pass over the new texels."""
+    batches = []
+    for g in range(_group_count(job)):
+        pages = [p for p in job.pages if p.group == g]
+        by_sizes: Dict[tuple, List[str]] = {}
+        for role in _group_roles(job, g):
+            key = tuple(job.images[p.map_for(role).image].size for p in pages)
+            by_sizes.setdefault(key, []).append(role)
+        batches.extend((g, tuple(roles)) for roles in by_sizes.values())
+    return batches
 
 
 def _new_layout(job: JobInput, options: Options, calls: _NativeCalls, progress) -> _Layout:
@@ -349,41 +363,51 @@ def _new_page_groups(layout: _Layout) -> np.ndarray:
     return new_group
 
 
-def _bake_group_role(layout: _Layout, group: int, role: str, padding: int, calls: _NativeCalls,
-                     progress) -> Tuple[List[OutputImage], dict]:
-    """_native.bake of one role of one material group onto its new pages, and
-    what it copied texel for texel (covered_texels, copied_texels)."""
+def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], padding: int, calls: _NativeCalls,
+                      progress) -> Tuple[List[OutputImage], dict]:
+    """_native.bake_maps of some roles of one material group onto its new pages
+    (one call per pixel dtype), and what it copied texel for texel
+    (covered_texels, copied_texels, summed over the roles)."""
     job, mesh = layout.job, layout.job.mesh
     faces = np.nonzero(layout.face_group == group)[0]
+    stats = {"covered_texels": 0, "copied_texels": 0}
     if not len(faces):
-        return [], {"covered_texels": 0, "copied_texels": 0}
+        return [], stats
     old_pages = np.unique(mesh.face_page[faces])
     new_pages = np.unique(layout.face_page[faces])
-    maps = [job.pages[p].map_for(role) for p in old_pages]
-    sources = [job.images[m.image] for m in maps]
-    channels = max(s.pixels.shape[2] for s in sources)
-    dtype = np.float32 if any(s.pixels.dtype != np.uint8 for s in sources) else np.uint8
-    pixels = [_as_bake_pixels(s.pixels.astype(dtype, copy=False), channels) for s in sources]
-    baked, stats = calls(
-        calls.native.bake,
-        np.ascontiguousarray(mesh.uvs[faces], dtype=np.float64),
-        _local_index(old_pages, len(job.pages))[mesh.face_page[faces]],
-        pixels,
-        np.ascontiguousarray(layout.uvs[faces], dtype=np.float64),
-        _local_index(new_pages, len(layout.page_sizes))[layout.face_page[faces]],
-        _output_sizes(layout, old_pages, new_pages, sources),
-        normal_map=any(m.normal_map for m in maps),
-        padding=padding,
-        progress=progress,
-        with_stats=True,
-    )
-    del pixels
-    # The first source of the role names the output and gives its format.
-    first = sources[0]
-    return [OutputImage(page=int(new_pages[q_local]), role=role, source=maps[0].image,
-                        pixels=np.asarray(arr), colorspace=first.colorspace,
-                        is_float=first.is_float, alpha_mode=first.alpha_mode)
-            for q_local, arr in enumerate(baked)], stats
+    by_dtype: Dict[type, List[tuple]] = {}
+    for role in roles:
+        maps = [job.pages[p].map_for(role) for p in old_pages]
+        sources = [job.images[m.image] for m in maps]
+        channels = max(s.pixels.shape[2] for s in sources)
+        dtype = np.float32 if any(s.pixels.dtype != np.uint8 for s in sources) else np.uint8
+        pixels = [_as_bake_pixels(s.pixels.astype(dtype, copy=False), channels) for s in sources]
+        by_dtype.setdefault(dtype, []).append((role, maps, sources, pixels))
+    images: List[OutputImage] = []
+    for batch in by_dtype.values():
+        baked, counted = calls(
+            calls.native.bake_maps,
+            np.ascontiguousarray(mesh.uvs[faces], dtype=np.float64),
+            _local_index(old_pages, len(job.pages))[mesh.face_page[faces]],
+            [pixels for _, _, _, pixels in batch],
+            np.ascontiguousarray(layout.uvs[faces], dtype=np.float64),
+            _local_index(new_pages, len(layout.page_sizes))[layout.face_page[faces]],
+            _output_sizes(layout, old_pages, new_pages, batch[0][2]),
+            normal_maps=[any(m.normal_map for m in maps) for _, maps, _, _ in batch],
+            padding=padding,
+            progress=progress,
+            with_stats=True,
+        )
+        for key in stats:
+            stats[key] += counted[key]
+        # The first source of the role names the output and gives its format.
+        for (role, maps, sources, _), pages in zip(batch, baked):
+            first = sources[0]
+            images.extend(OutputImage(page=int(new_pages[q_local]), role=role, source=maps[0].image,
+                                      pixels=np.asarray(arr), colorspace=first.colorspace,
+                                      is_float=first.is_float, alpha_mode=first.alpha_mode)
+                          for q_local, arr in enumerate(pages))
+    return images, stats
 
 
 def _local_index(pages: np.ndarray, count: int) -> np.ndarray:

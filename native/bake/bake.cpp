@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <limits>
 #include <sstream>
+#include <tuple>
 
 #include "bake/pull_push_fill.hpp"
 #include "bake/sample_texture.hpp"
@@ -165,18 +166,66 @@ FaceMap map_face(int f, const UvLayout& old_layout, const PageSize& old_size, co
   return face;
 }
 
-template <class T>
-std::vector<FaceMap> map_faces(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
-                               const UvLayout& new_layout, const std::vector<PageSize>& new_pages) {
+std::vector<FaceMap> map_faces(const UvLayout& old_layout, const UvLayout& new_layout) {
   const int face_count = static_cast<int>(new_layout.face_page->size());
   std::vector<FaceMap> faces(face_count);
 #pragma omp parallel for schedule(static)
-  for (int f = 0; f < face_count; ++f) {
-    const ImageView<T>& old_page = old_pages[(*old_layout.face_page)[f]];
-    faces[f] = map_face(f, old_layout, PageSize{old_page.width, old_page.height}, new_layout,
-                        new_pages[(*new_layout.face_page)[f]]);
-  }
+  for (int f = 0; f < face_count; ++f)
+    faces[f] = map_face(f, old_layout, (*old_layout.pages)[(*old_layout.face_page)[f]], new_layout,
+                        (*new_layout.pages)[(*new_layout.face_page)[f]]);
   return faces;
+}
+
+// Per face, bit k set when its edge from corner k to corner k + 1 is a
+// chart border of the new layout: not shared (same page, same two corner
+// positions) with exactly one other face lying on its other side. The union
+// of the faces is bounded by these edges alone (stacked or folded faces keep
+// theirs), so the point of the union nearest to a texel outside it lies on
+// one of them. Degenerate faces are never rasterised and count for none.
+// Whether the faces of two coinciding edges (3 f + k) lie on either side of it.
+bool opposite_sides(const std::vector<FaceMap>& faces, int edge_a, int edge_b) {
+  auto side = [&](int edge) {
+    const FaceMap& face = faces[edge / 3];
+    const int k = edge % 3;
+    const Eigen::Vector2d a = face.corner[k], b = face.corner[(k + 1) % 3], c = face.corner[(k + 2) % 3];
+    return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x() > 0;
+  };
+  // Both corners of the edge are shared; it may run the other way in the second face.
+  const FaceMap& fa = faces[edge_a / 3];
+  const FaceMap& fb = faces[edge_b / 3];
+  const bool same_direction = fa.corner[edge_a % 3] == fb.corner[edge_b % 3];
+  return (side(edge_a) != side(edge_b)) == same_direction;
+}
+
+std::vector<std::uint8_t> border_edges(const std::vector<FaceMap>& faces) {
+  struct Edge {
+    int page;
+    std::array<double, 4> ends;  // the lexicographically smaller corner first
+    int face_edge;               // 3 f + k
+    bool operator<(const Edge& o) const { return std::tie(page, ends, face_edge) < std::tie(o.page, o.ends, o.face_edge); }
+    bool same_place(const Edge& o) const { return page == o.page && ends == o.ends; }
+  };
+  std::vector<Edge> edges;
+  edges.reserve(3 * faces.size());
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    if (faces[f].new_page < 0) continue;
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Vector2d a = faces[f].corner[k], b = faces[f].corner[(k + 1) % 3];
+      if (std::tie(b.x(), b.y()) < std::tie(a.x(), a.y())) std::swap(a, b);
+      edges.push_back({faces[f].new_page, {a.x(), a.y(), b.x(), b.y()}, static_cast<int>(3 * f + k)});
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  std::vector<std::uint8_t> border(faces.size(), 0);
+  for (std::size_t i = 0; i < edges.size();) {
+    std::size_t j = i + 1;
+    while (j < edges.size() && edges[j].same_place(edges[i])) ++j;
+    if (j - i != 2 || !opposite_sides(faces, edges[i].face_edge, edges[i + 1].face_edge))
+      for (std::size_t e = i; e < j; ++e)
+        border[edges[e].face_edge / 3] |= static_cast<std::uint8_t>(1 << (edges[e].face_edge % 3));
+    i = j;
+  }
+  return border;
 }
 
 // Inclusive texel ranges whose centres lie within `reach` texels of the face's bounding
@@ -268,31 +317,28 @@ void reorient_normal(const Eigen::Matrix2d& frame_turn, double* channels) {
 template <class T>
 struct BakeJob {
   const std::vector<FaceMap>& faces;
-  const std::vector<ImageView<T>>& old_pages;
-  const BakeOptions& options;
+  const std::vector<std::uint8_t>& border;  // see border_edges
+  const std::vector<BakeSource<T>>& maps;
+  int padding;
 };
 
-// Value of new-page point p (texels) of a face: old page sampled over the footprint.
+// Value of one map at old-page point `at` (texels) of a face: the old page
+// sampled over the face's footprint.
 template <class T>
-void bake_texel(const BakeJob<T>& job, const FaceMap& face, const Eigen::Vector2d& p, T* out) {
-  const ImageView<T>& old_page = job.old_pages[face.old_page];
+void bake_texel(const BakeSource<T>& map, const FaceMap& face, const Eigen::Vector2d& at, T* out) {
+  const ImageView<T>& old_page = map.old_pages[face.old_page];
   double value[kMaxTexelChannels];
-  sample_texture(old_page, face.old_position(p), face.footprint, value);
-  if (job.options.normal_map) reorient_normal<T>(face.frame_turn, value);
+  sample_texture(old_page, at, face.footprint, value);
+  if (map.normal_map) reorient_normal<T>(face.frame_turn, value);
   for (int k = 0; k < old_page.channels; ++k) out[k] = encode_texel<T>(value[k]);
 }
 
-// Value of new texel centre p of a copying face: the old texel it lands on.
+// Value of one map at the old texel (x, y) a copying face's texel centre lands on.
 template <class T>
-void copy_texel(const BakeJob<T>& job, const FaceMap& face, const Eigen::Vector2d& p, T* out) {
-  const ImageView<T>& old_page = job.old_pages[face.old_page];
-  const Eigen::Vector2d at = face.old_position(p);
-  // Wrapped as sample_texture wraps.
-  const int w = old_page.width, h = old_page.height;
-  const int x = ((static_cast<int>(std::lround(at.x() - 0.5)) % w) + w) % w;
-  const int y = ((static_cast<int>(std::lround(at.y() - 0.5)) % h) + h) % h;
-  const T* texel = old_page.texels + (static_cast<std::size_t>(y) * w + x) * old_page.channels;
-  if (!job.options.normal_map) {
+void copy_texel(const BakeSource<T>& map, const FaceMap& face, int x, int y, T* out) {
+  const ImageView<T>& old_page = map.old_pages[face.old_page];
+  const T* texel = old_page.texels + (static_cast<std::size_t>(y) * old_page.width + x) * old_page.channels;
+  if (!map.normal_map) {
     std::copy(texel, texel + old_page.channels, out);
     return;
   }
@@ -304,16 +350,40 @@ void copy_texel(const BakeJob<T>& job, const FaceMap& face, const Eigen::Vector2
 
 // ---- rasterisation ---------------------------------------------------------
 
-// Rows [row0, row1] of one page, with the set flags of its texels.
+// Rows [row0, row1] of one new page p, in every map, with the set flags of its texels.
 template <class T>
 struct BandTarget {
-  int row0, row1;
-  Image<T>& page;
+  int row0, row1, width, height;
+  int p;
+  std::vector<std::vector<Image<T>>>& maps;  // [map][page]
   std::vector<std::uint8_t>& is_set;
 
-  std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * page.width + x; }
-  T* texel(std::size_t i) const { return page.texels.data() + i * page.channels; }
+  std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * width + x; }
+  T* texel(std::size_t m, std::size_t i) const {
+    Image<T>& page = maps[m][p];
+    return page.texels.data() + i * page.channels;
+  }
 };
+
+// Every map's value at new-page point p of the face.
+template <class T>
+void bake_texels(const BakeJob<T>& job, const FaceMap& face, const Eigen::Vector2d& p, const BandTarget<T>& band,
+                 std::size_t i) {
+  const Eigen::Vector2d at = face.old_position(p);
+  for (std::size_t m = 0; m < job.maps.size(); ++m) bake_texel(job.maps[m], face, at, band.texel(m, i));
+}
+
+// Every map's value at new texel centre p of a copying face: the old texel it
+// lands on, wrapped as sample_texture wraps.
+template <class T>
+void copy_texels(const BakeJob<T>& job, const FaceMap& face, const Eigen::Vector2d& p, const BandTarget<T>& band,
+                 std::size_t i) {
+  const Eigen::Vector2d at = face.old_position(p);
+  const PageSize size{job.maps[0].old_pages[face.old_page].width, job.maps[0].old_pages[face.old_page].height};
+  const int x = ((static_cast<int>(std::lround(at.x() - 0.5)) % size.width) + size.width) % size.width;
+  const int y = ((static_cast<int>(std::lround(at.y() - 0.5)) % size.height) + size.height) % size.height;
+  for (std::size_t m = 0; m < job.maps.size(); ++m) copy_texel(job.maps[m], face, x, y, band.texel(m, i));
+}
 
 // Bakes the texels of the band whose centres the face claims and no earlier face took.
 // TexelTriangle decides coverage exactly, so faces sharing an edge tile it without gaps.
@@ -323,17 +393,17 @@ void cover_band(const BakeJob<T>& job, const FaceMap& face, const BandTarget<T>&
   for (int y = std::max(face.raster.row_begin, band.row0); y <= last_row; ++y) {
     int x0, x1;
     face.raster.row_span(y, x0, x1);
-    for (int x = std::max(x0, 0); x < std::min(x1, band.page.width); ++x) {
+    for (int x = std::max(x0, 0); x < std::min(x1, band.width); ++x) {
       const std::size_t i = band.index(x, y);
       if (band.is_set[i]) continue;
       band.is_set[i] = 1;
       ++stats.covered_texels;
       const Eigen::Vector2d centre(x + 0.5, y + 0.5);
       if (face.copies) {
-        copy_texel(job, face, centre, band.texel(i));
+        copy_texels(job, face, centre, band, i);
         ++stats.copied_texels;
       } else {
-        bake_texel(job, face, centre, band.texel(i));
+        bake_texels(job, face, centre, band, i);
       }
     }
   }
@@ -368,29 +438,31 @@ Eigen::Vector2d closest_on_segment(const Eigen::Vector2d& a, const Eigen::Vector
   return a + t * d;
 }
 
-// For a point not covered by the triangle the closest point lies on its boundary.
-Eigen::Vector2d closest_on_boundary(const FaceMap& face, const Eigen::Vector2d& p) {
-  Eigen::Vector2d best = closest_on_segment(face.corner[0], face.corner[1], p);
-  for (int k = 1; k < 3; ++k) {
+// The closest point to p on the face's border edges (edges: its bits, not 0).
+Eigen::Vector2d closest_on_border(const FaceMap& face, std::uint8_t edges, const Eigen::Vector2d& p) {
+  Eigen::Vector2d best;
+  double best_d2 = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    if (!(edges >> k & 1)) continue;
     const Eigen::Vector2d q = closest_on_segment(face.corner[k], face.corner[(k + 1) % 3], p);
-    if ((q - p).squaredNorm() < (best - p).squaredNorm()) best = q;
+    if ((q - p).squaredNorm() < best_d2) best = q, best_d2 = (q - p).squaredNorm();
   }
   return best;
 }
 
 // Records the face as the padding source of uncovered texels within `padding` texels
-// (centre to triangle) that no earlier face is strictly closer to.
+// (centre to its border edges) that no earlier face is strictly closer to.
 template <class T>
-void collect_padding(const FaceMap& face, int face_index, double padding, const BandTarget<T>& band,
-                     PaddingCandidates& candidates) {
-  const TexelBox box = texel_box(face, padding, band.page.width, band.page.height);
+void collect_padding(const FaceMap& face, std::uint8_t edges, int face_index, double padding,
+                     const BandTarget<T>& band, PaddingCandidates& candidates) {
+  const TexelBox box = texel_box(face, padding, band.width, band.height);
   for (int y = std::max(box.y0, band.row0); y <= std::min(box.y1, band.row1); ++y)
     for (int x = box.x0; x <= box.x1; ++x) {
       if (band.is_set[band.index(x, y)]) continue;
       const Eigen::Vector2d p(x + 0.5, y + 0.5);
-      const Eigen::Vector2d q = closest_on_boundary(face, p);
+      const Eigen::Vector2d q = closest_on_border(face, edges, p);
       const double d2 = (q - p).squaredNorm();
-      const std::size_t local = static_cast<std::size_t>(y - band.row0) * band.page.width + x;
+      const std::size_t local = static_cast<std::size_t>(y - band.row0) * band.width + x;
       if (d2 > padding * padding || d2 >= candidates.distance2[local]) continue;
       if (candidates.face[local] < 0) candidates.touched.push_back(local);
       candidates.distance2[local] = d2;
@@ -405,21 +477,23 @@ template <class T>
 void pad_band(const BakeJob<T>& job, const int* band_faces, int count, const BandTarget<T>& band,
               PaddingCandidates& candidates) {
   for (int j = 0; j < count; ++j)
-    collect_padding(job.faces[band_faces[j]], band_faces[j], job.options.padding, band, candidates);
+    if (const std::uint8_t edges = job.border[band_faces[j]])
+      collect_padding(job.faces[band_faces[j]], edges, band_faces[j], job.padding, band, candidates);
   for (std::size_t local : candidates.touched) {
     const std::size_t i = band.index(0, band.row0) + local;
     band.is_set[i] = 1;
-    bake_texel(job, job.faces[candidates.face[local]], candidates.point[local], band.texel(i));
+    bake_texels(job, job.faces[candidates.face[local]], candidates.point[local], band, i);
   }
   candidates.clear();
 }
 
 template <class T>
-void rasterize(const BakeJob<T>& job, const BandFaces& bins, std::vector<Image<T>>& pages,
-               std::vector<std::vector<std::uint8_t>>& is_set, const RunControl& control, BakeStats& stats) {
+void rasterize(const BakeJob<T>& job, const BandFaces& bins, const std::vector<PageSize>& pages,
+               std::vector<std::vector<Image<T>>>& baked, std::vector<std::vector<std::uint8_t>>& is_set,
+               const RunControl& control, BakeStats& stats) {
   const int band_count = bins.page_first_band.back();
   int widest = 0;
-  for (const Image<T>& page : pages) widest = std::max(widest, page.width);
+  for (const PageSize& page : pages) widest = std::max(widest, page.width);
   // Allocated up front: nothing may throw inside the parallel region.
   std::vector<PaddingCandidates> scratch;
   for (int t = 0; t < omp_get_max_threads(); ++t)
@@ -432,11 +506,12 @@ void rasterize(const BakeJob<T>& job, const BandFaces& bins, std::vector<Image<T
     const auto after = std::upper_bound(bins.page_first_band.begin(), bins.page_first_band.end(), b);
     const int p = static_cast<int>(after - bins.page_first_band.begin()) - 1;
     const int row0 = (b - bins.page_first_band[p]) * kBandRows;
-    const BandTarget<T> band{row0, std::min(row0 + kBandRows, pages[p].height) - 1, pages[p], is_set[p]};
+    const BandTarget<T> band{row0, std::min(row0 + kBandRows, pages[p].height) - 1, pages[p].width, pages[p].height,
+                             p, baked, is_set[p]};
     const int* band_faces = bins.face.data() + bins.start[b];
     const int count = bins.start[b + 1] - bins.start[b];
     for (int j = 0; j < count; ++j) cover_band(job, job.faces[band_faces[j]], band, band_stats);
-    if (job.options.padding > 0) pad_band(job, band_faces, count, band, scratch[omp_get_thread_num()]);
+    if (job.padding > 0) pad_band(job, band_faces, count, band, scratch[omp_get_thread_num()]);
     covered += band_stats.covered_texels;
     copied += band_stats.copied_texels;
   }
@@ -448,42 +523,63 @@ void rasterize(const BakeJob<T>& job, const BandFaces& bins, std::vector<Image<T
 }  // namespace
 
 template <class T>
+std::vector<std::vector<Image<T>>> bake_maps(const UvLayout& old_layout, const std::vector<BakeSource<T>>& maps,
+                                             const UvLayout& new_layout, int padding, const RunControl& control,
+                                             BakeStats* stats) {
+  if (maps.empty()) throw InputError("bake: no map given");
+  const Eigen::Index face_count = old_layout.face_page ? old_layout.face_page->size() : 0;
+  require_layout(old_layout, face_count, "bake: old layout", Untextured::refused);
+  require_layout(new_layout, face_count, "bake: new layout", Untextured::refused);
+  for (const BakeSource<T>& map : maps) {
+    const int channels = require_old_pages(map.old_pages);
+    require_matching_pages(map.old_pages, *old_layout.pages);
+    if (map.normal_map && channels < 2) throw InputError("bake: a normal map needs at least 2 channels");
+  }
+  const std::vector<PageSize>& new_pages = *new_layout.pages;
+  if (new_pages.empty()) throw InputError("bake: no new page sizes given");
+  if (padding < 0) throw InputError("bake: padding must not be negative");
+  control.throw_if_cancelled();
+
+  const std::vector<FaceMap> faces = map_faces(old_layout, new_layout);
+  // One extra texel of reach: coverage uses vertices snapped to 1/256 texel.
+  const BandFaces bins = bin_faces(faces, new_pages, padding + 1.0);
+  const std::vector<std::uint8_t> border = border_edges(faces);
+  std::vector<std::vector<Image<T>>> baked(maps.size(), std::vector<Image<T>>(new_pages.size()));
+  std::vector<std::vector<std::uint8_t>> is_set(new_pages.size());
+  for (std::size_t p = 0; p < new_pages.size(); ++p) {
+    const std::size_t texels = static_cast<std::size_t>(new_pages[p].width) * new_pages[p].height;
+    for (std::size_t m = 0; m < maps.size(); ++m) {
+      Image<T>& image = baked[m][p];
+      image.width = new_pages[p].width;
+      image.height = new_pages[p].height;
+      image.channels = maps[m].old_pages[0].channels;
+      image.texels.resize(texels * image.channels);
+    }
+    is_set[p].assign(texels, 0);
+  }
+  // Sampling is most of the work; the fill of each image takes the rest.
+  BakeStats counted;
+  rasterize(BakeJob<T>{faces, border, maps, padding}, bins, new_pages, baked, is_set, control, counted);
+  if (stats) {
+    stats->covered_texels = counted.covered_texels * static_cast<long long>(maps.size());
+    stats->copied_texels = counted.copied_texels * static_cast<long long>(maps.size());
+  }
+  control.progress("bake", 0.8);
+  const std::size_t images = maps.size() * new_pages.size();
+  for (std::size_t i = 0; i < images; ++i) {
+    pull_push_fill(baked[i / new_pages.size()][i % new_pages.size()], is_set[i % new_pages.size()], control);
+    control.progress("bake", 0.8 + 0.2 * double(i + 1) / images);
+  }
+  return baked;
+}
+
+template <class T>
 std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
                                const UvLayout& new_layout, const BakeOptions& options, const RunControl& control,
                                BakeStats* stats) {
-  const int channels = require_old_pages(old_pages);
-  const Eigen::Index face_count = old_layout.face_page ? old_layout.face_page->size() : 0;
-  require_layout(old_layout, face_count, "bake: old layout", Untextured::refused);
-  require_matching_pages(old_pages, *old_layout.pages);
-  require_layout(new_layout, face_count, "bake: new layout", Untextured::refused);
-  const std::vector<PageSize>& new_pages = *new_layout.pages;
-  if (new_pages.empty()) throw InputError("bake: no new page sizes given");
-  if (options.padding < 0) throw InputError("bake: padding must not be negative");
-  if (options.normal_map && channels < 2) throw InputError("bake: a normal map needs at least 2 channels");
-  control.throw_if_cancelled();
-
-  const std::vector<FaceMap> faces = map_faces(old_layout, old_pages, new_layout, new_pages);
-  // One extra texel of reach: coverage uses vertices snapped to 1/256 texel.
-  const BandFaces bins = bin_faces(faces, new_pages, options.padding + 1.0);
-  std::vector<Image<T>> baked(new_pages.size());
-  std::vector<std::vector<std::uint8_t>> is_set(new_pages.size());
-  for (std::size_t p = 0; p < new_pages.size(); ++p) {
-    baked[p].width = new_pages[p].width;
-    baked[p].height = new_pages[p].height;
-    baked[p].channels = channels;
-    baked[p].texels.resize(static_cast<std::size_t>(new_pages[p].width) * new_pages[p].height * channels);
-    is_set[p].assign(static_cast<std::size_t>(new_pages[p].width) * new_pages[p].height, 0);
-  }
-  // Sampling is most of the work; the fill of each page takes the rest.
-  BakeStats counted;
-  rasterize(BakeJob<T>{faces, old_pages, options}, bins, baked, is_set, control, counted);
-  if (stats) *stats = counted;
-  control.progress("bake", 0.8);
-  for (std::size_t p = 0; p < baked.size(); ++p) {
-    pull_push_fill(baked[p], is_set[p], control);
-    control.progress("bake", 0.8 + 0.2 * double(p + 1) / baked.size());
-  }
-  return baked;
+  return std::move(bake_maps<T>(old_layout, {{old_pages, options.normal_map}}, new_layout, options.padding, control,
+                                stats)
+                       .front());
 }
 
 template std::vector<Image<std::uint8_t>> bake_map<std::uint8_t>(const UvLayout&,
@@ -493,5 +589,9 @@ template std::vector<Image<std::uint8_t>> bake_map<std::uint8_t>(const UvLayout&
 template std::vector<Image<float>> bake_map<float>(const UvLayout&, const std::vector<ImageView<float>>&,
                                                    const UvLayout&, const BakeOptions&, const RunControl&,
                                                    BakeStats*);
+template std::vector<std::vector<Image<std::uint8_t>>> bake_maps<std::uint8_t>(
+    const UvLayout&, const std::vector<BakeSource<std::uint8_t>>&, const UvLayout&, int, const RunControl&, BakeStats*);
+template std::vector<std::vector<Image<float>>> bake_maps<float>(const UvLayout&, const std::vector<BakeSource<float>>&,
+                                                                 const UvLayout&, int, const RunControl&, BakeStats*);
 
 }  // namespace atlas

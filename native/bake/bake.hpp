@@ -32,10 +32,11 @@ struct ImageView {
 
 struct BakeOptions {
   bool normal_map = false;  // tangent-space normal map: XY re-oriented per face
-  int padding = 4;          // texels around charts filled with edge colour before pull-push
+  int padding = 4;          // texels around charts filled with edge colour before pull-push; 0: none
 };
 
-// What the bake did with the texels its faces cover (padding and fill not counted).
+// What the bake did with the texels its faces cover (padding and fill not
+// counted), summed over the maps baked.
 struct BakeStats {
   long long covered_texels = 0;
   // Copied from one old texel, unresampled: the face only moved by whole
@@ -43,10 +44,26 @@ struct BakeStats {
   long long copied_texels = 0;
 };
 
-// Bakes one map (uint8_t or float texels) onto the pages of new_layout.
-// old_pages[p] is the image of old page p, of the size old_layout gives it.
-// Every face must be textured in both layouts. stats, when given, receives
-// what was copied and what resampled.
+// One map of a bake_maps call: old_pages[p] is its image of old page p.
+template <class T>
+struct BakeSource {
+  std::vector<ImageView<T>> old_pages;
+  bool normal_map = false;  // tangent-space normal map: XY re-oriented per face
+};
+
+// Bakes several maps (uint8_t or float texels) of the same old pages onto the
+// pages of new_layout in one pass: which face covers or pads each new texel,
+// and where that texel lands in the old page, is worked out once for all of
+// them. Every map's images have the sizes old_layout gives its pages (maps of
+// other sizes need a call of their own); channel counts may differ. Every face
+// must be textured in both layouts. Returns out[map][new page]; stats, when
+// given, receives what was copied and what resampled.
+template <class T>
+std::vector<std::vector<Image<T>>> bake_maps(const UvLayout& old_layout, const std::vector<BakeSource<T>>& maps,
+                                             const UvLayout& new_layout, int padding, const RunControl& control,
+                                             BakeStats* stats = nullptr);
+
+// bake_maps of one map.
 template <class T>
 std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<ImageView<T>>& old_pages,
                                const UvLayout& new_layout, const BakeOptions& options, const RunControl& control,

@@ -76,27 +76,24 @@ inline int wrapped(int i, int n) { return i >= 0 && i < n ? i : (i % n + n) % n;
 
 // Catmull-Rom over the 4 x 4 texels around the taps, each channel clamped to
 // the range of the four bilinear texels: no ringing past the values it blends.
+// Separable: each row is filtered along x, then the four rows along y.
 template <int C, class T>
 void cubic_blend(const ImageView<T>& page, const Tap& x, const Tap& y, double* out) {
   double wx[4], wy[4];
   catmull_rom_weights(x.t, wx);
   catmull_rom_weights(y.t, wy);
-  int column[4], row[4];
-  for (int i = 0; i < 4; ++i) {
-    column[i] = wrapped(x.lo - 1 + i, page.width);
-    row[i] = wrapped(y.lo - 1 + i, page.height);
-  }
+  int column[4];
+  for (int i = 0; i < 4; ++i) column[i] = C * wrapped(x.lo - 1 + i, page.width);
   const std::size_t stride = static_cast<std::size_t>(page.width) * C;
   double sum[C] = {}, lo[C], hi[C];
   for (int k = 0; k < C; ++k) lo[k] = std::numeric_limits<double>::infinity(), hi[k] = -lo[k];
   for (int j = 0; j < 4; ++j) {
-    const T* r = page.texels + stride * row[j];
-    for (int i = 0; i < 4; ++i)
-      for (int k = 0; k < C; ++k) {
-        const double v = r[column[i] * C + k];
-        sum[k] += wy[j] * wx[i] * v;
-        if ((i == 1 || i == 2) && (j == 1 || j == 2)) lo[k] = std::min(lo[k], v), hi[k] = std::max(hi[k], v);
-      }
+    const T* r = page.texels + stride * wrapped(y.lo - 1 + j, page.height);
+    for (int k = 0; k < C; ++k) {
+      const double v0 = r[column[0] + k], v1 = r[column[1] + k], v2 = r[column[2] + k], v3 = r[column[3] + k];
+      sum[k] += wy[j] * (wx[0] * v0 + wx[1] * v1 + wx[2] * v2 + wx[3] * v3);
+      if (j == 1 || j == 2) lo[k] = std::min({lo[k], v1, v2}), hi[k] = std::max({hi[k], v1, v2});
+    }
   }
   for (int k = 0; k < C; ++k) out[k] = std::clamp(sum[k], lo[k], hi[k]);
 }
