@@ -1,28 +1,29 @@
 #include "flatten/cut_to_disk.hpp"
 
 #include <algorithm>
-#include <map>
+#include <cstdint>
 #include <queue>
-#include <set>
 
 #include "core/corners.hpp"
 
 namespace atlas {
 namespace {
 
-using Edge = std::pair<int, int>;  // undirected, smaller index first
-
-Edge undirected(int a, int b) { return {std::min(a, b), std::max(a, b)}; }
+// Corners of t sorted by their undirected edge (see corners_by_edge).
+std::vector<std::pair<std::int64_t, int>> keyed_corners(const RowMatrixX3i& t) {
+  return corners_by_edge(static_cast<int>(3 * t.rows()), [&](int c) { return corner_vertex(t, c); });
+}
 
 // Boundary loop id of every vertex (-1 inside); returns the number of loops.
 int label_boundary_loops(const RowMatrixX3i& t, int vertex_count, std::vector<int>& loop_of) {
-  std::map<Edge, int> uses;
-  for (Eigen::Index f = 0; f < t.rows(); ++f)
-    for (int k = 0; k < 3; ++k) ++uses[undirected(t(f, k), t(f, (k + 1) % 3))];
+  std::vector<char> on_boundary(3 * t.rows(), 0);
+  const auto keyed = keyed_corners(t);
+  for_each_edge_run(keyed, [&](int first, int count) {
+    for (int i = first; i < first + count; ++i) on_boundary[keyed[i].second] = count == 1;
+  });
   std::vector<int> next(vertex_count, -1);
-  for (Eigen::Index f = 0; f < t.rows(); ++f)
-    for (int k = 0; k < 3; ++k)
-      if (uses[undirected(t(f, k), t(f, (k + 1) % 3))] == 1) next[t(f, k)] = t(f, (k + 1) % 3);
+  for (int c = 0; c < static_cast<int>(on_boundary.size()); ++c)
+    if (on_boundary[c]) next[corner_vertex(t, c)] = corner_vertex(t, next_corner(c));
   loop_of.assign(vertex_count, -1);
   int loops = 0;
   for (int v = 0; v < vertex_count; ++v) {
@@ -60,22 +61,21 @@ std::vector<int> path_between_loops(const RowMatrixX3i& t, const std::vector<int
   return {};
 }
 
-// Renumbers vertices so corners share a vertex only across edges not in `cut`.
-void split_along(RowMatrixX3i& t, std::vector<int>& vertex_source, const std::set<Edge>& cut) {
-  const int corners = static_cast<int>(3 * t.rows());
-  UnionFind classes(corners);
-  std::map<Edge, int> first_corner;  // corner starting the edge, first face seen
-  for (int c = 0; c < corners; ++c) {
-    const int a = corner_vertex(t, c), b = corner_vertex(t, next_corner(c));
-    const Edge e = undirected(a, b);
-    if (cut.count(e)) continue;
-    const auto [it, fresh] = first_corner.emplace(e, c);
-    if (fresh) continue;
-    // The other face runs b -> a: its corner at b is it->second, at a the next one.
-    const int o = it->second;
-    classes.unite(c, next_corner(o));
-    classes.unite(next_corner(c), o);
-  }
+// Renumbers vertices so corners share a vertex only across edges not in
+// `cut` (edge keys, sorted). Every later corner of an edge joins its first.
+void split_along(RowMatrixX3i& t, std::vector<int>& vertex_source, const std::vector<std::int64_t>& cut) {
+  UnionFind classes(static_cast<int>(3 * t.rows()));
+  const auto keyed = keyed_corners(t);
+  for_each_edge_run(keyed, [&](int first, int count) {
+    if (std::binary_search(cut.begin(), cut.end(), keyed[first].first)) return;
+    // The other face runs b -> a: its corner at b is o, at a the next one.
+    const int o = keyed[first].second;
+    for (int i = first + 1; i < first + count; ++i) {
+      const int c = keyed[i].second;
+      classes.unite(c, next_corner(o));
+      classes.unite(next_corner(c), o);
+    }
+  });
   std::vector<int> source;
   RowMatrixX3i out;
   vertices_from_corner_classes(
@@ -94,23 +94,25 @@ bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source) {
       // Closed: slit open along two edges of one face, which makes a loop of
       // four edges (two would put the whole boundary on one segment).
       if (triangles.rows() == 0) return false;
-      split_along(triangles, vertex_source,
-                  {undirected(triangles(0, 0), triangles(0, 1)), undirected(triangles(0, 0), triangles(0, 2))});
+      std::vector<std::int64_t> cut = {edge_key(triangles(0, 0), triangles(0, 1)),
+                                       edge_key(triangles(0, 0), triangles(0, 2))};
+      std::sort(cut.begin(), cut.end());
+      split_along(triangles, vertex_source, cut);
       continue;
     }
     if (loops == 1) break;
     const std::vector<int> path = path_between_loops(triangles, loop_of);
     if (path.empty()) return false;
     // Named in the current numbering; once split, these edges are boundary.
-    std::set<Edge> cut;
-    for (size_t i = 0; i + 1 < path.size(); ++i) cut.insert(undirected(path[i], path[i + 1]));
+    std::vector<std::int64_t> cut;
+    for (size_t i = 0; i + 1 < path.size(); ++i) cut.push_back(edge_key(path[i], path[i + 1]));
+    std::sort(cut.begin(), cut.end());
     split_along(triangles, vertex_source, cut);
   }
   // One loop: a disk exactly when chi = V - E + F == 1 (otherwise handles remain).
-  std::set<Edge> edges;
-  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
-    for (int k = 0; k < 3; ++k) edges.insert(undirected(triangles(f, k), triangles(f, (k + 1) % 3)));
-  return static_cast<long long>(vertex_source.size()) - static_cast<long long>(edges.size()) + triangles.rows() == 1;
+  long long edges = 0;
+  for_each_edge_run(keyed_corners(triangles), [&](int, int) { ++edges; });
+  return static_cast<long long>(vertex_source.size()) - edges + triangles.rows() == 1;
 }
 
 }  // namespace atlas
