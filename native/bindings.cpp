@@ -575,7 +575,7 @@ py::dict atlas_dict(const AtlasMeasures& m) {
 
 py::dict measure_py(const py::object& positions, const py::object& triangles, const py::object& old_uvs,
                     const py::object& old_face_page, const py::object& old_sizes, const py::object& new_uvs,
-                    const py::object& new_face_page, const py::object& new_sizes) {
+                    const py::object& new_face_page, const py::object& new_sizes, bool with_old) {
   const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, page_sizes(old_sizes, "old_page_sizes"));
   const LayoutArrays new_l = layout_arrays(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page",
                                            page_sizes(new_sizes, "new_page_sizes"));
@@ -586,7 +586,7 @@ py::dict measure_py(const py::object& positions, const py::object& triangles, co
   {
     py::gil_scoped_release release;
     const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
-    before = measure_atlas(mesh, topology, old_atlas);
+    if (with_old) before = measure_atlas(mesh, topology, old_atlas);
     after = measure_atlas(mesh, topology, new_atlas);
     map = measure_map(mesh, old_atlas, new_atlas);
   }
@@ -599,10 +599,21 @@ py::dict measure_py(const py::object& positions, const py::object& triangles, co
   m["angle_error_p90"] = map.angle_error_p90;
   m["angle_error_p99"] = map.angle_error_p99;
   py::dict d;
-  d["old"] = atlas_dict(before);
+  if (with_old) d["old"] = atlas_dict(before);
   d["new"] = atlas_dict(after);
   d["map"] = m;
   return d;
+}
+
+py::dict measure_atlas_py(const py::object& positions, const py::object& triangles, const py::object& uvs,
+                          const py::object& face_page, const py::object& sizes) {
+  const Mesh mesh = mesh_from(positions, triangles, uvs, face_page, page_sizes(sizes, "page_sizes"));
+  AtlasMeasures measures;
+  {
+    py::gil_scoped_release release;
+    measures = measure_atlas(mesh, build_topology(mesh.triangles, mesh.vertex_count()), layout_of(mesh));
+  }
+  return atlas_dict(measures);
 }
 
 std::vector<PageSize> image_sizes(const py::list& images, const char* name) {
@@ -748,7 +759,13 @@ after `usemtl materials[m]`. Numbers as %.9g.)");
 
   m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),
-        py::arg("new_page_sizes"), "Metrics of the old and new atlases and of the map between them.");
+        py::arg("new_page_sizes"), py::kw_only(), py::arg("with_old") = true,
+        R"(Metrics of the old and new atlases and of the map between them: dict(old, new, map);
+with_old=False leaves out "old" (measure_atlas gives it on its own).)");
+
+  m.def("measure_atlas", &measure_atlas_py, py::arg("positions"), py::arg("triangles"), py::arg("uvs"),
+        py::arg("face_page"), py::arg("page_sizes"),
+        "Metrics of one atlas, as measure gives them for the old or the new one.");
 
   m.def("compare_colors", &compare_colors_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_images"), py::arg("new_uvs"), py::arg("new_face_page"),

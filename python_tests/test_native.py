@@ -49,6 +49,14 @@ def test_new_atlas_has_no_flips_and_no_shared_texels(native, tetra_result):
     assert m["new"]["flipped_faces"] == 0
 
 
+def test_one_atlas_measures_as_in_the_pair(native, tetra_result):
+    scan, result = tetra_result
+    pair = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
+    assert native.measure_atlas(*args(scan)) == pair["old"]
+    new_only = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"], with_old=False)
+    assert "old" not in new_only and new_only["new"] == pair["new"] and new_only["map"] == pair["map"]
+
+
 # The Meshroom scan's input has 507 flipped faces: charts whose UVs fold over,
 # and 48 small closed components each mapped as one chart. None may stay flipped.
 def test_fold_overs_in_the_input_end_unfolded(native, defragmented):

@@ -534,7 +534,7 @@ def _shared_atlas_measures(pkg, names, uv_map):
     pos, tri = np.concatenate(positions), np.concatenate(triangles).astype(np.int32)
     uv, fp = np.concatenate(uvs), np.concatenate(face_page).astype(np.int32)
     size = np.array(sizes, np.int32)
-    return native.measure(pos, tri, uv, fp, size, uv, fp, size)["new"]
+    return native.measure_atlas(pos, tri, uv, fp, size)
 
 
 def several_objects_one_fails(pkg):
