@@ -527,8 +527,9 @@ class CutSearch {
     across_.emplace_back();
     slots_.claim(charts_[c], c);
     slots_.claim(charts_[added], added);
-    const int pieces[2] = {c, added};
-    parallel_for(2, 1, [&](int i) { evaluate(pieces[i]); });
+    // On this thread: two charts are too little work to wake the others for.
+    evaluate(c);
+    evaluate(added);
     return split->seam_3d;
   }
 
