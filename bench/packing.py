@@ -13,6 +13,9 @@ For the three scans in ../shared/models, with Atlas Defrag's defaults:
     grown by the padding: what a packing with no gap at all would reach);
   * the padding as a ring each chart owns (default) or as the gap between two
     charts (padding_between_charts): efficiency, bound, clean mip levels;
+  * cuts for packing (packing_cut_seam): efficiency, texels, seam, charts and
+    seconds against the seam budget, with the padding as a ring of 4 (default)
+    or 2, or as a gap of 4;
   * share of texels copied unresampled, PSNR on all / clean / border points;
   * page-side modes on the tetra scan; a dense atlas (the Smithsonian scan with
     its maps downsampled to 512 x 512); 10,000 stacked charts.
@@ -191,6 +194,26 @@ def padding_semantics(native, charts) -> list:
     return cells
 
 
+CUT_BUDGETS = (0.0, 0.5, 1.0, 2.0, 3.0, 5.0)
+PADDINGS = (("ring 4", {}), ("ring 2", {"padding": 2}), ("gap 4", {"padding_between_charts": True}))
+
+
+def cut_rows(native, name, scan) -> list:
+    """One row per padding and seam budget: what the cuts buy and cost."""
+    rows = []
+    for label, padding in PADDINGS:
+        for budget in CUT_BUDGETS if not padding else (0.0, 1.0, 3.0):
+            cut, pack = [], []
+            for _ in range(3):
+                r = native.defragment(*args_of(scan), options={**padding, "packing_cut_seam": budget})["report"]
+                cut.append(r["seconds"]["cut"])
+                pack.append(r["seconds"]["pack"])
+            rows.append(f"| {name} | {label} | {budget:g} | {r['packing_efficiency']:.1%} | {r['texels_after']:,} | "
+                        f"{r['seam_after']:.2f} | {r['charts_after']} | {r['packing_cuts']} | "
+                        f"{statistics.median(cut):.3f} | {statistics.median(pack):.3f} |")
+    return rows
+
+
 def xatlas_pack(native, charts, brute: bool):
     import xatlas
 
@@ -272,7 +295,7 @@ def main() -> int:
               "| scan | charts | efficiency | padding bound | texels in | texels out | scale | pack s |"
               + (" before: efficiency | texels out | pack s |" if base else ""),
               "|---|---:|---:|---:|---:|---:|---:|---:|" + ("---:|---:|---:|" if base else "")]
-    xatlas_rows, colour_rows, semantic_rows, results = [], [], [], {}
+    xatlas_rows, colour_rows, semantic_rows, cut_table, results = [], [], [], [], {}
     for name, rel in SCANS.items():
         print(f"{name} ...", file=sys.stderr)
         scan = scan_io.load(args.models / rel)
@@ -289,6 +312,7 @@ def main() -> int:
             row += f" {efficiency:.1%} | {texels:,} | {b_seconds:.3f} |"
         lines.append(row)
         semantic_rows.append("| " + " | ".join([name] + padding_semantics(native, charts)) + " |")
+        cut_table += cut_rows(native, name, scan)
         if have_xatlas:
             order = np.concatenate(faces_of)  # the faces in the order of `charts`
             ours = occupancy(native, charts, result["uvs"][order], result["page_sizes"], result["face_page"][order])
@@ -321,6 +345,14 @@ def main() -> int:
               "filled by pull-push, count as harmless; the page wraps).", "",
               f"| scan | ring: efficiency | bound | {mips} | gap: efficiency | bound | {mips} |",
               "|---|" + "---:|" * (4 + 2 * len(MIP_LEVELS))] + semantic_rows + [""]
+
+    lines += ["## Cuts for packing: seam budget and padding", "",
+              "The whole job at each `packing_cut_seam` (the seam the cuts may add, in the unit of seam: 3D length / "
+              "sqrt(area); default 1) with the padding as a ring of 4 texels each chart owns (default), a ring of 2, "
+              "or a gap of 4 between charts (`padding_between_charts`). Seconds: median of 3 runs of the cut and "
+              "pack stages.", "",
+              "| scan | padding | seam budget | efficiency | texels out | seam | charts | cuts | cut s | pack s |",
+              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"] + cut_table + [""]
 
     lines += ["## Resampling per scan", "",
               "Copied: covered texels taken unresampled from the old texel they land on. PSNR on 400k points "

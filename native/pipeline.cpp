@@ -364,6 +364,24 @@ double total_area(const Mesh& mesh) {
   return area;
 }
 
+// The cuts for packing see the charts at the scale the packer will use:
+// density_scale, or texels_per_unit over the charts' mean density (per
+// group the packer's differs a little; a fixed page size scales them later).
+PackingCutOptions packing_cut_options(const Mesh& mesh, const std::vector<FlatChart>& charts,
+                                      const PipelineOptions& options) {
+  PackingCutOptions cut;
+  cut.scale = options.pack.density_scale;
+  if (options.texels_per_unit > 0) {
+    std::vector<int> all(charts.size());
+    std::iota(all.begin(), all.end(), 0);
+    const double density = texel_density(mesh, charts, all);
+    if (density > 0) cut.scale = options.texels_per_unit / density;
+  }
+  cut.padding = options.pack.padding;
+  cut.seam_budget = options.packing_cut_seam * std::sqrt(total_area(mesh));
+  return cut;
+}
+
 double median(std::vector<double> values) {
   std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
   return values[values.size() / 2];
@@ -428,6 +446,12 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   enlarge_tiny_charts(charts);
   turn_solved_charts(charts);
   clock.lap("refine");
+
+  const PackingCutStats cuts = cut_for_packing(mesh, topology, packing_cut_options(mesh, charts, options), charts,
+                                               control);
+  report.packing_cuts = cuts.cuts;
+  report.packing_cut_seam = cuts.seam_added_3d / std::sqrt(total_area(welded));
+  clock.lap("cut");
 
   // Untextured faces keep their input UVs and page -1. A face whose winding
   // float32 storage turns over becomes a chart of its own and all is packed

@@ -20,6 +20,9 @@ struct PipelineOptions {
   // Slits a chart that loses density may get before it is split (see
   // FlattenOptions::relief_cuts); 0: split at once.
   int relief_cuts = FlattenOptions().relief_cuts;
+  // Seam that cuts making charts pack tighter may add (packing_cuts.hpp), as
+  // 3D length / sqrt(area), the unit of seam_after; 0: no cut.
+  double packing_cut_seam = 1.0;
   // max_pages 0: as many pages as the group's faces use in the input (at least
   // 1), or as many of max_page_size as hold the input's texels times
   // density_scale^2 if that is more: charts shrink only when they would not fit.
@@ -44,6 +47,8 @@ struct PipelineReport {
   AggregationStops aggregate_stops;  // why the aggregation merged no further
   int refine_faces_moved = 0;  // faces the seam refinement moved to a neighbouring chart
   double refine_seam_removed = 0;  // seam length it removed / sqrt(area) (in seam_after already)
+  int packing_cuts = 0;        // charts cut in two to pack tighter (see packing_cuts.hpp)
+  double packing_cut_seam = 0;  // seam length those cuts added / sqrt(area) (in seam_after already)
   int faces_detached = 0;      // faces made charts of their own because float32 storage turned them over
   int charts_after = 0;        // in the output
   int charts_solved = 0;       // flattened by SLIM (the rest kept their original UVs)

@@ -5,11 +5,13 @@
 // where it would lose density (relief_cut) and split back, undoing the last
 // merge, until no piece overlaps or loses density (flatten_without_overlap);
 // then faces move between neighbouring charts where that shortens the seam
-// (refine_seams).
+// (refine_seams), and charts are cut where that makes them pack tighter
+// (packing_cuts).
 // slim, pair_cholesky, symmetric_dirichlet, tutte_embedding,
 // reference_triangles, scaffold_triangulation, disk_boundary, cut_to_disk and
 // relief_cut are its internals.
 #pragma once
 #include "flatten/flatten_chart.hpp"
+#include "flatten/packing_cuts.hpp"
 #include "flatten/refine_seams.hpp"
 #include "flatten/slim.hpp"
