@@ -21,8 +21,10 @@ struct PipelineOptions {
   // FlattenOptions::relief_cuts); 0: split at once.
   int relief_cuts = FlattenOptions().relief_cuts;
   // Seam that cuts making charts pack tighter may add (packing_cuts.hpp), as
-  // 3D length / sqrt(area), the unit of seam_after; 0: no cut.
-  double packing_cut_seam = 1.0;
+  // 3D length / sqrt(area), the unit of seam_after; 0: no cut. Off by
+  // default: the job exists for fewer charts and shorter seams, and each
+  // cut adds both for a smaller page.
+  double packing_cut_seam = 0;
   // max_pages 0: as many pages as the group's faces use in the input (at least
   // 1), or as many of max_page_size as hold the input's texels times
   // density_scale^2 if that is more: charts shrink only when they would not fit.

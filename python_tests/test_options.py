@@ -20,7 +20,7 @@ def probes(option):
         return [c.value for c in option.choices] + ["area"]
     if option.kind is bool:
         return [True, False, "yes"]
-    step = 1 if option.kind is int else option.low / 2
+    step = 1 if option.kind is int else option.low / 2 or 0.5
     values = [option.low, option.low - step] + ([0, -step] if option.automatic else [])
     if option.high is not None:
         values += [option.high, option.high + step]

@@ -74,6 +74,10 @@ SCHEMA: Tuple[Option, ...] = (
                     Choice("multiple_of_4", "Multiple of 4", "Sides a multiple of 4 texels (BCn and ASTC blocks)"),
                     Choice("power_of_two", "Power of Two", "Sides a power of two (older engines, full mip chains)"))),
     Option("square_pages", bool, False, "Square Pages", "Both sides of every page equal (the larger one)"),
+    Option("packing_cut_seam", float, 0.0, "Seam for Tighter Packing",
+           "Seam the packer may add by cutting charts that pack poorly in two, as 3D length / sqrt(surface "
+           "area), the unit of the seam figure (0: no cut): fewer texels for more seams and charts",
+           low=0.0, high=10.0),
     Option("padding_between_charts", bool, False, "Padding Between Charts",
            "Padding is the gap between two charts (as in xatlas) rather than a ring around each chart "
            "(charts twice the padding apart); packs tighter, keeps one mip level fewer clean"),
