@@ -36,13 +36,13 @@ def encode_png(pixels: np.ndarray) -> bytes:
     if pixels.dtype != np.uint8 or pixels.ndim != 3 or pixels.shape[2] not in _COLOUR_TYPE:
         raise ValueError(f"encode_png needs (H, W, 3 or 4) uint8 pixels, got {pixels.shape} {pixels.dtype}")
     height, width, channels = pixels.shape
-    rows = np.ascontiguousarray(pixels[::-1]).reshape(height, channels * width)  # PNG rows run top down
+    rows = pixels[::-1].reshape(height, channels * width)  # PNG rows run top down (a view, no copy)
     scanlines = np.empty((height, channels * width + 1), dtype=np.uint8)
     scanlines[:, 0] = _UP_FILTER
-    scanlines[:, 1:] = rows
-    scanlines[1:, 1:] -= rows[:-1]  # the first row has zeros above it
+    np.subtract(rows[1:], rows[:-1], out=scanlines[1:, 1:])  # the first row has zeros above it
+    scanlines[0, 1:] = rows[0]
     header = struct.pack(">IIBBBBB", width, height, 8, _COLOUR_TYPE[channels], 0, 0, 0)  # 8-bit, no interlace
-    return (_SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", zlib.compress(scanlines.tobytes(), 1))
+    return (_SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", zlib.compress(scanlines, 1))
             + _chunk(b"IEND", b""))
 
 
