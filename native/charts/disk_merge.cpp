@@ -84,8 +84,9 @@ bool DiskClusters::manifold_inside(int c) {
 // Number of edge-connected fans that the faces of clusters a and b form around v.
 int DiskClusters::fan_count(int v, int a, int b) const {
   const int begin = topology_.vertex_offsets[v], end = topology_.vertex_offsets[v + 1];
-  std::vector<int> local_parent;
-  std::vector<int> local_face;
+  std::vector<int>& local_parent = fan_parent_;
+  std::vector<int>& local_face = fan_faces_;
+  local_parent.clear(), local_face.clear();
   for (int i = begin; i < end; ++i) {
     const int f = topology_.vertex_corners[i] / 3;
     if (in(f, a, b)) local_face.push_back(f), local_parent.push_back(static_cast<int>(local_parent.size()));

@@ -91,6 +91,9 @@ class DiskClusters {
   // Visit stamps, so each check touches only the smaller cluster's faces.
   std::vector<unsigned> edge_stamp_, vertex_stamp_;
   unsigned stamp_ = 0;
+  // fan_count's work space (the faces at a vertex and their union-find
+  // parents), kept so that the many counts allocate nothing.
+  mutable std::vector<int> fan_faces_, fan_parent_;
 };
 
 }  // namespace atlas
