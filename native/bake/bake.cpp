@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 #include <limits>
 #include <sstream>
 #include <tuple>
@@ -197,33 +198,56 @@ bool opposite_sides(const std::vector<FaceMap>& faces, int edge_a, int edge_b) {
   return (side(edge_a) != side(edge_b)) == same_direction;
 }
 
+// Where an edge lies: its page and its ends, the lexicographically smaller first.
+struct EdgePlace {
+  int page = -1;
+  std::array<double, 4> ends{};
+  bool operator==(const EdgePlace& o) const { return page == o.page && ends == o.ends; }
+  std::uint64_t hash() const {
+    std::uint64_t h = static_cast<std::uint64_t>(page) * 0x9e3779b97f4a7c15ull;
+    for (const double d : ends) {
+      std::uint64_t bits;
+      std::memcpy(&bits, &d, sizeof bits);
+      h = (h ^ bits) * 0xbf58476d1ce4e5b9ull;
+      h ^= h >> 31;
+    }
+    return h;
+  }
+};
+
+EdgePlace place_of(const FaceMap& face, int k) {
+  Eigen::Vector2d a = face.corner[k], b = face.corner[(k + 1) % 3];
+  if (std::tie(b.x(), b.y()) < std::tie(a.x(), a.y())) std::swap(a, b);
+  return {face.new_page, {a.x(), a.y(), b.x(), b.y()}};
+}
+
 std::vector<std::uint8_t> border_edges(const std::vector<FaceMap>& faces) {
-  struct Edge {
-    int page;
-    std::array<double, 4> ends;  // the lexicographically smaller corner first
-    int face_edge;               // 3 f + k
-    bool operator<(const Edge& o) const { return std::tie(page, ends, face_edge) < std::tie(o.page, o.ends, o.face_edge); }
-    bool same_place(const Edge& o) const { return page == o.page && ends == o.ends; }
-  };
-  std::vector<Edge> edges;
-  edges.reserve(3 * faces.size());
+  // Open addressing: each place keeps the first edge (3 f + k) found there,
+  // how many lie there and the second one.
+  std::size_t slots = 16;
+  while (slots < 6 * faces.size()) slots *= 2;
+  std::vector<int> table(slots, -1);
+  std::vector<int> first(3 * faces.size(), -1), count(3 * faces.size(), 0), second(3 * faces.size(), -1);
   for (std::size_t f = 0; f < faces.size(); ++f) {
     if (faces[f].new_page < 0) continue;
     for (int k = 0; k < 3; ++k) {
-      Eigen::Vector2d a = faces[f].corner[k], b = faces[f].corner[(k + 1) % 3];
-      if (std::tie(b.x(), b.y()) < std::tie(a.x(), a.y())) std::swap(a, b);
-      edges.push_back({faces[f].new_page, {a.x(), a.y(), b.x(), b.y()}, static_cast<int>(3 * f + k)});
+      const int edge = static_cast<int>(3 * f + k);
+      const EdgePlace place = place_of(faces[f], k);
+      std::size_t slot = place.hash() & (slots - 1);
+      while (table[slot] >= 0 && !(place_of(faces[table[slot] / 3], table[slot] % 3) == place))
+        slot = (slot + 1) & (slots - 1);
+      if (table[slot] < 0) table[slot] = edge;
+      const int head = table[slot];
+      first[edge] = head;
+      if (++count[head] == 2) second[head] = edge;
     }
   }
-  std::sort(edges.begin(), edges.end());
   std::vector<std::uint8_t> border(faces.size(), 0);
-  for (std::size_t i = 0; i < edges.size();) {
-    std::size_t j = i + 1;
-    while (j < edges.size() && edges[j].same_place(edges[i])) ++j;
-    if (j - i != 2 || !opposite_sides(faces, edges[i].face_edge, edges[i + 1].face_edge))
-      for (std::size_t e = i; e < j; ++e)
-        border[edges[e].face_edge / 3] |= static_cast<std::uint8_t>(1 << (edges[e].face_edge % 3));
-    i = j;
+  for (std::size_t edge = 0; edge < first.size(); ++edge) {
+    const int head = first[edge];
+    if (head < 0) continue;
+    if (count[head] != 2 || !opposite_sides(faces, head, second[head]))
+      border[edge / 3] |= static_cast<std::uint8_t>(1 << (edge % 3));
   }
   return border;
 }
