@@ -425,6 +425,13 @@ void write_obj_py(const std::string& path, const std::string& library, const py:
   obj::write_obj(path, library, points, faces, corner_uv, material, materials);
 }
 
+// Whether a's elements are T: by equivalence, as numpy compares dtypes (an
+// unpickled array may hold an equal dtype object that is not numpy's own).
+template <class T>
+bool has_dtype(const py::array& a) {
+  return py::isinstance<py::array_t<T>>(a);
+}
+
 // Images as (H, W, C) arrays, row 0 at v = 0; all of one dtype T. The arrays
 // are returned too so their buffers outlive the views.
 template <class T>
@@ -432,7 +439,7 @@ std::vector<ImageView<T>> image_views(const py::list& images, const char* name, 
   std::vector<ImageView<T>> views;
   for (size_t i = 0; i < images.size(); ++i) {
     const py::array raw = py::array::ensure(images[i]);
-    auto a = raw && raw.dtype().is(py::dtype::of<T>()) ? py::array_t<T, py::array::c_style>::ensure(raw)
+    auto a = raw && has_dtype<T>(raw) ? py::array_t<T, py::array::c_style>::ensure(raw)
                                                         : py::array_t<T, py::array::c_style>();
     if (!a || a.ndim() != 3 || a.shape(2) < 1 || a.shape(2) > 4) {
       std::ostringstream msg;
@@ -450,8 +457,8 @@ bool is_uint8_images(const py::list& images, const char* name) {
   if (images.empty()) throw py::value_error(std::string(name) + " must hold at least one image");
   const py::array first = py::array::ensure(images[0]);
   if (!first) throw py::value_error(std::string(name) + "[0] must be an array");
-  if (first.dtype().is(py::dtype::of<std::uint8_t>())) return true;
-  if (first.dtype().is(py::dtype::of<float>())) return false;
+  if (has_dtype<std::uint8_t>(first)) return true;
+  if (has_dtype<float>(first)) return false;
   throw py::value_error(std::string(name) + " must be uint8 or float32 arrays, got " + std::string(py::str(first.dtype())));
 }
 

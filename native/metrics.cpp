@@ -73,24 +73,34 @@ double face_signed_area_uv(const UvLayout& atlas, int f) {
 
 // Area-weighted percentiles: for each fraction q, the smallest value whose
 // cumulative weight reaches q of the total. `values` is sorted in place.
+// The smallest value of v[lo, hi) whose cumulative weight, values ascending,
+// reaches target (the last one if none does): quickselect on the weight of
+// the lower half, linear on average where sorting would not be.
+double weighted_select(std::vector<std::pair<double, double>>& v, std::size_t lo, std::size_t hi, double target) {
+  while (hi - lo > 1) {
+    const std::size_t mid = lo + (hi - lo) / 2;
+    std::nth_element(v.begin() + lo, v.begin() + mid, v.begin() + hi);
+    double below = 0;
+    for (std::size_t i = lo; i < mid; ++i) below += v[i].second;
+    if (below >= target) {
+      hi = mid;
+    } else {
+      target -= below;
+      lo = mid;
+    }
+  }
+  return v[lo].first;
+}
+
 std::vector<double> weighted_percentiles(std::vector<std::pair<double, double>>& values,
                                          const std::vector<double>& fractions) {
   std::vector<double> out(fractions.size(), 0.0);
   if (values.empty()) return out;
-  std::sort(values.begin(), values.end());
   double total = 0;
   for (const auto& v : values) total += v.second;
   if (!(total > 0)) return out;
-  for (std::size_t i = 0; i < fractions.size(); ++i) {
-    const double target = fractions[i] * total;
-    double cumulative = 0;
-    std::size_t j = 0;
-    for (; j + 1 < values.size(); ++j) {
-      cumulative += values[j].second;
-      if (cumulative >= target) break;
-    }
-    out[i] = values[j].first;
-  }
+  for (std::size_t i = 0; i < fractions.size(); ++i)
+    out[i] = weighted_select(values, 0, values.size(), fractions[i] * total);
   return out;
 }
 

@@ -226,6 +226,18 @@ def test_groups_never_share_a_chart_or_a_page(native):
     assert result["face_page"][0] != result["face_page"][1]
 
 
+def test_images_of_an_equal_dtype_object_are_taken(native):
+    """An unpickled array holds a dtype equal to numpy's uint8 but not numpy's
+    own object: it is uint8 all the same."""
+    import pickle
+
+    positions, triangles, uvs, face_page, sizes = tiny()
+    image = pickle.loads(pickle.dumps(np.full((64, 64, 3), 7, np.uint8)))
+    assert image.dtype is not np.dtype(np.uint8)
+    baked = native.bake(uvs, face_page, [image], uvs, face_page, sizes)
+    assert baked[0].dtype == np.uint8 and (baked[0] == 7).all()
+
+
 def test_bake_refuses_mixed_dtypes(native, scans):
     positions, triangles, uvs, face_page, sizes = tiny()
     images = [np.zeros((64, 64, 3), np.float32), np.zeros((64, 64, 3), np.uint8)]
