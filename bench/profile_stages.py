@@ -173,10 +173,10 @@ def section(results: dict, runs: int) -> list:
     return lines
 
 
-def replace_section(path: Path, lines: list) -> None:
-    """The section in place of the old one (or at the end), the rest kept."""
+def replace_section(path: Path, lines: list, title: str = SECTION) -> None:
+    """The section called title in place of the old one (or at the end), the rest kept."""
     text = path.read_text() if path.exists() else ""
-    head, found, rest = text.partition(SECTION)
+    head, found, rest = text.partition(title)
     after = rest.find("\n## ")
     tail = rest[after + 1:] if found and after >= 0 else ""
     path.write_text(head.rstrip("\n") + "\n\n" + "\n".join(lines).rstrip("\n") + "\n" + ("\n" + tail if tail else ""))

@@ -49,6 +49,7 @@ MODELS = {
     "large": None,  # bench/make_large_scan.py, generated on first use
 }
 REAL = ("meshroom", "smithsonian", "tetra")
+KEPT_SECTIONS = ("## Where the time goes", "## Whole process")
 # TextureDefrag's (charts, seam) on the real scans, quoted from issue 12 (see write_results).
 TEXTURE_DEFRAG = {"meshroom": (124, 12.1), "smithsonian": (1719, 62.4), "tetra": (119, 23.9)}
 # Issue 12's targets: at most (charts, seam) per real scan.
@@ -739,11 +740,12 @@ def write_results(results: list, mach: dict, args, path: Path, started: float) -
         "it, only its time and memory.")
     add("- The large scan is one smooth closed blob, the easy case for Smart UV Project (few, large islands); "
         "on the real scans it is the other way round.")
-    # The stage profile (bench/profile_stages.py) is its own section: kept.
+    # The sections of bench/profile_stages.py and bench/whole_process.py are theirs: kept.
     old = path.read_text() if path.exists() else ""
-    if "\n## Where the time goes" in old:
-        kept = old[old.index("\n## Where the time goes") + 1:]
-        lines += [""] + [kept[:kept.find("\n## ", 1)] if "\n## " in kept[1:] else kept.rstrip("\n")]
+    for title in KEPT_SECTIONS:
+        if "\n" + title in old:
+            kept = old[old.index("\n" + title) + 1:]
+            lines += [""] + [kept[:kept.find("\n## ", 1)] if "\n## " in kept[1:] else kept.rstrip("\n")]
     path.write_text("\n".join(lines) + "\n")
 
 
