@@ -312,7 +312,9 @@ def read_pixels(img) -> np.ndarray:
     """(H, W, C) row 0 = bottom; uint8 for byte images, float32 for float ones.
 
     bpy hands out pixels as floats only; a byte image's values are b / 255,
-    and rint(255 f) gives b back exactly."""
+    so 255 f lies within a rounding error of b, and adding 0.5 before the
+    cast (which truncates) gives b back exactly, several times faster than
+    rint."""
     w, h = img.size
     c = img.channels
     n = w * h * c
@@ -330,7 +332,7 @@ def read_pixels(img) -> np.ndarray:
             src = buf[start:start + _BYTE_BLOCK]
             tmp = block[:len(src)]
             np.multiply(src, 255.0, out=tmp)
-            np.rint(tmp, out=tmp)
+            tmp += 0.5
             out[start:start + len(src)] = tmp
         del buf
     return out.reshape(h, w, c)

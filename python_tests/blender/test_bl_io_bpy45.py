@@ -45,6 +45,25 @@ def test_read_tetra(pkg):
     assert H.object_state(obj.name) == before
 
 
+def test_byte_pixels_read_back_exactly(pkg, tmp_path):
+    """Every byte value of a byte image comes back as itself from bpy's floats."""
+    import bpy
+
+    codes = np.arange(256 * 4, dtype=np.uint8).reshape(16, 16, 4)
+    img = bpy.data.images.new("all_codes", 16, 16, alpha=True)
+    img.pixels.foreach_set((codes.astype(np.float32) / 255).ravel())
+    path = str(tmp_path / "all_codes.png")
+    img.filepath_raw, img.file_format = path, "PNG"
+    img.save()
+    loaded = bpy.data.images.load(path)
+    try:
+        assert not loaded.is_float
+        assert np.array_equal(pkg.read_bpy.read_pixels(loaded), codes)
+    finally:
+        bpy.data.images.remove(loaded)
+        bpy.data.images.remove(img)
+
+
 def test_read_gltf_roles(pkg):
     H.reset()
     obj = H.import_model(H.model_path("smithsonian"))
