@@ -177,12 +177,6 @@ std::vector<FaceMap> map_faces(const UvLayout& old_layout, const UvLayout& new_l
   return faces;
 }
 
-// Per face, bit k set when its edge from corner k to corner k + 1 is a
-// chart border of the new layout: not shared (same page, same two corner
-// positions) with exactly one other face lying on its other side. The union
-// of the faces is bounded by these edges alone (stacked or folded faces keep
-// theirs), so the point of the union nearest to a texel outside it lies on
-// one of them. Degenerate faces are never rasterised and count for none.
 // Whether the faces of two coinciding edges (3 f + k) lie on either side of it.
 bool opposite_sides(const std::vector<FaceMap>& faces, int edge_a, int edge_b) {
   auto side = [&](int edge) {
@@ -221,6 +215,12 @@ EdgePlace place_of(const FaceMap& face, int k) {
   return {face.new_page, {a.x(), a.y(), b.x(), b.y()}};
 }
 
+// Per face, bit k set when its edge from corner k to corner k + 1 is a
+// chart border of the new layout: not shared (same page, same two corner
+// positions) with exactly one other face lying on its other side. The union
+// of the faces is bounded by these edges alone (stacked or folded faces keep
+// theirs), so the point of the union nearest to a texel outside it lies on
+// one of them. Degenerate faces are never rasterised and count for none.
 std::vector<std::uint8_t> border_edges(const std::vector<FaceMap>& faces) {
   // Open addressing: each place keeps the first edge (3 f + k) found there,
   // how many lie there and the second one.
