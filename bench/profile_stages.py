@@ -15,7 +15,7 @@ the cores). Medians over the runs. Floors are measured in the same way:
     row flip into Blender's order);
   * bake: allocating and writing every output texel once;
   * write: zlib level 1 over the output pixels, on 2 threads;
-  * metrics: 0 (--no-metrics skips them).
+  * metrics: 0 (they are off without --metrics).
 
 Charts, aggregate, flatten and pack have no floor measured here ("-"):
 stopping every chart after one iteration is no floor for flatten, as the

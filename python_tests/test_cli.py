@@ -13,7 +13,7 @@ def test_cli_output_loads_back_flip_free_with_the_colours_kept(native, scans, sc
     import scan_io
 
     source = scan_path("tetra")
-    run = subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path)],
+    run = subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path), "--metrics"],
                          capture_output=True, text=True, timeout=300, env=tool_env)
     assert run.returncode == 0, run.stderr
     assert "159 -> " in run.stdout and "PSNR" in run.stdout
@@ -91,7 +91,7 @@ def test_cli_without_metrics_writes_the_same_files(scan_path, tool_env, tmp_path
     source = scan_path("tetra")
     runs = [subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path / name), *flags],
                            capture_output=True, text=True, timeout=300, env=tool_env)
-            for name, flags in (("full", []), ("quick", ["--no-metrics"]))]
+            for name, flags in (("full", ["--metrics"]), ("quick", []))]
     assert all(r.returncode == 0 for r in runs), [r.stderr for r in runs]
     assert "PSNR" in runs[0].stdout and "PSNR" not in runs[1].stdout and "charts" in runs[1].stdout
     full, quick = sorted((tmp_path / "full").iterdir()), sorted((tmp_path / "quick").iterdir())

@@ -10,4 +10,4 @@ mkdir -p out
 blender --background --factory-startup --python-exit-code 1 \
   --python build/addon/atlas_defrag/batch.py -- "$scan" "out/$name.glb" --report "out/$name.json" 2>&1 |
   grep '^atlas_defrag:'
-PYTHONPATH="${ATLAS_BUILD_DIR:-build}/addon" .venv/bin/python tools/defrag_scan.py "$scan" "out/${name}_cli"
+PYTHONPATH="${ATLAS_BUILD_DIR:-build}/addon" .venv/bin/python tools/defrag_scan.py "$scan" "out/${name}_cli" --metrics
