@@ -71,8 +71,6 @@ double face_signed_area_uv(const UvLayout& atlas, int f) {
   return signed_area(atlas.uv_texels(f, 0), atlas.uv_texels(f, 1), atlas.uv_texels(f, 2));
 }
 
-// Area-weighted percentiles: for each fraction q, the smallest value whose
-// cumulative weight reaches q of the total. `values` is sorted in place.
 // The smallest value of v[lo, hi) whose cumulative weight, values ascending,
 // reaches target (the last one if none does): quickselect on the weight of
 // the lower half, linear on average where sorting would not be.
@@ -92,6 +90,8 @@ double weighted_select(std::vector<std::pair<double, double>>& v, std::size_t lo
   return v[lo].first;
 }
 
+// Area-weighted percentiles: for each fraction q, the smallest value whose
+// cumulative weight reaches q of the total. `values` is reordered in place.
 std::vector<double> weighted_percentiles(std::vector<std::pair<double, double>>& values,
                                          const std::vector<double>& fractions) {
   std::vector<double> out(fractions.size(), 0.0);

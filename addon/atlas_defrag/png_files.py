@@ -12,8 +12,8 @@ from __future__ import annotations
 import os
 import struct
 import zlib
-from concurrent.futures import Executor, ThreadPoolExecutor
-from typing import Iterable, List, Optional, Tuple
+from concurrent.futures import ThreadPoolExecutor
+from typing import Iterable, List, Tuple
 
 import numpy as np
 
@@ -83,16 +83,10 @@ def _png(pixels: np.ndarray, compressed: List[Tuple[bytes, int]], lengths: List[
     return _SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", idat) + _chunk(b"IEND", b"")
 
 
-def encode_png(pixels: np.ndarray, pool: Optional[Executor] = None) -> bytes:
-    """(H, W, 3 or 4) uint8 pixels, row 0 at the bottom as Blender stores them,
-    as a PNG; its parts compress on pool's threads when one is given."""
+def encode_png(pixels: np.ndarray) -> bytes:
+    """(H, W, 3 or 4) uint8 pixels, row 0 at the bottom as Blender stores them, as a PNG."""
     parts = _parts(_scanlines(pixels))
-    last = len(parts) - 1
-    if pool is None:
-        compressed = [_deflate(part, i == last) for i, part in enumerate(parts)]
-    else:
-        compressed = [f.result() for f in [pool.submit(_deflate, part, i == last) for i, part in enumerate(parts)]]
-    return _png(pixels, compressed, [len(p) for p in parts])
+    return _png(pixels, [_deflate(part, i == len(parts) - 1) for i, part in enumerate(parts)], [len(p) for p in parts])
 
 
 def write_pngs(files: Iterable[Tuple[str, np.ndarray]]) -> None:

@@ -15,6 +15,7 @@
 #include "bake/pull_push_fill.hpp"
 #include "bake/sample_texture.hpp"
 #include "bake/texel_encoding.hpp"
+#include "core/geometry.hpp"
 #include "core/rasterize_triangle.hpp"
 
 namespace atlas {
@@ -182,8 +183,7 @@ bool opposite_sides(const std::vector<FaceMap>& faces, int edge_a, int edge_b) {
   auto side = [&](int edge) {
     const FaceMap& face = faces[edge / 3];
     const int k = edge % 3;
-    const Eigen::Vector2d a = face.corner[k], b = face.corner[(k + 1) % 3], c = face.corner[(k + 2) % 3];
-    return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x() > 0;
+    return signed_area(face.corner[k], face.corner[(k + 1) % 3], face.corner[(k + 2) % 3]) > 0;
   };
   // Both corners of the edge are shared; it may run the other way in the second face.
   const FaceMap& fa = faces[edge_a / 3];

@@ -7,6 +7,7 @@
 #include <optional>
 #include <utility>
 
+#include "core/geometry.hpp"
 #include "core/parallel_for.hpp"
 #include "core/union_find.hpp"
 #include "flatten/disk_boundary.hpp"
@@ -465,9 +466,8 @@ std::optional<Split> split_along(const Mesh& mesh, const FlatChart& chart, const
 double length_per_texel(const Mesh& mesh, const FlatChart& chart, double scale) {
   double uv_area = 0, area = 0;
   for (size_t i = 0; i < chart.faces.size(); ++i) {
-    const Eigen::RowVector2d p = chart.corner_uv.row(3 * i + 1) - chart.corner_uv.row(3 * i),
-                             q = chart.corner_uv.row(3 * i + 2) - chart.corner_uv.row(3 * i);
-    uv_area += 0.5 * std::abs(p.x() * q.y() - p.y() * q.x());
+    uv_area += std::abs(signed_area(chart.corner_uv.row(3 * i), chart.corner_uv.row(3 * i + 1),
+                                    chart.corner_uv.row(3 * i + 2)));
     area += mesh.area_3d(chart.faces[i]);
   }
   return uv_area > 0 ? std::sqrt(area / uv_area) / scale : 0.0;
