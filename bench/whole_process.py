@@ -128,13 +128,14 @@ def main(argv=None) -> int:
     p.add_argument("--large", action="store_true", help=f"also the generated scan ({LARGE})")
     p.add_argument("--results", type=Path, default=HERE / "RESULTS.md")
     args = p.parse_args(argv)
-    out = Path(tempfile.mkdtemp(prefix="whole_process_"))
-    builds = {}
-    if args.base:
-        builds["base"] = (args.base.resolve(), commands(args.base.resolve(), out / "base"))
-    builds["this"] = (REPO, commands(REPO, out / "this"))
-    labels = [label for label in builds["this"][1] if args.large or "large" not in label]
-    lines = section(measure(labels, builds, args.runs), builds, args.runs)
+    with tempfile.TemporaryDirectory(prefix="whole_process_") as scratch:
+        out = Path(scratch)
+        builds = {}
+        if args.base:
+            builds["base"] = (args.base.resolve(), commands(args.base.resolve(), out / "base"))
+        builds["this"] = (REPO, commands(REPO, out / "this"))
+        labels = [label for label in builds["this"][1] if args.large or "large" not in label]
+        lines = section(measure(labels, builds, args.runs), builds, args.runs)
     print("\n".join(lines))
     replace_section(args.results, lines, SECTION)
     return 0

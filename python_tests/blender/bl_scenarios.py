@@ -5,8 +5,10 @@ and raises AssertionError on failure; some return observations."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
+import shutil
 import tempfile
 import threading
 
@@ -73,6 +75,16 @@ def check_result(obj_name, before, report, *, duplicate=False):
                          if s.material and s.material.name not in before["materials"]]
         assert rewired_slots and all(m in report["materials"] for m in rewired_slots), rewired_slots
     return new_images
+
+
+@contextlib.contextmanager
+def scratch_folder(prefix):
+    """A temporary folder, removed afterwards with what the scenario wrote there."""
+    folder = tempfile.mkdtemp(prefix=prefix)
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _stem(image_name):
@@ -190,24 +202,24 @@ def save_beside_blend(pkg):
     """storage='SAVE' writes PNG files beside the saved .blend."""
     H.reset()
     obj = H.import_model(H.model_path("tetra"))
-    tmp = tempfile.mkdtemp(prefix="atlas_save_")
-    blend = os.path.join(tmp, "scene.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=blend)
-    obj = bpy.data.objects[obj.name]
-    before = H.object_state(obj.name)
-    report = pkg.defragment(obj, storage="SAVE")
-    check_result(obj.name, before, report)
-    for name in report["images"]:
-        img = bpy.data.images[name]
-        path = bpy.path.abspath(img.filepath)
-        assert img.packed_file is None and os.path.dirname(path) == tmp and path.endswith(".png"), path
-        a = np.empty(len(img.pixels), np.float32)
-        img.pixels.foreach_get(a)
-        img.reload()
-        b = np.empty(len(img.pixels), np.float32)
-        img.pixels.foreach_get(b)
-        assert np.array_equal(a, b), f"{name} differs after reload from {path}"
-    return {"files": sorted(os.listdir(tmp))}
+    with scratch_folder("atlas_save_") as tmp:
+        blend = os.path.join(tmp, "scene.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=blend)
+        obj = bpy.data.objects[obj.name]
+        before = H.object_state(obj.name)
+        report = pkg.defragment(obj, storage="SAVE")
+        check_result(obj.name, before, report)
+        for name in report["images"]:
+            img = bpy.data.images[name]
+            path = bpy.path.abspath(img.filepath)
+            assert img.packed_file is None and os.path.dirname(path) == tmp and path.endswith(".png"), path
+            a = np.empty(len(img.pixels), np.float32)
+            img.pixels.foreach_get(a)
+            img.reload()
+            b = np.empty(len(img.pixels), np.float32)
+            img.pixels.foreach_get(b)
+            assert np.array_equal(a, b), f"{name} differs after reload from {path}"
+        return {"files": sorted(os.listdir(tmp))}
 
 
 def cancel_leaves_nothing(pkg):
@@ -412,30 +424,30 @@ def export_round_trip(pkg, model, ext):
     obj = H.import_model(H.model_path(model))
     name = obj.name
     before = face_colours(obj, obj.data.uv_layers.active.name)
-    folder = tempfile.mkdtemp(prefix=f"atlas_{ext}_")
-    path = os.path.join(folder, "model." + ext)
-    if ext == "obj":
-        H.undo_push("before")
-        assert run_operator(pkg, undo=True) == {"FINISHED"}
-        _export(path, bpy.data.objects[name])
-        mtl = open(os.path.join(folder, "model.mtl")).read()
-        assert "map_Kd texture_1001_defrag.png" in mtl, mtl[:500]
-        H.undo()
-        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(folder, "scene.blend"))
-        assert run_operator(pkg, storage="SAVE") == {"FINISHED"}
-    else:
-        assert run_operator(pkg) == {"FINISHED"}
-    obj = bpy.data.objects[name]
-    assert obj.data.uv_layers[0].name.endswith("_defrag"), [u.name for u in obj.data.uv_layers]
-    _export(path, obj)
-    again = _import_any(path)
-    assert len(again.data.polygons) == len(before), (len(again.data.polygons), len(before))
-    after = face_colours(again, again.data.uv_layers[0].name)
-    both = ~np.isnan(before[:, 0]) & ~np.isnan(after[:, 0])
-    assert both.mean() > 0.9, f"only {both.mean():.2f} of the faces have a texture after the round trip"
-    error = float(np.abs(after[both] - before[both]).mean() * 255)
-    assert error <= 4.0, f"mean error {error:.1f}/255 after the {ext} round trip"
-    return {"mean_error_255": error, "faces": int(both.sum())}
+    with scratch_folder(f"atlas_{ext}_") as folder:
+        path = os.path.join(folder, "model." + ext)
+        if ext == "obj":
+            H.undo_push("before")
+            assert run_operator(pkg, undo=True) == {"FINISHED"}
+            _export(path, bpy.data.objects[name])
+            mtl = open(os.path.join(folder, "model.mtl")).read()
+            assert "map_Kd texture_1001_defrag.png" in mtl, mtl[:500]
+            H.undo()
+            bpy.ops.wm.save_as_mainfile(filepath=os.path.join(folder, "scene.blend"))
+            assert run_operator(pkg, storage="SAVE") == {"FINISHED"}
+        else:
+            assert run_operator(pkg) == {"FINISHED"}
+        obj = bpy.data.objects[name]
+        assert obj.data.uv_layers[0].name.endswith("_defrag"), [u.name for u in obj.data.uv_layers]
+        _export(path, obj)
+        again = _import_any(path)
+        assert len(again.data.polygons) == len(before), (len(again.data.polygons), len(before))
+        after = face_colours(again, again.data.uv_layers[0].name)
+        both = ~np.isnan(before[:, 0]) & ~np.isnan(after[:, 0])
+        assert both.mean() > 0.9, f"only {both.mean():.2f} of the faces have a texture after the round trip"
+        error = float(np.abs(after[both] - before[both]).mean() * 255)
+        assert error <= 4.0, f"mean error {error:.1f}/255 after the {ext} round trip"
+        return {"mean_error_255": error, "faces": int(both.sum())}
 
 
 def save_reopen(pkg, model="smithsonian"):
@@ -448,16 +460,17 @@ def save_reopen(pkg, model="smithsonian"):
     old_materials = [s.material.name for s in obj.material_slots]
     report = pkg.defragment(obj, duplicate_materials=True)
     new = {n: H.image_state(bpy.data.images[n])["pixels"] for n in report["images"]}
-    blend = os.path.join(tempfile.mkdtemp(prefix="atlas_reopen_"), "scene.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=blend)
-    bpy.ops.wm.open_mainfile(filepath=blend)
-    for n, pixels in list(originals.items()) + list(new.items()):
-        assert n in bpy.data.images, f"image {n} lost after save and reopen"
-        assert H.image_state(bpy.data.images[n])["pixels"] == pixels, f"image {n} changed after reopen"
-    for m in old_materials + report["materials"]:
-        assert m in bpy.data.materials, f"material {m} lost after save and reopen"
-    assert bpy.data.objects[name].data.uv_layers[0].name == report["uv_map"]
-    return {"images": sorted(originals) + sorted(new)}
+    with scratch_folder("atlas_reopen_") as folder:
+        blend = os.path.join(folder, "scene.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=blend)
+        bpy.ops.wm.open_mainfile(filepath=blend)
+        for n, pixels in list(originals.items()) + list(new.items()):
+            assert n in bpy.data.images, f"image {n} lost after save and reopen"
+            assert H.image_state(bpy.data.images[n])["pixels"] == pixels, f"image {n} changed after reopen"
+        for m in old_materials + report["materials"]:
+            assert m in bpy.data.materials, f"material {m} lost after save and reopen"
+        assert bpy.data.objects[name].data.uv_layers[0].name == report["uv_map"]
+        return {"images": sorted(originals) + sorted(new)}
 
 
 def several_objects(pkg):
