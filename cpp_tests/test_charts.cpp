@@ -9,6 +9,7 @@
 #include "charts/aggregate.hpp"
 #include "charts/chart_graph.hpp"
 #include "charts/disk_merge.hpp"
+#include "core/corners.hpp"
 #include "test_meshes.hpp"
 
 using namespace atlas;
@@ -54,6 +55,25 @@ Mesh checkered_grid(int n, int cells) {
 }
 
 }  // namespace
+
+// corners_by_edge's counting sort gives std::sort's order: on a fan whose
+// centre starts more edges than the insertion sort takes, on scattered
+// triangles, and with negative or sparse indices (std::sort there).
+TEST(CornersByEdge, SameOrderAsSortingThePairs) {
+  std::vector<std::vector<int>> cases(4);
+  for (int i = 0; i < 40; ++i) cases[0].insert(cases[0].end(), {0, i + 2, i + 1});  // a fan of 40 faces
+  for (int i = 0; i < 300; ++i) cases[1].push_back((i * 7919) % 97);                // triangles over 97 vertices
+  cases[2] = {-1, 0, 1, 1, 0, 2};
+  cases[3] = {0, 1000000, 2, 2, 1000000, 3};
+  for (const std::vector<int>& corner_vertices : cases) {
+    const int n = static_cast<int>(corner_vertices.size());
+    const auto vertex_of = [&](int c) { return corner_vertices[c]; };
+    std::vector<std::pair<std::int64_t, int>> expected;
+    for (int c = 0; c < n; ++c) expected.push_back({atlas::edge_key(vertex_of(c), vertex_of(atlas::next_corner(c))), c});
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(atlas::corners_by_edge(n, vertex_of), expected);
+  }
+}
 
 TEST(ChartGraph, CountsChartsAndSharedBorders) {
   const ChartRun r = aggregate(checkered_grid(8, 4));

@@ -24,11 +24,39 @@ inline std::int64_t edge_key(std::int64_t a, std::int64_t b) { return std::min(a
 // (edge key, corner) for corners 0..corner_count-1, sorted: the half-edges
 // of one undirected edge are adjacent, in increasing corner order.
 // vertex_of(c) is the vertex at corner c.
+// Every stage pairs half-edges this way, so it is a counting sort on the
+// smaller vertex (a few corners per vertex), then an insertion sort of each
+// vertex's few keys: the order std::sort gives, in linear time (std::sort
+// itself for negative or sparse vertex indices).
 template <class VertexOf>
 std::vector<std::pair<std::int64_t, int>> corners_by_edge(int corner_count, VertexOf vertex_of) {
+  std::vector<std::pair<std::int64_t, int>> unsorted(corner_count);
+  std::int64_t vertices = 0;
+  bool negative = false;
+  for (int c = 0; c < corner_count; ++c) {
+    unsorted[c] = {edge_key(vertex_of(c), vertex_of(next_corner(c))), c};
+    vertices = std::max(vertices, (unsorted[c].first >> 32) + 1);
+    negative = negative || unsorted[c].first < 0;
+  }
+  if (negative || vertices > 4 * static_cast<std::int64_t>(corner_count) + 64) {
+    std::sort(unsorted.begin(), unsorted.end());
+    return unsorted;
+  }
+  std::vector<int> start(static_cast<size_t>(vertices) + 1, 0);
+  for (const auto& k : unsorted) ++start[(k.first >> 32) + 1];
+  for (std::int64_t v = 0; v < vertices; ++v) start[v + 1] += start[v];
   std::vector<std::pair<std::int64_t, int>> keyed(corner_count);
-  for (int c = 0; c < corner_count; ++c) keyed[c] = {edge_key(vertex_of(c), vertex_of(next_corner(c))), c};
-  std::sort(keyed.begin(), keyed.end());
+  std::vector<int> end(start.begin(), start.end() - 1);
+  for (const auto& k : unsorted) keyed[end[k.first >> 32]++] = k;  // corners stay in increasing order
+  for (std::int64_t v = 0; v < vertices; ++v) {
+    const auto first = keyed.begin() + start[v], last = keyed.begin() + end[v];
+    if (last - first > 16) {  // a fan's centre: std::sort, not quadratic
+      std::sort(first, last);
+      continue;
+    }
+    for (auto i = first; i != last; ++i)
+      for (auto j = i; j != first && *j < *(j - 1); --j) std::iter_swap(j, j - 1);
+  }
   return keyed;
 }
 
