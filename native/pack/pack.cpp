@@ -22,6 +22,10 @@ constexpr int kTallPage = 4;               // fixed size: trial pages are this m
 // Fixed size: first guess of the share of the page the charts' own area fills.
 constexpr double kExpectedFill = 0.6;
 
+// Widths tried beside the chosen one, see sweep_widths.
+constexpr double kWidthStep = 1.08;
+constexpr int kWidthSteps = 4;
+
 // Padded chart texels over page texels at which a page is taken as full,
 // to estimate how far charts that did not fit overshoot it.
 constexpr double kFullPage = 0.8;
@@ -39,7 +43,12 @@ struct Packing {
   // many times their padded texels exceed what that page held (estimated
   // with kFullPage when the page was not tried).
   double overflow = 0.0;
+  int recipe = -1;  // index into kRecipes of the recipe that packed layout, if one did
 };
+
+long long first_page_area(const Layout& layout) {
+  return static_cast<long long>(layout.pages[0].width) * layout.pages[0].height;
+}
 
 long long page_texels(const std::vector<PageSize>& pages) {
   long long total = 0;
@@ -132,9 +141,6 @@ constexpr int kRecipesAtOnce = 2;
 void keep_smallest_page(Packing& packing, int first, int last, const Frame& frame, int max_side,
                         const RunControl& control, double* placed_share = nullptr) {
   if (packing.layout.pages.size() > 1) return;
-  auto area = [](const Layout& layout) {
-    return static_cast<long long>(layout.pages[0].width) * layout.pages[0].height;
-  };
   std::array<std::optional<Layout>, kRecipes.size()> single;
   for (int pair = first; pair < last; pair += kRecipesAtOnce) {
     if (pair > 0 && packing.layout.pages.empty()) break;
@@ -147,9 +153,40 @@ void keep_smallest_page(Packing& packing, int first, int last, const Frame& fram
                                      resting, max_side, control, k == 0 ? placed_share : nullptr);
     });
     for (int k = pair; k < end; ++k)
-      if (single[k] && (packing.layout.pages.empty() || area(*single[k]) < area(packing.layout)))
+      if (single[k] && (packing.layout.pages.empty() || first_page_area(*single[k]) < first_page_area(packing.layout))) {
         packing.layout = std::move(*single[k]);
+        packing.recipe = k;
+      }
   }
+}
+
+// A few large charts fit side by side at some page widths only, and the
+// near-square search steps past them: widths kWidthStep^k times the chosen
+// one (0 < |k| <= kWidthSteps) are tried too, with the recipe that chose it.
+void sweep_widths(Packing& packing, const Frame& frame, int max_side, const RunControl& control) {
+  if (packing.recipe < 0 || packing.layout.pages.size() != 1) return;
+  const Recipe& recipe = kRecipes[packing.recipe];
+  Frame resting = frame;
+  resting.rest = recipe.rest;
+  const std::vector<int> order = largest_first(packing.charts, recipe.order);
+  const int to_virtual = 2 * frame.margin;
+  const double chosen = packing.layout.pages[0].width + to_virtual;
+  const long long chosen_area = first_page_area(packing.layout);
+  std::array<std::optional<Layout>, 2 * kWidthSteps> swept;
+  parallel_for(2 * kWidthSteps, 1, [&](int i) {
+    const int k = i < kWidthSteps ? i - kWidthSteps : i - kWidthSteps + 1;
+    const int width = std::min(
+        max_side, allowed_side(chosen * std::pow(kWidthStep, k) - to_virtual, frame.sides));
+    // A page taller than this is larger than the chosen one: the packing
+    // stops at the first chart above it (the charts below land as they would
+    // on a taller page).
+    const int height = static_cast<int>(std::min<long long>(max_side, chosen_area / width));
+    auto page = pack_one_page(order, packing.charts, width + to_virtual, height + to_virtual,
+                              resting, control);
+    if (page) swept[i] = Layout{std::move(page->placement), {trimmed_page(page->used, frame)}};
+  });
+  for (std::optional<Layout>& layout : swept)
+    if (layout && first_page_area(*layout) < first_page_area(packing.layout)) packing.layout = std::move(*layout);
 }
 
 // Default sizing at one scale: the smallest page over the first `orders` recipes of
@@ -394,12 +431,14 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
     // a page that broke the limits is shrunk in one order.
     packing = pack_free(uv, scale, frame, max_side, limits.pages, kRecipesAtOnce, control);
     const double ratio = limits.ratio(packing, max_side);
-    if (ratio > 1.0)
+    if (ratio > 1.0) {
       packing = shrink_to_limits(uv, kAimBelow * scale / std::sqrt(ratio), scale, scale, frame,
                                  max_side, limits, control);
-    else  // a smaller page keeps within the limits too
+    } else {  // a smaller page keeps within the limits too
       keep_smallest_page(packing, kRecipesAtOnce, static_cast<int>(kRecipes.size()), frame, max_side,
                          control);
+      sweep_widths(packing, frame, max_side, control);
+    }
   }
   lower_single_page(packing.layout, packing.charts, frame, control);
   PackResult result = to_result(uv, packing, frame);
