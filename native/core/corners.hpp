@@ -3,6 +3,7 @@
 // of face f; it starts the half-edge from triangles(f,k) to triangles(f,(k+1)%3).
 #pragma once
 #include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -21,42 +22,47 @@ inline int corner_vertex(const RowMatrixX3i& triangles, int c) { return triangle
 // so sorting keys sorts edges lexicographically by (min, max).
 inline std::int64_t edge_key(std::int64_t a, std::int64_t b) { return std::min(a, b) << 32 | std::max(a, b); }
 
+// Sorts keyed[first, last) in place: insertion sort for the few keys a vertex
+// starts, std::sort for a fan's centre, where insertion would be quadratic.
+inline void sort_bucket(std::vector<std::pair<std::int64_t, int>>::iterator first,
+                        std::vector<std::pair<std::int64_t, int>>::iterator last) {
+  constexpr std::ptrdiff_t kInsertionMost = 16;
+  if (last - first > kInsertionMost) {
+    std::sort(first, last);
+    return;
+  }
+  for (auto i = first; i != last; ++i)
+    for (auto j = i; j != first && *j < *(j - 1); --j) std::iter_swap(j, j - 1);
+}
+
 // (edge key, corner) for corners 0..corner_count-1, sorted: the half-edges
 // of one undirected edge are adjacent, in increasing corner order.
-// vertex_of(c) is the vertex at corner c.
+// vertex_of(c) is the vertex at corner c, >= 0 (edge_key needs it).
 // Every stage pairs half-edges this way, so it is a counting sort on the
-// smaller vertex (a few corners per vertex), then an insertion sort of each
-// vertex's few keys: the order std::sort gives, in linear time (std::sort
-// itself for negative or sparse vertex indices).
+// smaller vertex (a few corners per vertex), then each vertex's few keys
+// sorted in place: the order std::sort gives, in linear time.
 template <class VertexOf>
 std::vector<std::pair<std::int64_t, int>> corners_by_edge(int corner_count, VertexOf vertex_of) {
-  std::vector<std::pair<std::int64_t, int>> unsorted(corner_count);
+  const auto key = [&](int c) { return edge_key(vertex_of(c), vertex_of(next_corner(c))); };
+  std::vector<std::pair<std::int64_t, int>> keyed(corner_count);
   std::int64_t vertices = 0;
-  bool negative = false;
-  for (int c = 0; c < corner_count; ++c) {
-    unsorted[c] = {edge_key(vertex_of(c), vertex_of(next_corner(c))), c};
-    vertices = std::max(vertices, (unsorted[c].first >> 32) + 1);
-    negative = negative || unsorted[c].first < 0;
-  }
-  if (negative || vertices > 4 * static_cast<std::int64_t>(corner_count) + 64) {
-    std::sort(unsorted.begin(), unsorted.end());
-    return unsorted;
+  for (int c = 0; c < corner_count; ++c) vertices = std::max(vertices, (key(c) >> 32) + 1);
+  // Counts for indices far above the corners (the scaffold numbers its
+  // vertices after the chart's) would cost more than sorting.
+  if (vertices > 4 * static_cast<std::int64_t>(corner_count) + 64) {
+    for (int c = 0; c < corner_count; ++c) keyed[c] = {key(c), c};
+    std::sort(keyed.begin(), keyed.end());
+    return keyed;
   }
   std::vector<int> start(static_cast<size_t>(vertices) + 1, 0);
-  for (const auto& k : unsorted) ++start[(k.first >> 32) + 1];
+  for (int c = 0; c < corner_count; ++c) ++start[(key(c) >> 32) + 1];
   for (std::int64_t v = 0; v < vertices; ++v) start[v + 1] += start[v];
-  std::vector<std::pair<std::int64_t, int>> keyed(corner_count);
   std::vector<int> end(start.begin(), start.end() - 1);
-  for (const auto& k : unsorted) keyed[end[k.first >> 32]++] = k;  // corners stay in increasing order
-  for (std::int64_t v = 0; v < vertices; ++v) {
-    const auto first = keyed.begin() + start[v], last = keyed.begin() + end[v];
-    if (last - first > 16) {  // a fan's centre: std::sort, not quadratic
-      std::sort(first, last);
-      continue;
-    }
-    for (auto i = first; i != last; ++i)
-      for (auto j = i; j != first && *j < *(j - 1); --j) std::iter_swap(j, j - 1);
+  for (int c = 0; c < corner_count; ++c) {  // corners stay in increasing order
+    const std::int64_t k = key(c);
+    keyed[end[k >> 32]++] = {k, c};
   }
+  for (std::int64_t v = 0; v < vertices; ++v) sort_bucket(keyed.begin() + start[v], keyed.begin() + end[v]);
   return keyed;
 }
 

@@ -22,7 +22,9 @@ constexpr int kTallPage = 4;               // fixed size: trial pages are this m
 // Fixed size: first guess of the share of the page the charts' own area fills.
 constexpr double kExpectedFill = 0.6;
 
-// Widths tried beside the chosen one, see sweep_widths.
+// Widths tried beside the chosen one (sweep_widths): steps fine enough to
+// meet the widths where a few large charts fit side by side, and few enough
+// that the sweep costs less than the recipes before it. 0 steps: no sweep.
 constexpr double kWidthStep = 1.08;
 constexpr int kWidthSteps = 4;
 
@@ -153,16 +155,33 @@ void keep_smallest_page(Packing& packing, int first, int last, const Frame& fram
                                      resting, max_side, control, k == 0 ? placed_share : nullptr);
     });
     for (int k = pair; k < end; ++k)
-      if (single[k] && (packing.layout.pages.empty() || first_page_area(*single[k]) < first_page_area(packing.layout))) {
+      if (single[k] &&
+          (packing.layout.pages.empty() || first_page_area(*single[k]) < first_page_area(packing.layout))) {
         packing.layout = std::move(*single[k]);
         packing.recipe = k;
       }
   }
 }
 
+// Page widths kWidthStep^k times the chosen one (0 < |k| <= kWidthSteps),
+// as the page sides allow, each once (power-of-two sides round most of them
+// alike). The chosen width may be among them: the chosen page was packed
+// wider and then trimmed, so packing at its own width can differ.
+std::vector<int> swept_widths(int chosen, int to_virtual, int max_side, PageSides sides) {
+  std::vector<int> widths;
+  for (int k = -kWidthSteps; k <= kWidthSteps; ++k) {
+    if (k == 0) continue;
+    const double virtual_width = (chosen + to_virtual) * std::pow(kWidthStep, k);
+    widths.push_back(std::min(max_side, allowed_side(virtual_width - to_virtual, sides)));
+  }
+  std::sort(widths.begin(), widths.end());
+  widths.erase(std::unique(widths.begin(), widths.end()), widths.end());
+  return widths;
+}
+
 // A few large charts fit side by side at some page widths only, and the
-// near-square search steps past them: widths kWidthStep^k times the chosen
-// one (0 < |k| <= kWidthSteps) are tried too, with the recipe that chose it.
+// near-square search steps past them: the swept widths are tried too, with
+// the recipe that chose the page.
 void sweep_widths(Packing& packing, const Frame& frame, int max_side, const RunControl& control) {
   if (packing.recipe < 0 || packing.layout.pages.size() != 1) return;
   const Recipe& recipe = kRecipes[packing.recipe];
@@ -170,23 +189,22 @@ void sweep_widths(Packing& packing, const Frame& frame, int max_side, const RunC
   resting.rest = recipe.rest;
   const std::vector<int> order = largest_first(packing.charts, recipe.order);
   const int to_virtual = 2 * frame.margin;
-  const double chosen = packing.layout.pages[0].width + to_virtual;
+  const std::vector<int> widths =
+      swept_widths(packing.layout.pages[0].width, to_virtual, max_side, frame.sides);
   const long long chosen_area = first_page_area(packing.layout);
-  std::array<std::optional<Layout>, 2 * kWidthSteps> swept;
-  parallel_for(2 * kWidthSteps, 1, [&](int i) {
-    const int k = i < kWidthSteps ? i - kWidthSteps : i - kWidthSteps + 1;
-    const int width = std::min(
-        max_side, allowed_side(chosen * std::pow(kWidthStep, k) - to_virtual, frame.sides));
+  std::vector<std::optional<Layout>> swept(widths.size());
+  parallel_for(static_cast<int>(widths.size()), 1, [&](int i) {
     // A page taller than this is larger than the chosen one: the packing
     // stops at the first chart above it (the charts below land as they would
     // on a taller page).
-    const int height = static_cast<int>(std::min<long long>(max_side, chosen_area / width));
-    auto page = pack_one_page(order, packing.charts, width + to_virtual, height + to_virtual,
+    const int height = static_cast<int>(std::min<long long>(max_side, chosen_area / widths[i]));
+    auto page = pack_one_page(order, packing.charts, widths[i] + to_virtual, height + to_virtual,
                               resting, control);
     if (page) swept[i] = Layout{std::move(page->placement), {trimmed_page(page->used, frame)}};
   });
   for (std::optional<Layout>& layout : swept)
-    if (layout && first_page_area(*layout) < first_page_area(packing.layout)) packing.layout = std::move(*layout);
+    if (layout && first_page_area(*layout) < first_page_area(packing.layout))
+      packing.layout = std::move(*layout);
 }
 
 // Default sizing at one scale: the smallest page over the first `orders` recipes of

@@ -62,7 +62,8 @@ struct PackResult {
 // Page size: by default the smallest near-square page (sides multiples of 4),
 // over four orders of "largest" (box area, padded texels, long side,
 // perimeter), each with charts resting by their top and by their centroid,
-// then a few widths up to a third narrower or wider with the recipe that won,
+// then a few widths from a quarter narrower to a third wider with the recipe
+// that won,
 // or, beyond max_page_size, the fewest pages of that size (the
 // last one shrunk; box area order, resting by the centroid);
 // fixed_page_size: one page of exactly that side (resting by the centroid),
