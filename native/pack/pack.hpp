@@ -63,8 +63,7 @@ struct PackResult {
 // over four orders of "largest" (box area, padded texels, long side,
 // perimeter), each with charts resting by their top and by their centroid,
 // then a few widths from a quarter narrower to a third wider with the recipe
-// that won,
-// or, beyond max_page_size, the fewest pages of that size (the
+// that won; or, beyond max_page_size, the fewest pages of that size (the
 // last one shrunk; box area order, resting by the centroid);
 // fixed_page_size: one page of exactly that side (resting by the centroid),
 // charts scaled as large as fit (density_scale is then ignored). Charts keep
