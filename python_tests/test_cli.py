@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 CLI = Path(__file__).resolve().parent.parent / "tools" / "defrag_scan.py"
 
@@ -97,3 +98,50 @@ def test_cli_without_metrics_writes_the_same_files(scan_path, tool_env, tmp_path
     full, quick = sorted((tmp_path / "full").iterdir()), sorted((tmp_path / "quick").iterdir())
     assert [f.name for f in full] == [f.name for f in quick]
     assert all(a.read_bytes() == b.read_bytes() for a, b in zip(full, quick))
+
+
+def _one_triangle_gltf(tmp_path, name, **changes):
+    """A .gltf of one triangle (positions in a data: URI, no indices, no
+    texture), with top-level fields replaced by `changes`."""
+    import base64
+    import json
+
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32).tobytes()
+    gltf = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}],
+            "bufferViews": [{"buffer": 0, "byteLength": len(positions)}],
+            "buffers": [{"byteLength": len(positions),
+                         "uri": "data:application/octet-stream;base64," + base64.b64encode(positions).decode()}]}
+    gltf.update(changes)
+    path = tmp_path / name
+    path.write_text(json.dumps(gltf))
+    return path
+
+
+def test_gltf_primitive_without_indices_reads_its_vertices_in_order(tmp_path):
+    import scan_io
+
+    scan = scan_io.load(_one_triangle_gltf(tmp_path, "plain.gltf"))
+    assert scan.triangles.tolist() == [[0, 1, 2]]
+    assert scan.face_page.tolist() == [-1]
+
+
+@pytest.mark.parametrize("changes,message", [
+    ({"nodes": [{"mesh": 0, "children": [1]}, {"children": [0]}]}, "node 0 is its own ancestor"),
+    ({"asset": {"version": "1.0"}}, "not a glTF 2.0 file"),
+    ({"extensionsRequired": ["KHR_draco_mesh_compression"]}, "KHR_draco_mesh_compression"),
+    ({"buffers": [{"byteLength": 36, "uri": "missing.bin"}]}, "cannot be read"),
+    ({"accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "MAT9"}]}, "malformed glTF"),
+    ({"scenes": [{}]}, "no triangle mesh"),
+])
+def test_cli_names_what_is_wrong_with_a_bad_gltf(tool_env, tmp_path, changes, message):
+    """Bad files end in one line on stderr and exit code 1, not a traceback
+    (and a node hierarchy with a cycle does not hang the reader)."""
+    path = _one_triangle_gltf(tmp_path, "bad.gltf", **changes)
+    proc = subprocess.run([sys.executable, str(CLI), str(path), str(tmp_path / "out")], env=tool_env,
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr and message in proc.stderr, proc.stderr
+    assert proc.stderr.startswith("defrag_scan: error: cannot read"), proc.stderr
+    assert not (tmp_path / "out").exists()

@@ -141,7 +141,11 @@ def parse_args(argv):
 def main(argv=None) -> int:
     args = parse_args(argv)
     t0 = time.perf_counter()
-    scan = scan_io.load(args.input)
+    try:
+        scan = scan_io.load(args.input)
+    except (OSError, ValueError) as exc:
+        print(f"defrag_scan: error: cannot read {args.input}: {exc}", file=sys.stderr)
+        return 1
     chosen = job.Options(**{o.name: getattr(args, o.name) for o in options.SCHEMA})
     # Pillow decodes without the GIL, beside the layout, and the input's own
     # atlas is measured after that, where the layout leaves a core idle.

@@ -163,21 +163,24 @@ def _node_matrices(gltf: dict):
         return t
 
     nodes = gltf.get("nodes", [])
-    roots = gltf["scenes"][gltf.get("scene", 0)]["nodes"] if gltf.get("scenes") else range(len(nodes))
-    stack = [(n, np.eye(4)) for n in roots]
+    roots = gltf["scenes"][gltf.get("scene", 0)].get("nodes", []) if gltf.get("scenes") else range(len(nodes))
+    # Each entry carries its ancestors: a node listed among its own
+    # descendants would otherwise be walked forever.
+    stack = [(n, np.eye(4), frozenset()) for n in roots]
     while stack:
-        n, parent = stack.pop()
+        n, parent, ancestors = stack.pop()
+        if n in ancestors:
+            raise ValueError(f"glTF node {n} is its own ancestor (the node hierarchy has a cycle)")
         world = parent @ local(nodes[n])
         if "mesh" in nodes[n]:
             yield nodes[n]["mesh"], world
-        stack.extend((c, world) for c in nodes[n].get("children", []))
+        stack.extend((c, world, ancestors | {n}) for c in nodes[n].get("children", []))
 
 
 def load_glb(path: Path) -> Scan:
     data = path.read_bytes()
-    magic, _version, _length = struct.unpack_from("<III", data, 0)
-    if magic != 0x46546C67:
-        raise ValueError(f"{path} is not a binary glTF file")
+    if len(data) < 20 or struct.unpack_from("<I", data, 0)[0] != 0x46546C67:
+        raise ValueError("not a binary glTF file")
     json_len, _ = struct.unpack_from("<II", data, 12)
     gltf = json.loads(data[20:20 + json_len])
     bin_offset = 20 + json_len
@@ -186,18 +189,52 @@ def load_glb(path: Path) -> Scan:
         bin_len, _ = struct.unpack_from("<II", data, bin_offset)
         chunk = data[bin_offset + 8:bin_offset + 8 + bin_len]
     # Buffer 0 without a uri is the binary chunk; any other is a uri.
-    buffers = [chunk if "uri" not in b else _uri_bytes(b["uri"], path.parent) for b in gltf.get("buffers", [])]
-    return _scan_from_gltf(gltf, buffers, path.parent)
+    return _checked_gltf(path, gltf, lambda: [chunk if "uri" not in b else _uri_bytes(b["uri"], path.parent)
+                                              for b in gltf.get("buffers", [])])
 
 
 def load_gltf(path: Path) -> Scan:
     """A .gltf file: JSON, with buffers and images in files beside it or in data: URIs."""
     gltf = json.loads(path.read_text(encoding="utf-8"))
-    buffers = [_uri_bytes(b["uri"], path.parent) for b in gltf.get("buffers", [])]
-    return _scan_from_gltf(gltf, buffers, path.parent)
+    return _checked_gltf(path, gltf, lambda: [_uri_bytes(b["uri"], path.parent) for b in gltf.get("buffers", [])])
 
 
-def _scan_from_gltf(gltf: dict, buffers: list, folder: Path) -> Scan:
+# Extensions that change what the accessors or UVs mean: read without them, a
+# scan would come out wrong rather than fail.
+_UNREAD_EXTENSIONS = {"KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_texture_transform"}
+
+
+def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
+    """The scan of a parsed glTF, or ValueError saying what is wrong with it:
+    a glTF 1.0 file, a missing buffer or a malformed field would otherwise
+    surface as a bare KeyError or TypeError, and a cycle of nodes as a hang."""
+    version = str(gltf.get("asset", {}).get("version", "")) if isinstance(gltf, dict) else ""
+    if not version.startswith("2"):
+        raise ValueError(f"not a glTF 2.0 file (asset version {version or 'missing'})")
+    used = set(gltf.get("extensionsRequired", [])) | set(gltf.get("extensionsUsed", []))
+    if used & _UNREAD_EXTENSIONS:
+        raise ValueError(f"uses {', '.join(sorted(used & _UNREAD_EXTENSIONS))}, which this reader does not "
+                         "support")
+    try:
+        scan = _scan_from_gltf(gltf, read_buffers(), path.parent)
+    except OSError as exc:
+        raise ValueError(f"a file it refers to cannot be read: {exc}") from exc
+    except (KeyError, IndexError, TypeError, AttributeError, ValueError, struct.error) as exc:
+        raise ValueError(f"malformed glTF ({type(exc).__name__}: {exc})") from exc
+    if scan is None:
+        raise ValueError("no triangle mesh in the file")
+    return scan
+
+
+def _primitive_triangles(gltf: dict, buffers: list, prim: dict, vertex_count: int) -> np.ndarray:
+    """(T, 3) vertex indices; a primitive without indices lists its vertices in order."""
+    if "indices" not in prim:
+        return np.arange(vertex_count - vertex_count % 3, dtype=np.int64).reshape(-1, 3)
+    return _accessor(gltf, buffers, prim["indices"]).reshape(-1, 3).astype(np.int64)
+
+
+def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
+    """The scan, or None when no node holds a triangle primitive."""
     positions, tris, uvs, face_page = [], [], [], []
     pages, page_of, maps = [], {}, []
     base = 0
@@ -207,7 +244,7 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path) -> Scan:
                 continue
             pos = _accessor(gltf, buffers, prim["attributes"]["POSITION"]).astype(np.float64)
             pos = pos @ world[:3, :3].T + world[:3, 3]
-            idx = _accessor(gltf, buffers, prim["indices"]).reshape(-1, 3).astype(np.int64)
+            idx = _primitive_triangles(gltf, buffers, prim, len(pos))
             material = gltf["materials"][prim["material"]] if "material" in prim else {}
             pbr = material.get("pbrMetallicRoughness", {})
             tex = pbr.get("baseColorTexture")
@@ -237,6 +274,8 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path) -> Scan:
             tris.append(idx + base)
             face_page.append(np.full(len(idx), page, dtype=np.int32))
             base += len(pos)
+    if not tris:
+        return None
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
     return Scan(np.concatenate(positions), np.concatenate(tris).astype(np.int32), np.concatenate(uvs),
                 np.concatenate(face_page), sizes, pages, maps)
