@@ -48,13 +48,9 @@ struct Packing {
   int recipe = -1;  // index into kRecipes of the recipe that packed layout, if one did
 };
 
-long long first_page_area(const Layout& layout) {
-  return static_cast<long long>(layout.pages[0].width) * layout.pages[0].height;
-}
-
 long long page_texels(const std::vector<PageSize>& pages) {
   long long total = 0;
-  for (const PageSize& p : pages) total += static_cast<long long>(p.width) * p.height;
+  for (const PageSize& p : pages) total += area(p);
   return total;
 }
 
@@ -156,7 +152,7 @@ void keep_smallest_page(Packing& packing, int first, int last, const Frame& fram
     });
     for (int k = pair; k < end; ++k)
       if (single[k] &&
-          (packing.layout.pages.empty() || first_page_area(*single[k]) < first_page_area(packing.layout))) {
+          (packing.layout.pages.empty() || area(single[k]->pages[0]) < area(packing.layout.pages[0]))) {
         packing.layout = std::move(*single[k]);
         packing.recipe = k;
       }
@@ -191,7 +187,7 @@ void sweep_widths(Packing& packing, const Frame& frame, int max_side, const RunC
   const int to_virtual = 2 * frame.margin;
   const std::vector<int> widths =
       swept_widths(packing.layout.pages[0].width, to_virtual, max_side, frame.sides);
-  const long long chosen_area = first_page_area(packing.layout);
+  const long long chosen_area = area(packing.layout.pages[0]);
   std::vector<std::optional<Layout>> swept(widths.size());
   parallel_for(static_cast<int>(widths.size()), 1, [&](int i) {
     // A page taller than this is larger than the chosen one: the packing
@@ -203,7 +199,7 @@ void sweep_widths(Packing& packing, const Frame& frame, int max_side, const RunC
     if (page) swept[i] = Layout{std::move(page->placement), {trimmed_page(page->used, frame)}};
   });
   for (std::optional<Layout>& layout : swept)
-    if (layout && first_page_area(*layout) < first_page_area(packing.layout))
+    if (layout && area(layout->pages[0]) < area(packing.layout.pages[0]))
       packing.layout = std::move(*layout);
 }
 

@@ -37,8 +37,6 @@ struct Page {
         rest(frame.rest) {}
 };
 
-long long area(const PageSize& page) { return static_cast<long long>(page.width) * page.height; }
-
 // Lowest spot in a hole for one orientation, with its top below top_limit.
 // Cell spot (X, Y) is texel spot (kHoleCell X, kHoleCell Y): the chart's
 // cells are aligned with the page's there, and free cells mean free texels.
@@ -155,6 +153,8 @@ void lower_highest_chart(const std::vector<int>& order, const std::vector<Scaled
 }
 
 }  // namespace
+
+long long area(const PageSize& page) { return static_cast<long long>(page.width) * page.height; }
 
 std::vector<int> largest_first(const std::vector<ScaledChart>& charts, ChartSize size) {
   std::vector<int> order(charts.size());

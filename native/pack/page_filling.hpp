@@ -38,6 +38,9 @@ struct Frame {
   Rest rest = Rest::Centroid;  // how place_chart ranks the spots of a chart
 };
 
+// Texels of a page.
+long long area(const PageSize& page);
+
 // Smallest side >= `side` (and >= 1) of the kind `sides` allows.
 int allowed_side(double side, PageSides sides);
 // Largest side <= max_side (>= kSideQuantum) of that kind.
