@@ -13,7 +13,9 @@
 #include "bake/bake.hpp"
 #include "charts/chart_graph.hpp"
 #include "charts/degenerate_faces.hpp"
+#include "io/byte_pixels.hpp"
 #include "io/obj_file.hpp"
+#include "io/png_rows.hpp"
 #include "metrics.hpp"
 #include "pipeline.hpp"
 
@@ -424,6 +426,36 @@ void write_obj_py(const std::string& path, const std::string& library, const py:
   obj::write_obj(path, library, points, faces, corner_uv, material, materials);
 }
 
+py::array_t<std::uint8_t> png_rows_py(const py::buffer& scanlines, int width, int height,
+                                     int channels_in, int channels_out) {
+  const py::buffer_info in = scanlines.request();
+  if (in.itemsize != 1 || in.ndim != 1)
+    throw py::value_error("scanlines must be a flat buffer of bytes");
+  if (width <= 0 || height <= 0 || channels_out < 1)
+    throw py::value_error("width, height and channels_out must be positive");
+  py::array_t<std::uint8_t> out({py::ssize_t(height), py::ssize_t(width), py::ssize_t(channels_out)});
+  const auto* data = static_cast<const std::uint8_t*>(in.ptr);
+  std::uint8_t* dst = out.mutable_data();
+  py::gil_scoped_release release;
+  png::unfilter_rows(data, static_cast<std::size_t>(in.size), width, height, channels_in,
+                     channels_out, dst);
+  return out;
+}
+
+py::array_t<std::uint8_t> bytes_from_unit_floats_py(const py::array& values) {
+  if (!py::isinstance<py::array_t<float>>(values))
+    throw py::value_error("values must be a float32 array, got dtype " + std::string(py::str(values.dtype())));
+  const auto in = py::array_t<float, py::array::c_style>::ensure(values);
+  std::vector<py::ssize_t> shape(in.shape(), in.shape() + in.ndim());
+  py::array_t<std::uint8_t> out(shape);
+  const float* src = in.data();
+  std::uint8_t* dst = out.mutable_data();
+  const std::size_t n = static_cast<std::size_t>(in.size());
+  py::gil_scoped_release release;
+  bytes_from_unit_floats(src, n, dst);
+  return out;
+}
+
 // Whether a's elements are T: by equivalence, as numpy compares dtypes (an
 // unpickled array may hold an equal dtype object that is not numpy's own).
 template <class T>
@@ -768,6 +800,17 @@ naming the line on malformed input.)");
         R"(Writes a Wavefront OBJ file: `mtllib library`, positions (V,3), one vt per face corner
 of uvs (F,3,2), and faces grouped by face_material (F,) in ascending order, each group
 after `usemtl materials[m]`. Numbers as %.9g.)");
+
+  m.def("png_rows", &png_rows_py, py::arg("scanlines"), py::arg("width"), py::arg("height"),
+        py::arg("channels_in"), py::arg("channels_out"),
+        R"(The pixels of a non-interlaced 8-bit RGB (channels_in 3) or RGBA (4) PNG from its
+inflated IDAT data (height rows of a filter byte and width * channels_in bytes, top row
+first): (height, width, channels_out) uint8, row 0 at the BOTTOM, as Blender stores
+images; channels out past channels_in are 255. ValueError on a bad filter byte or size.)");
+
+  m.def("bytes_from_unit_floats", &bytes_from_unit_floats_py, py::arg("values"),
+        R"(uint8 array of the shape of values (float32): v * 255 + 0.5 truncated, clamped to
+0-255, in float32 arithmetic, so b / 255 gives b back. Runs on all cores.)");
 
   m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),

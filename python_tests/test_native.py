@@ -375,3 +375,22 @@ def test_real_scans_stay_within_chart_and_seam_bounds_with_the_guarantees(native
     fidelity = native.compare_colors(scan.positions, scan.triangles, scan.uvs, scan.face_page, old,
                                      result["uvs"], result["face_page"], new, samples=200000)
     assert fidelity["psnr_db"] >= 40
+
+
+def test_bytes_from_unit_floats_gives_bytes_back_in_their_shape(native):
+    values = (np.arange(256 * 3, dtype=np.float32) % 256 / np.float32(255)).reshape(16, 16, 3)
+    out = native.bytes_from_unit_floats(values)
+    assert out.dtype == np.uint8 and out.shape == values.shape
+    assert np.array_equal(out.ravel(), np.arange(256 * 3) % 256)
+    with pytest.raises(ValueError, match="float32"):
+        native.bytes_from_unit_floats(values.astype(np.float64))
+
+
+def test_png_rows_checks_its_sizes(native):
+    rows = np.zeros(3 * (1 + 4 * 3), np.uint8)
+    assert native.png_rows(rows, 4, 3, 3, 4).shape == (3, 4, 4)
+    with pytest.raises(ValueError, match="bytes"):
+        native.png_rows(rows[:-1], 4, 3, 3, 4)
+    rows[0] = 7
+    with pytest.raises(ValueError, match="filter type 7"):
+        native.png_rows(rows, 4, 3, 3, 4)

@@ -1,0 +1,134 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "core/mesh.hpp"
+#include "io/byte_pixels.hpp"
+#include "io/png_rows.hpp"
+
+namespace atlas {
+namespace {
+
+using Bytes = std::vector<std::uint8_t>;
+
+// PNG spec 9.4, written as the spec does (p, then the nearest of a, b, c).
+int spec_paeth(int a, int b, int c) {
+  const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+  if (pa <= pb && pa <= pc) return a;
+  if (pb <= pc) return b;
+  return c;
+}
+
+// The filtered bytes of one row of raw bytes (prior: the raw row above, or zeros).
+Bytes filter_row(int type, const Bytes& row, const Bytes& prior, int bpp) {
+  Bytes out(row.size());
+  for (size_t i = 0; i < row.size(); ++i) {
+    const int a = i >= size_t(bpp) ? row[i - bpp] : 0, b = prior[i];
+    const int c = i >= size_t(bpp) ? prior[i - bpp] : 0;
+    const int predictor[5] = {0, a, b, (a + b) / 2, spec_paeth(a, b, c)};
+    out[i] = static_cast<std::uint8_t>(row[i] - predictor[type]);
+  }
+  return out;
+}
+
+struct Image {
+  int width = 0, height = 0, channels = 0;
+  Bytes pixels;      // top row first, as in the file
+  Bytes scanlines;   // what inflating the file's IDAT gives
+};
+
+// Random pixels (values below `levels`, so that Paeth's ties occur), row y
+// filtered with type filter_of(y).
+template <class FilterOf>
+Image filtered_image(int width, int height, int channels, int levels, FilterOf filter_of) {
+  Image im{width, height, channels, {}, {}};
+  std::mt19937 rng(width * 31 + height * 7 + channels);
+  std::uniform_int_distribution<int> value(0, levels - 1);
+  const size_t row_bytes = size_t(width) * channels;
+  im.pixels.resize(row_bytes * height);
+  for (auto& p : im.pixels) p = static_cast<std::uint8_t>(value(rng));
+  Bytes prior(row_bytes, 0);
+  for (int y = 0; y < height; ++y) {
+    const Bytes row(im.pixels.begin() + y * row_bytes, im.pixels.begin() + (y + 1) * row_bytes);
+    const int type = filter_of(y);
+    im.scanlines.push_back(static_cast<std::uint8_t>(type));
+    const Bytes f = filter_row(type, row, prior, channels);
+    im.scanlines.insert(im.scanlines.end(), f.begin(), f.end());
+    prior = row;
+  }
+  return im;
+}
+
+Bytes unfiltered(const Image& im, int channels_out) {
+  Bytes out(size_t(im.width) * im.height * channels_out);
+  png::unfilter_rows(im.scanlines.data(), im.scanlines.size(), im.width, im.height, im.channels,
+                     channels_out, out.data());
+  return out;
+}
+
+TEST(PngRows, EveryFilterTypeGivesThePixelsBackBottomRowFirst) {
+  for (int channels : {3, 4})
+    for (int levels : {5, 256})
+      for (int type = 0; type <= 4; ++type) {
+        const Image im = filtered_image(13, 9, channels, levels, [&](int) { return type; });
+        const Bytes out = unfiltered(im, channels);
+        const size_t row_bytes = size_t(im.width) * channels;
+        for (int y = 0; y < im.height; ++y)
+          for (size_t i = 0; i < row_bytes; ++i)
+            ASSERT_EQ(out[(im.height - 1 - y) * row_bytes + i], im.pixels[y * row_bytes + i])
+                << "filter " << type << ", channels " << channels << ", row " << y;
+      }
+}
+
+TEST(PngRows, RowsOfMixedFiltersAndAlphaAddedToRgb) {
+  const Image im = filtered_image(17, 11, 3, 5, [](int y) { return (y * 3) % 5; });
+  const Bytes out = unfiltered(im, 4);
+  for (int y = 0; y < im.height; ++y)
+    for (int x = 0; x < im.width; ++x) {
+      const size_t o = (size_t(im.height - 1 - y) * im.width + x) * 4, i = (size_t(y) * im.width + x) * 3;
+      for (int k = 0; k < 3; ++k) ASSERT_EQ(out[o + k], im.pixels[i + k]) << y << " " << x;
+      ASSERT_EQ(out[o + 3], 255);
+    }
+}
+
+TEST(PngRows, RefusesBadFilterBytesSizesAndChannels) {
+  Image im = filtered_image(4, 3, 4, 256, [](int) { return 1; });
+  Bytes out(4 * 3 * 4);
+  im.scanlines[1 + 4 * 4] = 5;  // the second row's filter byte
+  EXPECT_THROW(unfiltered(im, 4), InputError);
+  im.scanlines[1 + 4 * 4] = 1;
+  EXPECT_THROW(png::unfilter_rows(im.scanlines.data(), im.scanlines.size() - 1, 4, 3, 4, 4, out.data()),
+               InputError);
+  EXPECT_THROW(png::unfilter_rows(im.scanlines.data(), im.scanlines.size(), 4, 3, 4, 3, out.data()),
+               InputError);
+  EXPECT_THROW(png::unfilter_rows(im.scanlines.data(), im.scanlines.size(), 0, 3, 4, 4, out.data()),
+               InputError);
+}
+
+TEST(BytesFromUnitFloats, GivesBytesBackAndClamps) {
+  // Several OpenMP blocks, every byte value many times.
+  const size_t n = 300001;
+  std::vector<float> in(n);
+  for (size_t i = 0; i < n; ++i) in[i] = static_cast<float>(i % 256) / 255.0f;
+  std::vector<std::uint8_t> out(n);
+  bytes_from_unit_floats(in.data(), n, out.data());
+  for (size_t i = 0; i < n; ++i) ASSERT_EQ(out[i], i % 256) << i;
+  const float odd[] = {-0.5f, 2.0f, std::numeric_limits<float>::quiet_NaN(),
+                       std::numeric_limits<float>::infinity(), 0.499f / 255.0f, 0.501f / 255.0f};
+  std::uint8_t got[6];
+  bytes_from_unit_floats(odd, 6, got);
+  EXPECT_EQ(got[0], 0);
+  EXPECT_EQ(got[1], 255);
+  EXPECT_EQ(got[2], 0);
+  EXPECT_EQ(got[3], 255);
+  EXPECT_EQ(got[4], 0);
+  EXPECT_EQ(got[5], 1);
+}
+
+}  // namespace
+}  // namespace atlas

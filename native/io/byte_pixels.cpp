@@ -1,0 +1,30 @@
+#include "io/byte_pixels.hpp"
+
+#include <algorithm>
+
+namespace atlas {
+namespace {
+
+// Values per OpenMP iteration: large enough that scheduling costs nothing,
+// small enough that a 4K texture still splits evenly between the cores.
+constexpr std::size_t kBlock = 1 << 16;
+
+inline std::uint8_t byte_of(float value) {
+  const float scaled = value * 255.0f + 0.5f;
+  if (!(scaled > 0.0f)) return 0;
+  if (scaled >= 255.0f) return 255;
+  return static_cast<std::uint8_t>(scaled);
+}
+
+}  // namespace
+
+void bytes_from_unit_floats(const float* in, std::size_t n, std::uint8_t* out) {
+  const long long blocks = static_cast<long long>((n + kBlock - 1) / kBlock);
+#pragma omp parallel for schedule(static)
+  for (long long b = 0; b < blocks; ++b) {
+    const std::size_t end = std::min(n, static_cast<std::size_t>(b + 1) * kBlock);
+    for (std::size_t i = static_cast<std::size_t>(b) * kBlock; i < end; ++i) out[i] = byte_of(in[i]);
+  }
+}
+
+}  // namespace atlas
