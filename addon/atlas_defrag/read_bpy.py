@@ -3,12 +3,14 @@
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from . import compat
+from . import compat, png_files
 from .job import DefragError, ImageData, ImageMap, JobInput, MeshData, SourcePage, role_sort_key
 
 # Image sources whose pixels are one plain 2D image.
@@ -239,7 +241,8 @@ def _downstream_roles(node) -> Tuple[List[str], bool, List[str]]:
 
 def _check_image(img, material_name: str):
     """None when the image can be read; a warning string when it has no pixels;
-    raises DefragError when it can never be supported."""
+    raises DefragError when it can never be supported. A plain PNG is checked
+    from its file's header, without Blender loading it."""
     if img.source == "TILED":
         raise DefragError(
             f"Image '{img.name}' in material '{material_name}' uses UDIM tiles: "
@@ -248,6 +251,8 @@ def _check_image(img, material_name: str):
         raise DefragError(
             f"Image '{img.name}' in material '{material_name}' is a {img.source.lower()} "
             "image: only single still images are supported")
+    if _plain_png(img):
+        return None
     w, h = img.size
     if w <= 0 or h <= 0 or not _loads(img):
         return f"Image '{img.name}' in material '{material_name}' has no pixels (missing file?): skipped"
@@ -259,6 +264,38 @@ def _loads(img) -> bool:
         return len(img.pixels) > 0
     except Exception:
         return False
+
+
+def _file_bytes(img, limit: int = -1) -> Optional[bytes]:
+    """The image file's bytes (its first `limit` when >= 0), packed or on
+    disk; None when there is no file to read."""
+    import bpy
+
+    if img.packed_file is not None:
+        data = img.packed_file.data
+        return data if limit < 0 else data[:limit]
+    try:
+        with open(bpy.path.abspath(img.filepath, library=img.library), "rb") as f:
+            return f.read(limit)
+    except (OSError, ValueError):
+        return None
+
+
+def _plain_png(img) -> bool:
+    """Whether img is an 8-bit RGB or RGBA PNG file that Blender has not
+    loaded, so that png_files.decode_png gives the bytes Blender would (it
+    keeps such images as bytes, straight alpha). A loaded image may have been
+    edited, or its file changed since: Blender's pixels are then the truth.
+    Loads nothing: asking Blender for an image's size or buffer type decodes
+    the whole file."""
+    if img.source != "FILE" or img.has_data or img.alpha_mode == "PREMUL":
+        return False
+    head = _file_bytes(img, png_files.HEADER_BYTES)
+    return head is not None and png_files.plain_png_size(head) is not None
+
+
+def _is_float(img) -> bool:
+    return False if _plain_png(img) else bool(img.is_float)
 
 
 def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
@@ -303,39 +340,37 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
     return maps, pin_images, pin_uv_nodes, pin_normal_nodes
 
 
-# Floats converted to bytes per block of this many: the block stays in cache,
-# where whole-image passes (scale, round, cast) each went through memory.
-_BYTE_BLOCK = 1 << 16
-
-
 def read_pixels(img) -> np.ndarray:
     """(H, W, C) row 0 = bottom; uint8 for byte images, float32 for float ones.
 
     bpy hands out pixels as floats only; a byte image's values are b / 255,
-    so 255 f lies within a rounding error of b, and adding 0.5 before the
-    cast (which truncates) gives b back exactly, several times faster than
-    rint."""
+    which the native module turns back into b exactly, on every core."""
+    from . import _native
+
     w, h = img.size
     c = img.channels
     n = w * h * c
-    try:
-        buf = np.empty(n, dtype=np.float32)
-        out = buf if img.is_float else np.empty(n, dtype=np.uint8)
-    except MemoryError as exc:
-        raise DefragError(f"Out of memory reading image '{img.name}' ({w}x{h})") from exc
+    if n <= 0 or not _loads(img):
+        raise DefragError(f"Image '{img.name}' has no pixels (missing or unreadable file?)")
     if len(img.pixels) != n:
         raise DefragError(f"Image '{img.name}' has an unexpected pixel count")
-    img.pixels.foreach_get(buf)
-    if out is not buf:
-        block = np.empty(_BYTE_BLOCK, dtype=np.float32)
-        for start in range(0, n, _BYTE_BLOCK):
-            src = buf[start:start + _BYTE_BLOCK]
-            tmp = block[:len(src)]
-            np.multiply(src, 255.0, out=tmp)
-            tmp += 0.5
-            out[start:start + len(src)] = tmp
-        del buf
+    try:
+        buf = np.empty(n, dtype=np.float32)
+        img.pixels.foreach_get(buf)
+        out = buf if img.is_float else _native.bytes_from_unit_floats(buf)
+    except MemoryError as exc:
+        raise DefragError(f"Out of memory reading image '{img.name}' ({w}x{h})") from exc
     return out.reshape(h, w, c)
+
+
+def _decoded_png(data: Optional[bytes]) -> Optional[np.ndarray]:
+    """The pixels of a PNG file's bytes, or None when they turn out not to be
+    plain (a tRNS chunk) or broken: Blender then reads them, or says why not.
+    No bpy: it runs on worker threads."""
+    try:
+        return None if data is None else png_files.decode_png(data, channels_out=4)
+    except (ValueError, MemoryError):
+        return None
 
 
 def read(obj, uv_map: Optional[str] = None) -> ReadResult:
@@ -450,7 +485,7 @@ def _source_pages(materials: Dict[str, MaterialInfo], used_slots: set) -> List[S
         page_key = _page_key(info)
         if page_key not in page_index:
             gkey = tuple((role, bpy.data.images[image_name].colorspace_settings.name,
-                          bool(bpy.data.images[image_name].is_float))
+                          _is_float(bpy.data.images[image_name]))
                          for role, image_name, _ in page_key)
             group_index.setdefault(gkey, len(group_index))
             page_index[page_key] = len(pages)
@@ -493,15 +528,22 @@ def _face_pages(materials: Dict[str, MaterialInfo], tri_material: np.ndarray, n_
 
 
 def _read_images(pages: List[SourcePage]) -> Dict[str, ImageData]:
+    """Plain PNGs are decoded from their files side by side (zlib and the
+    native row filters release the GIL); Blender reads the others, meanwhile,
+    and any PNG the decoder turned down."""
     import bpy
 
+    names = list(dict.fromkeys(m.image for page in pages for m in page.maps))
+    plain = [n for n in names if _plain_png(bpy.data.images[n])]
+    with ThreadPoolExecutor(max_workers=max(1, min(len(plain), os.cpu_count() or 1))) as pool:
+        decoding = {n: pool.submit(_decoded_png, _file_bytes(bpy.data.images[n])) for n in plain}
+        pixels = {n: read_pixels(bpy.data.images[n]) for n in names if n not in decoding}
+        for n, future in decoding.items():
+            decoded = future.result()
+            pixels[n] = decoded if decoded is not None else read_pixels(bpy.data.images[n])
     images: Dict[str, ImageData] = {}
-    for page in pages:
-        for m in page.maps:
-            if m.image in images:
-                continue
-            img = bpy.data.images[m.image]
-            images[m.image] = ImageData(
-                name=img.name, pixels=read_pixels(img), colorspace=img.colorspace_settings.name,
-                is_float=bool(img.is_float), alpha_mode=img.alpha_mode)
+    for n in names:
+        img = bpy.data.images[n]
+        images[n] = ImageData(name=img.name, pixels=pixels[n], colorspace=img.colorspace_settings.name,
+                              is_float=pixels[n].dtype != np.uint8, alpha_mode=img.alpha_mode)
     return images

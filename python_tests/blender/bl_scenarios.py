@@ -332,6 +332,64 @@ def write_identity_layout(pkg):
         assert H.image_state(bpy.data.images[n]) == st
 
 
+# --------------------------------------------------------------------------- reading PNG files
+
+
+def filtered_png(pixels, chunks=()) -> bytes:
+    """PNG bytes of (H, W, 3 or 4) uint8 pixels (top row first), row y
+    filtered with type y % 5 (None, Sub, Up, Average, Paeth: PNG spec 9.2),
+    the chunks (type, data) given placed before the pixel data."""
+    import zlib
+
+    from atlas_defrag import png_files
+
+    h, w, c = pixels.shape
+    rows = pixels.reshape(h, w * c).astype(np.int32)
+    above = np.vstack([np.zeros((1, w * c), np.int32), rows[:-1]])
+    left = np.hstack([np.zeros((h, c), np.int32), rows[:, :-c]])
+    upper_left = np.hstack([np.zeros((h, c), np.int32), above[:, :-c]])
+    p = left + above - upper_left
+    pa, pb, pc = np.abs(p - left), np.abs(p - above), np.abs(p - upper_left)
+    paeth = np.where((pa <= pb) & (pa <= pc), left, np.where(pb <= pc, above, upper_left))
+    predictions = [np.zeros_like(rows), left, above, (left + above) // 2, paeth]
+    scanlines = np.empty((h, 1 + w * c), np.uint8)
+    for y in range(h):
+        scanlines[y, 0] = y % 5
+        scanlines[y, 1:] = (rows[y] - predictions[y % 5][y]) & 255
+    header = png_files._IHDR.pack(w, h, 8, {3: 2, 4: 6}[c], 0, 0, 0)
+    return b"".join([png_files._SIGNATURE, png_files._chunk(b"IHDR", header)]
+                    + [png_files._chunk(kind, data) for kind, data in chunks]
+                    + [png_files._chunk(b"IDAT", zlib.compress(scanlines.tobytes())),
+                       png_files._chunk(b"IEND", b"")])
+
+
+def png_read_from_file(pkg):
+    """An 8-bit RGB or RGBA PNG that Blender has not loaded, on disk or
+    packed, is decoded from its bytes without Blender loading it, to exactly
+    the pixels Blender's own route gives; a loaded one, or one with a tRNS
+    chunk, goes through Blender."""
+    rb = pkg.read_bpy
+    rng = np.random.default_rng(5)
+    with scratch_folder("png_read") as folder:
+        for channels in (3, 4):
+            pixels = rng.integers(0, 256, (29, 41, channels)).astype(np.uint8)
+            path = os.path.join(folder, f"channels{channels}.png")
+            with open(path, "wb") as f:
+                f.write(filtered_png(pixels))
+            img = bpy.data.images.load(path, check_existing=False)
+            assert rb._plain_png(img) and rb._check_image(img, "m") is None and not img.has_data
+            ours = rb._decoded_png(rb._file_bytes(img))
+            img.pack()
+            assert rb._plain_png(img) and np.array_equal(rb._decoded_png(rb._file_bytes(img)), ours)
+            blenders = rb.read_pixels(img)
+            assert ours.shape == blenders.shape == (29, 41, 4) and np.array_equal(ours, blenders)
+            assert np.array_equal(ours[::-1, :, :channels], pixels)
+            assert img.has_data and not rb._plain_png(img)  # loaded: Blender's pixels count
+            bpy.data.images.remove(img)
+        keyed = filtered_png(rng.integers(0, 256, (8, 8, 3)).astype(np.uint8), [(b"tRNS", bytes(6))])
+        assert rb._decoded_png(keyed) is None
+
+
 # --------------------------------------------------------------------------- export, save
 
 
@@ -697,6 +755,7 @@ SCENARIOS = {
     "cancel_leaves_nothing": cancel_leaves_nothing,
     "worker_thread_run": worker_thread_run,
     "write_identity_layout": write_identity_layout,
+    "png_read_from_file": png_read_from_file,
     "fbx_round_trip_meshroom": lambda pkg: export_round_trip(pkg, "meshroom", "fbx"),
     "fbx_round_trip_smithsonian": lambda pkg: export_round_trip(pkg, "smithsonian", "fbx"),
     "obj_round_trip_meshroom": lambda pkg: export_round_trip(pkg, "meshroom", "obj"),

@@ -65,3 +65,54 @@ def test_png_refuses_other_pixel_formats(pkg):
         pkg.png_files.encode_png(np.zeros((4, 4, 2), np.uint8))
     with pytest.raises(ValueError, match="uint8"):
         pkg.png_files.encode_png(np.zeros((4, 4, 4), np.float32))
+
+
+# --------------------------------------------------------------------------- reading
+def _pillow_png(image, mode, **save) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(image).convert(mode).save(buf, "PNG", **save)
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize("mode", ["RGB", "RGBA"])
+def test_decode_png_reads_what_pillow_writes_with_adaptive_filters(pkg, native, mode):
+    """optimize=True makes Pillow pick a filter per row (Paeth among them)."""
+    from PIL import Image
+
+    smooth = np.cumsum(np.random.default_rng(2).integers(0, 9, (45, 61, 4)), axis=1).astype(np.uint8)
+    data = _pillow_png(smooth, mode, optimize=True)
+    expected = np.asarray(Image.open(io.BytesIO(data)).convert("RGBA"))[::-1]
+    assert pkg.png_files.plain_png_size(data[:pkg.png_files.HEADER_BYTES]) == (61, 45, len(mode))
+    decoded = pkg.png_files.decode_png(data)
+    assert decoded.shape == (45, 61, 4) and np.array_equal(decoded, expected)
+
+
+@pytest.mark.parametrize("mode", ["L", "LA", "P", "I;16"])
+def test_png_formats_blender_converts_are_not_plain(pkg, mode):
+    data = _pillow_png(pixels(), mode)
+    assert pkg.png_files.plain_png_size(data[:pkg.png_files.HEADER_BYTES]) is None
+    with pytest.raises(ValueError, match="8-bit"):
+        pkg.png_files.decode_png(data)
+
+
+def test_interlaced_or_damaged_png_is_refused(pkg, native):
+    import struct
+    import zlib
+
+    f = pkg.png_files
+    data = f.encode_png(pixels())
+    interlaced = bytearray(data)
+    interlaced[28] = 1  # IHDR's interlace method, its CRC made right again
+    interlaced[29:33] = struct.pack(">I", zlib.crc32(bytes(interlaced[12:29])) & 0xFFFFFFFF)
+    assert f.plain_png_size(bytes(interlaced)) is None
+    bad_crc = bytearray(data)
+    bad_crc[32] ^= 1
+    assert f.plain_png_size(bytes(bad_crc)) is None
+    with pytest.raises(ValueError):
+        f.decode_png(data[:len(data) // 2])  # cut before IEND
+    broken = bytearray(data)
+    broken[60] ^= 0xFF  # a byte inside the zlib stream
+    with pytest.raises(ValueError):
+        f.decode_png(bytes(broken))
