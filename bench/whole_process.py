@@ -8,7 +8,8 @@ peak memory (wait4, through run_benchmark's spawner): `tools/defrag_scan.py`
 on the Smithsonian and Meshroom scans, as each build runs by default and
 with its quality metrics measured (--metrics; builds before it measured them
 by default), the Blender
-batch entry on the Smithsonian scan (Blender's start-up to the written GLB),
+batch entry on the Smithsonian and Meshroom scans (Blender's start-up to the
+written GLB; the issue sets no target for Meshroom's),
 and with --large both entries on the generated 1M-face scan. With --base (a
 checkout with its own build/), the base's and this build's runs alternate,
 one of each per round, so that both see the same machine; the table gives
@@ -59,7 +60,8 @@ def commands(checkout: Path, out: Path) -> dict:
             "CLI with metrics, smithsonian": cli + [str(SCANS["smithsonian"]), str(out / "cli_s")] + metrics,
             "CLI, meshroom": cli + [str(SCANS["meshroom"]), str(out / "cli_m")],
             "CLI with metrics, meshroom": cli + [str(SCANS["meshroom"]), str(out / "cli_m")] + metrics,
-            "batch, smithsonian": batch + [str(SCANS["smithsonian"]), str(out / "batch_s.glb")]}
+            "batch, smithsonian": batch + [str(SCANS["smithsonian"]), str(out / "batch_s.glb")],
+            "batch, meshroom": batch + [str(SCANS["meshroom"]), str(out / "batch_m.glb")]}
     if LARGE.exists():
         jobs["CLI, large"] = cli + [str(LARGE), str(out / "cli_l")]
         jobs["batch, large"] = batch + [str(LARGE), str(out / "batch_l.glb")]
@@ -113,9 +115,12 @@ def section(results: dict, builds: dict, runs: int) -> list:
     for label, by_build in results.items():
         medians = {n: (statistics.median(w for w, _ in by_build[n]), max(g for _, g in by_build[n])) for n in names}
         wall, peak = medians[names[-1]]
-        met = wall <= TARGETS[label] and ("large" not in label or peak <= LARGE_MEMORY_GB)
         cells = " | ".join(f"{medians[n][0]:.2f} | {medians[n][1]:.2f}" for n in names)
         ratio = f" | {medians[names[0]][0] / wall:.2f}x" if len(names) > 1 else ""
+        if label not in TARGETS:  # measured beside the targets, not set by the issue
+            lines.append(f"| {label} | - | {cells}{ratio} | - |")
+            continue
+        met = wall <= TARGETS[label] and ("large" not in label or peak <= LARGE_MEMORY_GB)
         target = f"<= {TARGETS[label]:g} s" + (f", <= {LARGE_MEMORY_GB:g} GB" if "large" in label else "")
         lines.append(f"| {label} | {target} | {cells}{ratio} | {'yes' if met else 'no'} |")
     return lines + [""]
