@@ -281,17 +281,23 @@ def _file_bytes(img, limit: int = -1) -> Optional[bytes]:
         return None
 
 
+# Alpha modes under which Blender keeps an RGBA PNG's alpha as the file has
+# it; with the others it premultiplies the colours or sets alpha opaque.
+_FILE_ALPHA_MODES = {"STRAIGHT", "CHANNEL_PACKED"}
+
+
 def _plain_png(img) -> bool:
     """Whether img is an 8-bit RGB or RGBA PNG file that Blender has not
-    loaded, so that png_files.decode_png gives the bytes Blender would (it
-    keeps such images as bytes, straight alpha). A loaded image may have been
-    edited, or its file changed since: Blender's pixels are then the truth.
-    Loads nothing: asking Blender for an image's size or buffer type decodes
-    the whole file."""
-    if img.source != "FILE" or img.has_data or img.alpha_mode == "PREMUL":
+    loaded, and whose bytes png_files.decode_png turns into the pixels
+    Blender would give (checked in 3.4, 4.5 and 5.0). A loaded image may have
+    been edited, or its file changed since: Blender's pixels are then the
+    truth. Loads nothing: asking Blender for an image's size or buffer type
+    decodes the whole file."""
+    if img.source != "FILE" or img.has_data:
         return False
     head = _file_bytes(img, png_files.HEADER_BYTES)
-    return head is not None and png_files.plain_png_size(head) is not None
+    size = png_files.plain_png_size(head) if head is not None else None
+    return size is not None and (size[2] == 3 or img.alpha_mode in _FILE_ALPHA_MODES)
 
 
 def _is_float(img) -> bool:

@@ -366,26 +366,37 @@ def filtered_png(pixels, chunks=()) -> bytes:
 def png_read_from_file(pkg):
     """An 8-bit RGB or RGBA PNG that Blender has not loaded, on disk or
     packed, is decoded from its bytes without Blender loading it, to exactly
-    the pixels Blender's own route gives; a loaded one, or one with a tRNS
-    chunk, goes through Blender."""
+    the pixels Blender's own route gives, under every alpha mode it is
+    decoded for (RGBA under premultiplied or ignored alpha is left to
+    Blender); a loaded one, or one with a tRNS chunk, goes through Blender."""
     rb = pkg.read_bpy
     rng = np.random.default_rng(5)
+    decoded = set()
     with scratch_folder("png_read") as folder:
         for channels in (3, 4):
             pixels = rng.integers(0, 256, (29, 41, channels)).astype(np.uint8)
             path = os.path.join(folder, f"channels{channels}.png")
             with open(path, "wb") as f:
                 f.write(filtered_png(pixels))
-            img = bpy.data.images.load(path, check_existing=False)
-            assert rb._plain_png(img) and rb._check_image(img, "m") is None and not img.has_data
-            ours = rb._decoded_png(rb._file_bytes(img))
-            img.pack()
-            assert rb._plain_png(img) and np.array_equal(rb._decoded_png(rb._file_bytes(img)), ours)
-            blenders = rb.read_pixels(img)
-            assert ours.shape == blenders.shape == (29, 41, 4) and np.array_equal(ours, blenders)
-            assert np.array_equal(ours[::-1, :, :channels], pixels)
-            assert img.has_data and not rb._plain_png(img)  # loaded: Blender's pixels count
-            bpy.data.images.remove(img)
+            for mode in ("STRAIGHT", "CHANNEL_PACKED", "PREMUL", "NONE"):
+                img = bpy.data.images.load(path, check_existing=False)
+                img.alpha_mode = mode
+                if not rb._plain_png(img):
+                    bpy.data.images.remove(img)
+                    continue
+                decoded.add((channels, mode))
+                assert rb._check_image(img, "m") is None and not img.has_data
+                ours = rb._decoded_png(rb._file_bytes(img))
+                img.pack()
+                assert rb._plain_png(img) and np.array_equal(rb._decoded_png(rb._file_bytes(img)), ours)
+                blenders = rb.read_pixels(img)
+                assert ours.shape == blenders.shape == (29, 41, 4), (channels, mode)
+                assert np.array_equal(ours, blenders), (channels, mode)
+                assert np.array_equal(ours[::-1, :, :channels], pixels)
+                assert img.has_data and not rb._plain_png(img)  # loaded: Blender's pixels count
+                bpy.data.images.remove(img)
+        assert decoded == {(3, "STRAIGHT"), (3, "CHANNEL_PACKED"), (3, "PREMUL"), (3, "NONE"),
+                           (4, "STRAIGHT"), (4, "CHANNEL_PACKED")}, decoded
         keyed = filtered_png(rng.integers(0, 256, (8, 8, 3)).astype(np.uint8), [(b"tRNS", bytes(6))])
         assert rb._decoded_png(keyed) is None
 
