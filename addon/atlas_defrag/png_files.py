@@ -131,14 +131,14 @@ def plain_png_size(head: bytes) -> Optional[Tuple[int, int, int]]:
 def _image_data(data: bytes) -> bytes:
     """The joined IDAT chunks. A tRNS chunk (one colour made transparent)
     is refused: Blender turns it into alpha, which the rows do not hold."""
-    pos, idat = 8, []
+    pos, idat, view = 8, [], memoryview(data)  # views: the chunks are copied once, by the join
     while pos + 12 <= len(data):
         length = struct.unpack(">I", data[pos:pos + 4])[0]
         kind = data[pos + 4:pos + 8]
         if pos + 12 + length > len(data):
             raise ValueError("PNG chunk runs past the end of the file")
         if kind == b"IDAT":
-            idat.append(data[pos + 8:pos + 8 + length])
+            idat.append(view[pos + 8:pos + 8 + length])
         elif kind == b"tRNS":
             raise ValueError("PNG with a tRNS chunk (colour-key transparency)")
         elif kind == b"IEND":
