@@ -8,6 +8,7 @@
 #include <pybind11/stl.h>
 
 #include <cstdint>
+#include <new>
 #include <sstream>
 
 #include "bake/bake.hpp"
@@ -429,10 +430,9 @@ void write_obj_py(const std::string& path, const std::string& library, const py:
 py::array_t<std::uint8_t> png_rows_py(const py::buffer& scanlines, int width, int height,
                                      int channels_in, int channels_out) {
   const py::buffer_info in = scanlines.request();
-  if (in.itemsize != 1 || in.ndim != 1)
-    throw py::value_error("scanlines must be a flat buffer of bytes");
-  if (width <= 0 || height <= 0 || channels_out < 1)
-    throw py::value_error("width, height and channels_out must be positive");
+  if (in.itemsize != 1 || in.ndim != 1 || (in.size > 1 && in.strides[0] != 1))
+    throw py::value_error("scanlines must be a contiguous flat buffer of bytes");
+  png::check_sizes(static_cast<std::size_t>(in.size), width, height, channels_in, channels_out);
   py::array_t<std::uint8_t> out({py::ssize_t(height), py::ssize_t(width), py::ssize_t(channels_out)});
   const auto* data = static_cast<const std::uint8_t*>(in.ptr);
   std::uint8_t* dst = out.mutable_data();
@@ -446,6 +446,7 @@ py::array_t<std::uint8_t> bytes_from_unit_floats_py(const py::array& values) {
   if (!py::isinstance<py::array_t<float>>(values))
     throw py::value_error("values must be a float32 array, got dtype " + std::string(py::str(values.dtype())));
   const auto in = py::array_t<float, py::array::c_style>::ensure(values);
+  if (!in) throw std::bad_alloc();  // the contiguous copy failed
   std::vector<py::ssize_t> shape(in.shape(), in.shape() + in.ndim());
   py::array_t<std::uint8_t> out(shape);
   const float* src = in.data();

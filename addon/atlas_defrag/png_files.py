@@ -113,24 +113,48 @@ def write_pngs(files: Iterable[Tuple[str, np.ndarray]]) -> None:
 
 
 # --------------------------------------------------------------------------- reading
+_LARGEST_SIDE = 2 ** 31 - 1  # PNG spec 11.2.2
+# Deflate turns a byte into at most 1032 (its longest match, 258 bytes, costs
+# at least 2 bits): a header claiming more pixels than its data could hold is
+# refused before a buffer of that size is asked for.
+_MAX_INFLATION = 1032
+_IEND = b"\x00\x00\x00\x00IEND\xaeB`\x82"  # the whole IEND chunk, CRC included
+TAIL_BYTES = len(_IEND)
+
+
 def plain_png_size(head: bytes) -> Optional[Tuple[int, int, int]]:
     """(width, height, channels) when ``head`` (a file's first HEADER_BYTES
     bytes or more) starts a PNG that decode_png reads: 8-bit RGB or RGBA,
     not interlaced, with a sound IHDR chunk; None otherwise."""
     if len(head) < HEADER_BYTES or head[:8] != _SIGNATURE or head[12:16] != b"IHDR":
         return None
-    if struct.unpack(">I", head[8:12])[0] != 13 or \
-            zlib.crc32(head[12:29]) & 0xFFFFFFFF != struct.unpack(">I", head[29:33])[0]:
+    if struct.unpack(">I", head[8:12])[0] != 13 or not _crc_holds(head, 8, 13):
         return None
     width, height, depth, colour, compression, filtering, interlace = _IHDR.unpack(head[16:29])
-    if depth != 8 or colour not in _CHANNELS or compression or filtering or interlace or not width or not height:
+    if depth != 8 or colour not in _CHANNELS or compression or filtering or interlace:
+        return None
+    if not (0 < width <= _LARGEST_SIDE and 0 < height <= _LARGEST_SIDE):
         return None
     return width, height, _CHANNELS[colour]
 
 
+def ends_whole(tail: bytes) -> bool:
+    """Whether a file's last TAIL_BYTES bytes are a PNG's IEND chunk: a file
+    cut short, the usual damage, ends otherwise."""
+    return tail[-TAIL_BYTES:] == _IEND
+
+
+def _crc_holds(data, pos: int, length: int) -> bool:
+    """The CRC of the chunk of `length` data bytes whose length field is at pos."""
+    stored = struct.unpack(">I", data[pos + 8 + length:pos + 12 + length])[0]
+    return zlib.crc32(data[pos + 4:pos + 8 + length]) & 0xFFFFFFFF == stored
+
+
 def _image_data(data: bytes) -> bytes:
-    """The joined IDAT chunks. A tRNS chunk (one colour made transparent)
-    is refused: Blender turns it into alpha, which the rows do not hold."""
+    """The joined IDAT chunks, their CRCs checked (libpng refuses a file whose
+    critical chunks fail theirs, and Blender with it). A tRNS chunk (one
+    colour made transparent) is refused: Blender turns it into alpha, which
+    the rows do not hold."""
     pos, idat, view = 8, [], memoryview(data)  # views: the chunks are copied once, by the join
     while pos + 12 <= len(data):
         length = struct.unpack(">I", data[pos:pos + 4])[0]
@@ -138,6 +162,8 @@ def _image_data(data: bytes) -> bytes:
         if pos + 12 + length > len(data):
             raise ValueError("PNG chunk runs past the end of the file")
         if kind == b"IDAT":
+            if not _crc_holds(view, pos, length):
+                raise ValueError("PNG pixel data fails its CRC")
             idat.append(view[pos + 8:pos + 8 + length])
         elif kind == b"tRNS":
             raise ValueError("PNG with a tRNS chunk (colour-key transparency)")
@@ -148,20 +174,25 @@ def _image_data(data: bytes) -> bytes:
 
 
 def decode_png(data: bytes, channels_out: int = 4) -> np.ndarray:
-    """(H, W, channels_out) uint8 pixels, row 0 at the bottom as Blender
-    stores them, of a PNG file's bytes that plain_png_size accepts; channels
-    past the file's are 255, as Blender fills an RGB image's alpha.
-    ValueError for any other file, a tRNS chunk, or a broken zlib stream
-    (its Adler-32 checks the pixel bytes)."""
-    from . import _native
-
+    """(H, W, C) uint8 pixels, C the larger of the file's channels and
+    channels_out, row 0 at the bottom as Blender stores them, of a PNG
+    file's bytes that plain_png_size accepts; channels past the file's are
+    255, as Blender fills an RGB image's alpha. ValueError for any other
+    file, a tRNS chunk, a failed CRC, a header claiming more pixels than the
+    data holds, or a broken zlib stream (its Adler-32 checks the pixel
+    bytes); MemoryError when the pixels do not fit in memory."""
     size = plain_png_size(data[:HEADER_BYTES])
     if size is None:
         raise ValueError("not an 8-bit, non-interlaced RGB or RGBA PNG")
+    from . import _native
+
     width, height, channels = size
     expected = height * (1 + width * channels)
+    compressed = _image_data(data)
+    if expected > _MAX_INFLATION * len(compressed) + 1024:
+        raise ValueError(f"PNG header claims {width}x{height} pixels, more than its data holds")
     try:
-        scanlines = zlib.decompress(_image_data(data), bufsize=expected)
+        scanlines = zlib.decompress(compressed, bufsize=expected)
     except zlib.error as exc:
         raise ValueError(f"PNG pixel data is broken: {exc}") from exc
     return _native.png_rows(scanlines, width, height, channels, max(channels, channels_out))

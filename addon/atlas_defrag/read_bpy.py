@@ -266,17 +266,33 @@ def _loads(img) -> bool:
         return False
 
 
-def _file_bytes(img, limit: int = -1) -> Optional[bytes]:
-    """The image file's bytes (its first `limit` when >= 0), packed or on
-    disk; None when there is no file to read."""
+def _file_bytes(img) -> Optional[bytes]:
+    """The image file's bytes, packed or on disk; None when there is no file to read."""
+    import bpy
+
+    if img.packed_file is not None:
+        return img.packed_file.data
+    try:
+        with open(bpy.path.abspath(img.filepath, library=img.library), "rb") as f:
+            return f.read()
+    except (OSError, ValueError):
+        return None
+
+
+def _file_ends(img, head: int, tail: int) -> Optional[Tuple[bytes, bytes]]:
+    """The first `head` and the last `tail` bytes of the image file, packed
+    or on disk, without reading the rest from disk; None when there is no
+    file to read."""
     import bpy
 
     if img.packed_file is not None:
         data = img.packed_file.data
-        return data if limit < 0 else data[:limit]
+        return data[:head], data[-tail:]
     try:
         with open(bpy.path.abspath(img.filepath, library=img.library), "rb") as f:
-            return f.read(limit)
+            first = f.read(head)
+            f.seek(max(0, os.fstat(f.fileno()).st_size - tail))
+            return first, f.read(tail)
     except (OSError, ValueError):
         return None
 
@@ -287,20 +303,23 @@ _FILE_ALPHA_MODES = {"STRAIGHT", "CHANNEL_PACKED"}
 
 
 def _plain_png(img) -> bool:
-    """Whether img is an 8-bit RGB or RGBA PNG file that Blender has not
+    """Whether img is a whole 8-bit RGB or RGBA PNG file that Blender has not
     loaded, and whose bytes png_files.decode_png turns into the pixels
     Blender would give (checked in 3.4, 4.5 and 5.0). A loaded image may have
     been edited, or its file changed since: Blender's pixels are then the
-    truth. Loads nothing: asking Blender for an image's size or buffer type
+    truth. A file cut short is left to Blender, which skips it with a
+    warning. Loads nothing: asking Blender for an image's size or buffer type
     decodes the whole file."""
     if img.source != "FILE" or img.has_data:
         return False
-    head = _file_bytes(img, png_files.HEADER_BYTES)
-    size = png_files.plain_png_size(head) if head is not None else None
-    return size is not None and (size[2] == 3 or img.alpha_mode in _FILE_ALPHA_MODES)
+    ends = _file_ends(img, png_files.HEADER_BYTES, png_files.TAIL_BYTES)
+    size = png_files.plain_png_size(ends[0]) if ends is not None else None
+    return (size is not None and png_files.ends_whole(ends[1])
+            and (size[2] == 3 or img.alpha_mode in _FILE_ALPHA_MODES))
 
 
 def _is_float(img) -> bool:
+    """img.is_float without loading a plain PNG (the property decodes the file)."""
     return False if _plain_png(img) else bool(img.is_float)
 
 
@@ -372,10 +391,11 @@ def read_pixels(img) -> np.ndarray:
 def _decoded_png(data: Optional[bytes]) -> Optional[np.ndarray]:
     """The pixels of a PNG file's bytes, or None when they turn out not to be
     plain (a tRNS chunk) or broken: Blender then reads them, or says why not.
-    No bpy: it runs on worker threads."""
+    MemoryError passes: Blender's route would need more. No bpy: it runs on
+    worker threads."""
     try:
         return None if data is None else png_files.decode_png(data, channels_out=4)
-    except (ValueError, MemoryError):
+    except ValueError:
         return None
 
 
@@ -545,7 +565,10 @@ def _read_images(pages: List[SourcePage]) -> Dict[str, ImageData]:
         decoding = {n: pool.submit(_decoded_png, _file_bytes(bpy.data.images[n])) for n in plain}
         pixels = {n: read_pixels(bpy.data.images[n]) for n in names if n not in decoding}
         for n, future in decoding.items():
-            decoded = future.result()
+            try:
+                decoded = future.result()
+            except MemoryError as exc:
+                raise DefragError(f"Out of memory reading image '{n}'") from exc
             pixels[n] = decoded if decoded is not None else read_pixels(bpy.data.images[n])
     images: Dict[str, ImageData] = {}
     for n in names:

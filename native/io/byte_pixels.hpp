@@ -1,6 +1,6 @@
 // Blender hands out the pixels of an 8-bit image as floats b / 255 only; the
 // bake wants the bytes back, and the conversion of a large texture is worth
-// both cores.
+// every core.
 #pragma once
 #include <cstddef>
 #include <cstdint>

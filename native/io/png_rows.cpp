@@ -79,15 +79,17 @@ void unfilter_image(const std::uint8_t* scanlines, int width, int height, std::u
     unfilter_row<In>(line[0], row, prior, row_bytes);
     prior = row;
     if (In == Out) continue;
-    for (int x = 0; x < width; ++x) {
+    for (std::size_t x = 0; x < std::size_t(width); ++x) {
       for (int k = 0; k < In; ++k) dst[x * Out + k] = row[x * In + k];
       for (int k = In; k < Out; ++k) dst[x * Out + k] = 255;
     }
   }
 }
 
-void require_sizes(std::size_t scanline_bytes, int width, int height, int channels_in,
-                   int channels_out) {
+}  // namespace
+
+void check_sizes(std::size_t scanline_bytes, int width, int height, int channels_in,
+                 int channels_out) {
   std::ostringstream msg;
   if (width <= 0 || height <= 0)
     msg << "PNG size must be positive, got " << width << "x" << height;
@@ -101,11 +103,9 @@ void require_sizes(std::size_t scanline_bytes, int width, int height, int channe
   if (msg.tellp() > 0) throw InputError(msg.str());
 }
 
-}  // namespace
-
 void unfilter_rows(const std::uint8_t* scanlines, std::size_t scanline_bytes, int width,
                    int height, int channels_in, int channels_out, std::uint8_t* out) {
-  require_sizes(scanline_bytes, width, height, channels_in, channels_out);
+  check_sizes(scanline_bytes, width, height, channels_in, channels_out);
   if (channels_in == 3 && channels_out == 3) unfilter_image<3, 3>(scanlines, width, height, out);
   if (channels_in == 3 && channels_out == 4) unfilter_image<3, 4>(scanlines, width, height, out);
   if (channels_in == 4) unfilter_image<4, 4>(scanlines, width, height, out);

@@ -13,9 +13,14 @@ namespace atlas::png {
 // channels_in 3 (RGB) or 4 (RGBA). out: height x width x channels_out bytes
 // (channels_out 3 or 4, >= channels_in), the BOTTOM row first as Blender
 // stores images; a channel out has no source is 255 (opaque alpha).
-// Throws InputError on a filter type above 4, a size of scanlines other than
-// height * (1 + width * channels_in), or channel counts outside these.
+// Throws InputError on a filter type above 4, or as check_sizes does.
 void unfilter_rows(const std::uint8_t* scanlines, std::size_t scanline_bytes, int width,
                    int height, int channels_in, int channels_out, std::uint8_t* out);
+
+// Throws InputError unless width and height are positive, scanline_bytes is
+// height * (1 + width * channels_in), and the channel counts are as above:
+// what unfilter_rows checks, for callers that allocate `out` first.
+void check_sizes(std::size_t scanline_bytes, int width, int height, int channels_in,
+                 int channels_out);
 
 }  // namespace atlas::png

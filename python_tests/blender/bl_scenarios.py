@@ -368,7 +368,8 @@ def png_read_from_file(pkg):
     packed, is decoded from its bytes without Blender loading it, to exactly
     the pixels Blender's own route gives, under every alpha mode it is
     decoded for (RGBA under premultiplied or ignored alpha is left to
-    Blender); a loaded one, or one with a tRNS chunk, goes through Blender."""
+    Blender); a loaded one, or one with a tRNS chunk, goes through Blender,
+    and one cut short is skipped as Blender skips it."""
     rb = pkg.read_bpy
     rng = np.random.default_rng(5)
     decoded = set()
@@ -397,8 +398,38 @@ def png_read_from_file(pkg):
                 bpy.data.images.remove(img)
         assert decoded == {(3, "STRAIGHT"), (3, "CHANNEL_PACKED"), (3, "PREMUL"), (3, "NONE"),
                            (4, "STRAIGHT"), (4, "CHANNEL_PACKED")}, decoded
-        keyed = filtered_png(rng.integers(0, 256, (8, 8, 3)).astype(np.uint8), [(b"tRNS", bytes(6))])
-        assert rb._decoded_png(keyed) is None
+        _read_images_mixes_routes(pkg, folder, rng)
+
+
+def _read_images_mixes_routes(pkg, folder, rng):
+    """One read of a plain PNG, a PNG with a tRNS chunk (Blender turns its
+    colour key into alpha) and a PNG cut short (Blender skips it, as before):
+    the plain one decoded without loading it, the keyed one read by Blender."""
+    rb, job = pkg.read_bpy, pkg.job
+    files = {}
+    for name, chunks in (("plain", ()), ("keyed", [(b"tRNS", bytes(6))])):
+        path = os.path.join(folder, f"{name}.png")
+        with open(path, "wb") as f:
+            f.write(filtered_png(rng.integers(0, 256, (8, 8, 3)).astype(np.uint8), chunks))
+        files[name] = bpy.data.images.load(path, check_existing=False)
+    assert rb._plain_png(files["plain"]) and rb._plain_png(files["keyed"])  # the header cannot tell
+    assert rb._decoded_png(rb._file_bytes(files["keyed"])) is None
+    page = job.SourcePage([job.ImageMap("base_color", files["plain"].name),
+                           job.ImageMap("roughness", files["keyed"].name)], 0)
+    read = rb._read_images([page])
+    assert not files["plain"].has_data and files["keyed"].has_data
+    for img in files.values():
+        assert read[img.name].pixels.dtype == np.uint8 and not read[img.name].is_float
+    assert np.array_equal(read[files["keyed"].name].pixels, rb.read_pixels(files["keyed"]))
+    cut = os.path.join(folder, "cut.png")
+    with open(files["plain"].filepath, "rb") as f:
+        whole = f.read()
+    with open(cut, "wb") as f:
+        f.write(whole[:-20])
+    img = bpy.data.images.load(cut, check_existing=False)
+    assert not rb._plain_png(img) and rb._check_image(img, "m") is not None  # skipped, with a warning
+    for img in list(files.values()) + [img]:
+        bpy.data.images.remove(img)
 
 
 # --------------------------------------------------------------------------- export, save
