@@ -6,13 +6,15 @@
 Each run is a fresh process of one Blender: Debian's Blender 3.4
 (`blender --background`), the bpy 4.5 module (.venv) or the bpy 5.0 module
 (.venv-bpy5). It imports the scan as the batch entry does, then times
-`read_bpy.read` on its largest mesh: the whole stage (geometry, materials,
-pixels) and the pixels alone. Two routes for the pixels: the default one
-(PNGs Blender has not loaded decoded from their files, the others through
-Blender with natively converted floats) and Blender's for every image
-(`Image.pixels.foreach_get`). Medians over the runs, wall seconds. Rewrites
-the section "## Reading in Blender" of bench/RESULTS.md (run_benchmark.py
-keeps it).
+`read_bpy.read` on its largest mesh, the whole stage: geometry, materials and
+pixels, Blender's decoding of the images it loads included (asking an image's
+size loads it, so the pixels cannot be timed apart fairly). Two routes: the
+default one (PNGs Blender has not loaded decoded from their files, the others
+through Blender with natively converted floats) and Blender's for every
+image (`Image.pixels.foreach_get`). Medians over the runs, wall seconds.
+Options: --runs N (default 3), --large, --results FILE (default
+bench/RESULTS.md). Rewrites the section "## Reading in Blender" there
+(run_benchmark.py keeps it).
 """
 from __future__ import annotations
 
@@ -52,16 +54,9 @@ objects = batch.import_model(scan)
 obj = max((o for o in objects if o.type == "MESH"), key=lambda o: len(o.data.polygons))
 if route == "blender":
     read_bpy._plain_png = lambda img: False
-read_images, spent = read_bpy._read_images, {}
-def timed_images(pages):
-    t = time.perf_counter()
-    images = read_images(pages)
-    spent["pixels"] = time.perf_counter() - t
-    return images
-read_bpy._read_images = timed_images
 t = time.perf_counter()
 read_bpy.read(obj)
-print("READ_STAGE " + json.dumps({"read": time.perf_counter() - t, "pixels": spent["pixels"]}))
+print("READ_STAGE " + json.dumps({"read": time.perf_counter() - t}))
 '''
 
 
@@ -75,7 +70,7 @@ def run_once(runtime: list, scan: Path, route: str, script: Path) -> dict:
 
 
 def measure(scans: dict, runs: int, script: Path) -> dict:
-    """(runtime, scan, route) -> median {read, pixels}, the routes alternating run by run."""
+    """(runtime, scan, route) -> median seconds, the routes alternating run by run."""
     samples = {}
     for runtime, argv in RUNTIMES.items():
         for name, scan in scans.items():
@@ -83,8 +78,7 @@ def measure(scans: dict, runs: int, script: Path) -> dict:
                 for route in ROUTES:
                     samples.setdefault((runtime, name, route), []).append(run_once(argv, scan, route, script))
             print(f"[read_stage] {runtime}, {name}", file=sys.stderr, flush=True)
-    return {key: {k: statistics.median(s[k] for s in runs_) for k in ("read", "pixels")}
-            for key, runs_ in samples.items()}
+    return {key: statistics.median(s["read"] for s in runs_) for key, runs_ in samples.items()}
 
 
 def section(results: dict, scans: dict, runs: int) -> list:
@@ -93,29 +87,29 @@ def section(results: dict, scans: dict, runs: int) -> list:
     lines = [SECTION, "",
              f"`bench/read_stage.py`, {time.strftime('%Y-%m-%d %H:%M')}, commit `{head}`, load average "
              f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores at the end. `read_bpy.read` on the "
-             f"imported scan, wall seconds, medians of {runs} fresh processes per cell, the two routes "
-             "alternating. Pixels: the images alone; default: PNGs Blender has not loaded decoded from "
-             "their files, other images through Blender; Blender: every image through "
-             "`Image.pixels.foreach_get`, floats turned into bytes natively.", "",
-             "| Blender | scan | read, default | pixels, default | read, Blender's route | "
-             "pixels, Blender's route | pixels: ratio |",
-             "|---|---|---:|---:|---:|---:|---:|"]
+             f"imported scan (geometry, materials, pixels), wall seconds, medians of {runs} fresh processes "
+             "per cell, the two routes alternating. Default: PNGs Blender has not loaded decoded from "
+             "their files, other images through Blender; Blender's route: every image loaded by Blender "
+             "and read through `Image.pixels.foreach_get`, floats turned into bytes natively.", "",
+             "| Blender | scan | default | Blender's route | ratio |",
+             "|---|---|---:|---:|---:|"]
     for runtime in RUNTIMES:
         for name in scans:
             d, b = results[(runtime, name, "default")], results[(runtime, name, "blender")]
-            lines.append(f"| {runtime} | {name} | {d['read']:.2f} | {d['pixels']:.2f} | {b['read']:.2f} | "
-                         f"{b['pixels']:.2f} | {b['pixels'] / max(d['pixels'], 1e-9):.1f}x |")
+            lines.append(f"| {runtime} | {name} | {d:.2f} | {b:.2f} | {b / max(d, 1e-9):.2f}x |")
     return lines + [""]
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--runs", type=int, default=3)
+    p.add_argument("--runs", type=int, default=3, help="fresh processes per cell (default 3)")
     p.add_argument("--large", action="store_true", help=f"also the generated scan ({LARGE})")
-    p.add_argument("--results", type=Path, default=HERE / "RESULTS.md")
+    p.add_argument("--results", type=Path, default=HERE / "RESULTS.md", help="the file whose section is rewritten")
     args = p.parse_args(argv)
     scans = {name: path for name, path in SCANS.items() if path.is_file()}
-    if args.large and LARGE.exists():
+    if args.large:
+        if not LARGE.exists():
+            sys.exit(f"{LARGE} is missing: run bench/make_large_scan.py first")
         scans["large"] = LARGE
     script = HERE / ".cache" / "read_stage_child.py"
     script.parent.mkdir(parents=True, exist_ok=True)

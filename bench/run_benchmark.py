@@ -745,7 +745,7 @@ def write_results(results: list, mach: dict, args, path: Path, started: float) -
     for title in KEPT_SECTIONS:
         if "\n" + title in old:
             kept = old[old.index("\n" + title) + 1:]
-            lines += [""] + [kept[:kept.find("\n## ", 1)] if "\n## " in kept[1:] else kept.rstrip("\n")]
+            lines += [""] + [(kept[:kept.find("\n## ", 1)] if "\n## " in kept[1:] else kept).rstrip("\n")]
     path.write_text("\n".join(lines) + "\n")
 
 
