@@ -260,10 +260,15 @@ def _check_image(img, material_name: str):
 
 
 def _loads(img) -> bool:
+    return _pixel_count(img) > 0
+
+
+def _pixel_count(img) -> int:
+    """Values Blender holds for img (loading it), 0 when it cannot load it."""
     try:
-        return len(img.pixels) > 0
+        return len(img.pixels)
     except Exception:
-        return False
+        return 0
 
 
 def _file_bytes(img) -> Optional[bytes]:
@@ -375,9 +380,10 @@ def read_pixels(img) -> np.ndarray:
     w, h = img.size
     c = img.channels
     n = w * h * c
-    if n <= 0 or not _loads(img):
+    count = _pixel_count(img)
+    if n <= 0 or count == 0:
         raise DefragError(f"Image '{img.name}' has no pixels (missing or unreadable file?)")
-    if len(img.pixels) != n:
+    if count != n:
         raise DefragError(f"Image '{img.name}' has an unexpected pixel count")
     try:
         buf = np.empty(n, dtype=np.float32)

@@ -1,6 +1,6 @@
 // The pixel rows of an 8-bit PNG image once its zlib stream is inflated: the
-// add-on reads unmodified PNG textures from their files this way, several
-// times faster than through Blender's float pixel array.
+// add-on reads PNG textures Blender has not loaded from their files this way,
+// without Blender's buffer and float pixel array.
 #pragma once
 #include <cstddef>
 #include <cstdint>
@@ -12,7 +12,7 @@ namespace atlas::png {
 // section 9) then the filtered bytes of a non-interlaced 8-bit image;
 // channels_in 3 (RGB) or 4 (RGBA). out: height x width x channels_out bytes
 // (channels_out 3 or 4, >= channels_in), the BOTTOM row first as Blender
-// stores images; a channel out has no source is 255 (opaque alpha).
+// stores images; a channel out that has no source is 255 (opaque alpha).
 // Throws InputError on a filter type above 4, or as check_sizes does.
 void unfilter_rows(const std::uint8_t* scanlines, std::size_t scanline_bytes, int width,
                    int height, int channels_in, int channels_out, std::uint8_t* out);
