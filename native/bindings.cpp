@@ -428,17 +428,16 @@ void write_obj_py(const std::string& path, const std::string& library, const py:
 }
 
 py::array_t<std::uint8_t> png_rows_py(const py::buffer& scanlines, int width, int height,
-                                     int channels_in, int channels_out) {
+                                     int channels) {
   const py::buffer_info in = scanlines.request();
   if (in.itemsize != 1 || in.ndim != 1 || (in.size > 1 && in.strides[0] != 1))
     throw py::value_error("scanlines must be a contiguous flat buffer of bytes");
-  png::check_sizes(static_cast<std::size_t>(in.size), width, height, channels_in, channels_out);
-  py::array_t<std::uint8_t> out({py::ssize_t(height), py::ssize_t(width), py::ssize_t(channels_out)});
+  png::check_sizes(static_cast<std::size_t>(in.size), width, height, channels);
+  py::array_t<std::uint8_t> out({py::ssize_t(height), py::ssize_t(width), py::ssize_t(channels)});
   const auto* data = static_cast<const std::uint8_t*>(in.ptr);
   std::uint8_t* dst = out.mutable_data();
   py::gil_scoped_release release;
-  png::unfilter_rows(data, static_cast<std::size_t>(in.size), width, height, channels_in,
-                     channels_out, dst);
+  png::unfilter_rows(data, static_cast<std::size_t>(in.size), width, height, channels, dst);
   return out;
 }
 
@@ -803,11 +802,11 @@ of uvs (F,3,2), and faces grouped by face_material (F,) in ascending order, each
 after `usemtl materials[m]`. Numbers as %.9g.)");
 
   m.def("png_rows", &png_rows_py, py::arg("scanlines"), py::arg("width"), py::arg("height"),
-        py::arg("channels_in"), py::arg("channels_out"),
-        R"(The pixels of a non-interlaced 8-bit RGB (channels_in 3) or RGBA (4) PNG from its
-inflated IDAT data (height rows of a filter byte and width * channels_in bytes, top row
-first): (height, width, channels_out) uint8, row 0 at the BOTTOM, as Blender stores
-images; channels out past channels_in are 255. ValueError on a bad filter byte or size.)");
+        py::arg("channels"),
+        R"(The pixels of a non-interlaced 8-bit RGB (channels 3) or RGBA (4) PNG from its
+inflated IDAT data (height rows of a filter byte and width * channels bytes, top row
+first): (height, width, channels) uint8, row 0 at the BOTTOM, as Blender stores images.
+ValueError on a bad filter byte or size.)");
 
   m.def("bytes_from_unit_floats", &bytes_from_unit_floats_py, py::arg("values"),
         R"(uint8 array of the shape of values (float32): v * 255 + 0.5 truncated, clamped to

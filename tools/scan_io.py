@@ -29,14 +29,16 @@ class Scan:
 
 
 def load_image(source) -> np.ndarray:
-    """(H, W, C) uint8 with row 0 at the bottom (v = 0), as Blender stores pixels."""
+    """(H, W, C) uint8 with row 0 at the bottom (v = 0), as Blender stores
+    pixels; C is 1 (grey), 3 or 4."""
     from PIL import Image
 
     Image.MAX_IMAGE_PIXELS = None  # scans routinely exceed Pillow's bomb guard
     img = Image.open(io.BytesIO(source) if isinstance(source, (bytes, bytearray)) else source)
-    if img.mode not in ("RGB", "RGBA"):
+    if img.mode not in ("L", "RGB", "RGBA"):
         img = img.convert("RGBA" if "A" in img.getbands() else "RGB")
-    return np.ascontiguousarray(np.asarray(img)[::-1])
+    pixels = np.asarray(img)[::-1]
+    return np.ascontiguousarray(pixels[..., None] if pixels.ndim == 2 else pixels)
 
 
 def image_size(source) -> tuple[int, int]:

@@ -181,6 +181,22 @@ def _as_bake_pixels(pixels: np.ndarray, channels: int) -> np.ndarray:
     return out
 
 
+def _opaque(pixels: np.ndarray) -> bool:
+    """Whether an (H, W, 4) image's alpha is 1 (255) everywhere."""
+    return bool(np.all(pixels[..., 3] == (255 if pixels.dtype == np.uint8 else 1.0)))
+
+
+def _bake_channels(sources, normal_map: bool) -> int:
+    """The channels a role bakes: the most its images have, without an
+    alpha that is opaque in all of them (JPEG files, most scans' PNGs), which
+    would add a quarter to the bake, the write and every later read for
+    nothing; a normal map keeps its X, Y and Z."""
+    channels = max(s.pixels.shape[2] for s in sources)
+    if channels == 4 and all(_opaque(s.pixels) for s in sources if s.pixels.shape[2] == 4):
+        channels = 3
+    return max(channels, 3) if normal_map else channels
+
+
 def check_input(job: JobInput) -> None:
     """Shapes and references; raises DefragError naming the problem."""
     m = job.mesh
@@ -379,7 +395,7 @@ def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], padding
     for role in roles:
         maps = [job.pages[p].map_for(role) for p in old_pages]
         sources = [job.images[m.image] for m in maps]
-        channels = max(s.pixels.shape[2] for s in sources)
+        channels = _bake_channels(sources, any(m.normal_map for m in maps))
         dtype = np.float32 if any(s.pixels.dtype != np.uint8 for s in sources) else np.uint8
         pixels = [_as_bake_pixels(s.pixels.astype(dtype, copy=False), channels) for s in sources]
         by_dtype.setdefault(dtype, []).append((role, maps, sources, pixels))

@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: MIT
-"""8-bit RGB and RGBA PNG files to and from numpy arrays.
+"""8-bit PNG files to and from numpy arrays: grey, RGB and RGBA written,
+RGB and RGBA read.
 
 Blender's Image.save() encodes one image at a time on one core: on a scan with
 three 2048x2048 maps that was a sixth of the whole batch job. zlib releases the
@@ -36,8 +37,8 @@ def _chunk(kind: bytes, data: bytes) -> bytes:
     return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", crc)
 
 
-_COLOUR_TYPE = {3: 2, 4: 6}  # channels -> PNG colour type: truecolour, truecolour with alpha
-_CHANNELS = {t: c for c, t in _COLOUR_TYPE.items()}
+_COLOUR_TYPE = {1: 0, 3: 2, 4: 6}  # channels -> PNG colour type: greyscale, truecolour, truecolour with alpha
+_CHANNELS = {2: 3, 6: 4}  # the colour types decode_png reads -> channels
 _IHDR = struct.Struct(">IIBBBBB")  # width, height, bit depth, colour type, compression, filter, interlace
 HEADER_BYTES = 33  # signature, then the IHDR chunk: length, type, 13 bytes, CRC
 
@@ -47,7 +48,7 @@ def _scanlines(pixels: np.ndarray) -> np.ndarray:
     filter type, Up, at zlib level 1 came within 10% of level 3's size at
     half its time on baked textures."""
     if pixels.dtype != np.uint8 or pixels.ndim != 3 or pixels.shape[2] not in _COLOUR_TYPE:
-        raise ValueError(f"encode_png needs (H, W, 3 or 4) uint8 pixels, got {pixels.shape} {pixels.dtype}")
+        raise ValueError(f"encode_png needs (H, W, 1, 3 or 4) uint8 pixels, got {pixels.shape} {pixels.dtype}")
     height, width, channels = pixels.shape
     rows = pixels[::-1].reshape(height, channels * width)  # PNG rows run top down (a view, no copy)
     scanlines = np.empty((height, channels * width + 1), dtype=np.uint8)
@@ -90,7 +91,7 @@ def _png(pixels: np.ndarray, compressed: List[Tuple[bytes, int]], lengths: List[
 
 
 def encode_png(pixels: np.ndarray) -> bytes:
-    """(H, W, 3 or 4) uint8 pixels, row 0 at the bottom as Blender stores them, as a PNG."""
+    """(H, W, 1, 3 or 4) uint8 pixels, row 0 at the bottom as Blender stores them, as a PNG."""
     parts = _parts(_scanlines(pixels))
     return _png(pixels, [_deflate(part, i == len(parts) - 1) for i, part in enumerate(parts)], [len(p) for p in parts])
 
@@ -174,14 +175,13 @@ def _image_data(data: bytes) -> bytes:
     raise ValueError("PNG ends before its IEND chunk")
 
 
-def decode_png(data: bytes, channels_out: int = 4) -> np.ndarray:
-    """(H, W, C) uint8 pixels, C the larger of the file's channels and
-    channels_out, row 0 at the bottom as Blender stores them, of a PNG
-    file's bytes that plain_png_size accepts; channels past the file's are
-    255, as Blender fills an RGB image's alpha. ValueError for any other
-    file, a tRNS chunk, a failed CRC, a header claiming more pixels than the
-    data holds, or a broken zlib stream (its Adler-32 checks the pixel
-    bytes); MemoryError when the pixels do not fit in memory."""
+def decode_png(data: bytes) -> np.ndarray:
+    """(H, W, C) uint8 pixels, C the file's channels (3 or 4), row 0 at the
+    bottom as Blender stores them, of a PNG file's bytes that plain_png_size
+    accepts. ValueError for any other file, a tRNS chunk, a failed CRC, a
+    header claiming more pixels than the data holds, or a broken zlib stream
+    (its Adler-32 checks the pixel bytes); MemoryError when the pixels do not
+    fit in memory."""
     size = plain_png_size(data[:HEADER_BYTES])
     if size is None:
         raise ValueError("not an 8-bit, non-interlaced RGB or RGBA PNG")
@@ -196,4 +196,4 @@ def decode_png(data: bytes, channels_out: int = 4) -> np.ndarray:
         scanlines = zlib.decompress(compressed, bufsize=expected)
     except zlib.error as exc:
         raise ValueError(f"PNG pixel data is broken: {exc}") from exc
-    return _native.png_rows(scanlines, width, height, channels, max(channels, channels_out))
+    return _native.png_rows(scanlines, width, height, channels)

@@ -371,7 +371,9 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
 
 
 def read_pixels(img) -> np.ndarray:
-    """(H, W, C) row 0 = bottom; uint8 for byte images, float32 for float ones.
+    """(H, W, C) row 0 = bottom; uint8 for byte images, float32 for float
+    ones; C is the file's channels for an 8-bit grey (1) or RGB (3) file,
+    else Blender's (4), as decode_png gives them.
 
     bpy hands out pixels as floats only; a byte image's values are b / 255,
     which the native module turns back into b exactly, on every core."""
@@ -391,7 +393,10 @@ def read_pixels(img) -> np.ndarray:
         out = buf if img.is_float else _native.bytes_from_unit_floats(buf)
     except MemoryError as exc:
         raise DefragError(f"Out of memory reading image '{img.name}' ({w}x{h})") from exc
-    return out.reshape(h, w, c)
+    out = out.reshape(h, w, c)
+    # Blender fills a grey file's G and B with its grey and an RGB file's alpha with 255.
+    planes = {8: 1, 24: 3}.get(img.depth, c) if not img.is_float else c
+    return np.ascontiguousarray(out[..., :planes]) if planes < c else out
 
 
 def _decoded_png(data: Optional[bytes]) -> Optional[np.ndarray]:
@@ -400,7 +405,7 @@ def _decoded_png(data: Optional[bytes]) -> Optional[np.ndarray]:
     MemoryError passes: Blender's route would need more. No bpy: it runs on
     worker threads."""
     try:
-        return None if data is None else png_files.decode_png(data, channels_out=4)
+        return None if data is None else png_files.decode_png(data)
     except ValueError:
         return None
 

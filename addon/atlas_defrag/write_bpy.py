@@ -328,7 +328,8 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
         img = _new_image(out, name)
         created(out, img)
         _store_image(img, out.is_float, image_dir, taken)
-    png_files.write_pngs((path, _rgba(out.pixels)) for out, _, path in png_files_due)
+    png_files.write_pngs((path, out.pixels if out.pixels.shape[2] != 2 else _rgba(out.pixels))
+                         for out, _, path in png_files_due)
     for out, name, path in png_files_due:
         created(out, _load_saved_png(out, name, path))
     if storage == "PACK":

@@ -62,53 +62,42 @@ void unfilter_row(std::uint8_t filter, std::uint8_t* row, const std::uint8_t* pr
   }
 }
 
-// Every row, bottom row first in `out`. With as many channels out as in,
-// rows are unfiltered in place in `out`, each against the row written before
-// it; otherwise in a scratch row, then spread, the channels past In set to 255.
-template <int In, int Out>
+// Every row, bottom row first in `out`, unfiltered in place there, each
+// against the row written before it.
+template <int Bpp>
 void unfilter_image(const std::uint8_t* scanlines, int width, int height, std::uint8_t* out) {
-  const std::size_t row_bytes = std::size_t(width) * In;
-  const std::size_t out_row_bytes = std::size_t(width) * Out;
-  std::vector<std::uint8_t> zeros(row_bytes, 0), scratch(In == Out ? 0 : 2 * row_bytes, 0);
+  const std::size_t row_bytes = std::size_t(width) * Bpp;
+  const std::vector<std::uint8_t> zeros(row_bytes, 0);
   const std::uint8_t* prior = zeros.data();
   for (int y = 0; y < height; ++y) {
     const std::uint8_t* line = scanlines + std::size_t(y) * (row_bytes + 1);
-    std::uint8_t* dst = out + std::size_t(height - 1 - y) * out_row_bytes;
-    std::uint8_t* row = In == Out ? dst : scratch.data() + (y % 2) * row_bytes;
+    std::uint8_t* row = out + std::size_t(height - 1 - y) * row_bytes;
     std::copy(line + 1, line + 1 + row_bytes, row);
-    unfilter_row<In>(line[0], row, prior, row_bytes);
+    unfilter_row<Bpp>(line[0], row, prior, row_bytes);
     prior = row;
-    if (In == Out) continue;
-    for (std::size_t x = 0; x < std::size_t(width); ++x) {
-      for (int k = 0; k < In; ++k) dst[x * Out + k] = row[x * In + k];
-      for (int k = In; k < Out; ++k) dst[x * Out + k] = 255;
-    }
   }
 }
 
 }  // namespace
 
-void check_sizes(std::size_t scanline_bytes, int width, int height, int channels_in,
-                 int channels_out) {
+void check_sizes(std::size_t scanline_bytes, int width, int height, int channels) {
   std::ostringstream msg;
   if (width <= 0 || height <= 0)
     msg << "PNG size must be positive, got " << width << "x" << height;
-  else if (channels_in < 3 || channels_in > 4 || channels_out < channels_in || channels_out > 4)
-    msg << "PNG channels must be 3 or 4 in and as many or more out, got " << channels_in
-        << " and " << channels_out;
-  else if (scanline_bytes != static_cast<std::size_t>(height) * (1 + std::size_t(width) * channels_in))
+  else if (channels < 3 || channels > 4)
+    msg << "PNG channels must be 3 or 4, got " << channels;
+  else if (scanline_bytes != static_cast<std::size_t>(height) * (1 + std::size_t(width) * channels))
     msg << "PNG data holds " << scanline_bytes << " bytes, a " << width << "x" << height
-        << " image with " << channels_in << " channels needs "
-        << static_cast<std::size_t>(height) * (1 + std::size_t(width) * channels_in);
+        << " image with " << channels << " channels needs "
+        << static_cast<std::size_t>(height) * (1 + std::size_t(width) * channels);
   if (msg.tellp() > 0) throw InputError(msg.str());
 }
 
 void unfilter_rows(const std::uint8_t* scanlines, std::size_t scanline_bytes, int width,
-                   int height, int channels_in, int channels_out, std::uint8_t* out) {
-  check_sizes(scanline_bytes, width, height, channels_in, channels_out);
-  if (channels_in == 3 && channels_out == 3) unfilter_image<3, 3>(scanlines, width, height, out);
-  if (channels_in == 3 && channels_out == 4) unfilter_image<3, 4>(scanlines, width, height, out);
-  if (channels_in == 4) unfilter_image<4, 4>(scanlines, width, height, out);
+                   int height, int channels, std::uint8_t* out) {
+  check_sizes(scanline_bytes, width, height, channels);
+  if (channels == 3) unfilter_image<3>(scanlines, width, height, out);
+  if (channels == 4) unfilter_image<4>(scanlines, width, height, out);
 }
 
 }  // namespace atlas::png

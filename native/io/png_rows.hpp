@@ -7,20 +7,18 @@
 
 namespace atlas::png {
 
-// scanlines: height rows of 1 + width * channels_in bytes, top row first, each
+// scanlines: height rows of 1 + width * channels bytes, top row first, each
 // a PNG filter type byte (0 None, 1 Sub, 2 Up, 3 Average, 4 Paeth; PNG spec
 // section 9) then the filtered bytes of a non-interlaced 8-bit image;
-// channels_in 3 (RGB) or 4 (RGBA). out: height x width x channels_out bytes
-// (channels_out 3 or 4, >= channels_in), the BOTTOM row first as Blender
-// stores images; a channel out that has no source is 255 (opaque alpha).
+// channels 3 (RGB) or 4 (RGBA). out: height x width x channels bytes, the
+// BOTTOM row first as Blender stores images.
 // Throws InputError on a filter type above 4, or as check_sizes does.
 void unfilter_rows(const std::uint8_t* scanlines, std::size_t scanline_bytes, int width,
-                   int height, int channels_in, int channels_out, std::uint8_t* out);
+                   int height, int channels, std::uint8_t* out);
 
 // Throws InputError unless width and height are positive, scanline_bytes is
-// height * (1 + width * channels_in), and the channel counts are as above:
-// what unfilter_rows checks, for callers that allocate `out` first.
-void check_sizes(std::size_t scanline_bytes, int width, int height, int channels_in,
-                 int channels_out);
+// height * (1 + width * channels), and channels is as above: what
+// unfilter_rows checks, for callers that allocate `out` first.
+void check_sizes(std::size_t scanline_bytes, int width, int height, int channels);
 
 }  // namespace atlas::png

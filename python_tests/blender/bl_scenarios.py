@@ -336,7 +336,7 @@ def write_identity_layout(pkg):
 
 
 def filtered_png(pixels, chunks=()) -> bytes:
-    """PNG bytes of (H, W, 3 or 4) uint8 pixels (top row first), row y
+    """PNG bytes of (H, W, 1, 3 or 4) uint8 pixels (top row first), row y
     filtered with type y % 5 (None, Sub, Up, Average, Paeth: PNG spec 9.2),
     the chunks (type, data) given placed before the pixel data."""
     import zlib
@@ -368,8 +368,9 @@ def png_read_from_file(pkg):
     packed, is decoded from its bytes without Blender loading it, to exactly
     the pixels Blender's own route gives, under every alpha mode it is
     decoded for (RGBA under premultiplied or ignored alpha is left to
-    Blender); a loaded one, or one with a tRNS chunk, goes through Blender,
-    and one cut short is skipped as Blender skips it."""
+    Blender), with the file's channels; a loaded one, or one with a tRNS
+    chunk, goes through Blender, and one cut short is skipped as Blender
+    skips it. Blender's route gives a grey file's one channel too."""
     rb = pkg.read_bpy
     rng = np.random.default_rng(5)
     decoded = set()
@@ -391,13 +392,20 @@ def png_read_from_file(pkg):
                 img.pack()
                 assert rb._plain_png(img) and np.array_equal(rb._decoded_png(rb._file_bytes(img)), ours)
                 blenders = rb.read_pixels(img)
-                assert ours.shape == blenders.shape == (29, 41, 4), (channels, mode)
+                assert ours.shape == blenders.shape == (29, 41, channels), (channels, mode)
                 assert np.array_equal(ours, blenders), (channels, mode)
-                assert np.array_equal(ours[::-1, :, :channels], pixels)
+                assert np.array_equal(ours[::-1], pixels)
                 assert img.has_data and not rb._plain_png(img)  # loaded: Blender's pixels count
                 bpy.data.images.remove(img)
         assert decoded == {(3, "STRAIGHT"), (3, "CHANNEL_PACKED"), (3, "PREMUL"), (3, "NONE"),
                            (4, "STRAIGHT"), (4, "CHANNEL_PACKED")}, decoded
+        grey = rng.integers(0, 256, (29, 41, 1)).astype(np.uint8)
+        path = os.path.join(folder, "grey.png")
+        with open(path, "wb") as f:
+            f.write(filtered_png(grey))
+        img = bpy.data.images.load(path, check_existing=False)
+        assert not rb._plain_png(img) and np.array_equal(rb.read_pixels(img)[::-1], grey)
+        bpy.data.images.remove(img)
         _read_images_mixes_routes(pkg, folder, rng)
 
 

@@ -29,12 +29,13 @@ def test_read_tetra(pkg):
     assert set(np.unique(m.face_page)) == {0}
     assert [(im.role, im.image) for im in r.job.pages[0].maps] == [("base_color", "textured_0_v2.jpg")]
     img = r.job.images["textured_0_v2.jpg"]
-    assert img.pixels.shape == (2048, 2048, 4) and img.pixels.dtype == np.uint8
+    # A JPEG holds RGB: Blender's opaque alpha is not kept.
+    assert img.pixels.shape == (2048, 2048, 3) and img.pixels.dtype == np.uint8
     assert img.colorspace == "sRGB" and not img.is_float
     # Row 0 is the bottom row, as Blender stores it.
     flat = np.empty(2048 * 2048 * 4, np.float32)
     bpy.data.images["textured_0_v2.jpg"].pixels.foreach_get(flat)
-    assert np.array_equal(img.pixels[0, :16], np.rint(flat[:64] * 255).reshape(16, 4))
+    assert np.array_equal(img.pixels[0, :16], np.rint(flat[:64] * 255).reshape(16, 4)[:, :3])
     # The missing normal-map image is skipped with a warning.
     assert any("no pixels" in w for w in r.warnings), r.warnings
     # UVs per corner equal the loop UVs.

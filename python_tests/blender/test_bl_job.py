@@ -128,3 +128,22 @@ def test_concatenate_two_objects_into_one_atlas(job, native):
     m = native.measure(joined.mesh.positions, joined.mesh.triangles, joined.mesh.uvs, joined.mesh.face_page,
                        job.page_sizes_of(joined), res.uvs, res.face_page, res.page_sizes)["new"]
     assert m["overlap_texels"] == 0 and m["flipped_faces"] == 0, m
+
+
+def test_opaque_alpha_is_not_baked(job, native):
+    """Images whose alpha is 255 everywhere bake as RGB, to the colours the
+    same images without alpha give; a real alpha stays (N's), and a grey
+    normal map still bakes X, Y and Z."""
+    rgb, opaque = grid_job(job), grid_job(job)
+    for name in ("A", "B"):
+        rgb.images[name].pixels = np.ascontiguousarray(rgb.images[name].pixels[..., :3])
+        opaque.images[name].pixels[..., 3] = 255
+    baked = [job.run(inp, job.Options(padding=2)).images for inp in (rgb, opaque)]
+    assert [im.role for im in baked[0]] == [im.role for im in baked[1]]
+    for a, b in zip(*baked):
+        assert a.pixels.shape[2] == b.pixels.shape[2] == (4 if a.role == "normal" else 3)
+        assert np.array_equal(a.pixels, b.pixels)
+    grey = grid_job(job)
+    grey.images["N"].pixels = np.ascontiguousarray(grey.images["N"].pixels[..., :1])
+    normals = [im for im in job.run(grey, job.Options(padding=2)).images if im.role == "normal"]
+    assert normals and all(im.pixels.shape[2] == 3 for im in normals)

@@ -13,12 +13,14 @@ def pixels(height=23, width=37, seed=1):
     return np.random.default_rng(seed).integers(0, 256, (height, width, 4), dtype=np.uint8)
 
 
-@pytest.mark.parametrize("channels", [3, 4])
+@pytest.mark.parametrize("channels", [1, 3, 4])
 def test_png_round_trips_through_pillow_top_row_first(pkg, channels):
     from PIL import Image
 
     image = pixels()[:, :, :channels]
     decoded = np.asarray(Image.open(io.BytesIO(pkg.png_files.encode_png(image))))
+    assert Image.open(io.BytesIO(pkg.png_files.encode_png(image))).mode == {1: "L", 3: "RGB", 4: "RGBA"}[channels]
+    decoded = decoded.reshape(decoded.shape[:2] + (-1,))
     assert decoded.shape == image.shape
     assert np.array_equal(decoded, image[::-1])  # Blender's row 0 is the bottom one
 
@@ -48,15 +50,22 @@ def test_adler32_of_parts_combines_as_zlib_computes_it(pkg):
 
 
 def test_png_loads_into_blender_as_written(pkg, tmp_path):
+    """RGBA, RGB and grey: Blender gives an RGB file opaque alpha and a grey
+    one its grey in R, G and B."""
     import bpy
 
-    files = [(str(tmp_path / f"page{k}.png"), pixels(seed=k)) for k in range(3)]
+    files = [(str(tmp_path / f"page{k}.png"), pixels(seed=k)[:, :, :channels])
+             for k, channels in enumerate((4, 4, 3, 1))]
     pkg.png_files.write_pngs(files)
-    for path, rgba in files:
+    for path, written in files:
         img = bpy.data.images.load(path, check_existing=False)
         got = np.empty(len(img.pixels), np.float32)
         img.pixels.foreach_get(got)
-        assert np.array_equal(np.rint(got * 255).astype(np.uint8).reshape(rgba.shape), rgba), path
+        got = np.rint(got * 255).astype(np.uint8).reshape(written.shape[:2] + (4,))
+        want = np.dstack([written[:, :, [0, 0, 0]] if written.shape[2] == 1 else written[:, :, :3],
+                          written[:, :, 3] if written.shape[2] == 4 else np.full(written.shape[:2], 255, np.uint8)])
+        assert np.array_equal(got, want), path
+        assert img.depth == {1: 8, 3: 24, 4: 32}[written.shape[2]]
         bpy.data.images.remove(img)
 
 
@@ -84,10 +93,10 @@ def test_decode_png_reads_what_pillow_writes_with_adaptive_filters(pkg, native, 
 
     smooth = np.cumsum(np.random.default_rng(2).integers(0, 9, (45, 61, 4)), axis=1).astype(np.uint8)
     data = _pillow_png(smooth, mode, optimize=True)
-    expected = np.asarray(Image.open(io.BytesIO(data)).convert("RGBA"))[::-1]
+    expected = np.asarray(Image.open(io.BytesIO(data)))[::-1]
     assert pkg.png_files.plain_png_size(data[:pkg.png_files.HEADER_BYTES]) == (61, 45, len(mode))
     decoded = pkg.png_files.decode_png(data)
-    assert decoded.shape == (45, 61, 4) and np.array_equal(decoded, expected)
+    assert decoded.shape == (45, 61, len(mode)) and np.array_equal(decoded, expected)
 
 
 @pytest.mark.parametrize("mode", ["L", "LA", "P", "I;16"])
