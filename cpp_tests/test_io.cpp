@@ -114,18 +114,30 @@ TEST(BytesFromUnitFloats, GivesBytesBackAndClamps) {
   for (size_t i = 0; i < n; ++i)
     in[i] = i % 2 ? static_cast<float>(i % 256) * (1.0f / 255.0f) : static_cast<float>(i % 256) / 255.0f;
   std::vector<std::uint8_t> out(n);
-  bytes_from_unit_floats(in.data(), n, out.data());
+  bytes_from_unit_floats(in.data(), n, 1, 1, out.data());
   for (size_t i = 0; i < n; ++i) ASSERT_EQ(out[i], i % 256) << i;
   const float odd[] = {-0.5f, 2.0f, std::numeric_limits<float>::quiet_NaN(),
                        std::numeric_limits<float>::infinity(), 0.499f / 255.0f, 0.501f / 255.0f};
   std::uint8_t got[6];
-  bytes_from_unit_floats(odd, 6, got);
+  bytes_from_unit_floats(odd, 6, 1, 1, got);
   EXPECT_EQ(got[0], 0);
   EXPECT_EQ(got[1], 255);
   EXPECT_EQ(got[2], 0);
   EXPECT_EQ(got[3], 255);
   EXPECT_EQ(got[4], 0);
   EXPECT_EQ(got[5], 1);
+}
+
+TEST(BytesFromUnitFloats, KeepsTheFirstChannelsOfEachPixel) {
+  const size_t pixels = 70001;  // several OpenMP blocks
+  std::vector<float> in(4 * pixels);
+  for (size_t i = 0; i < in.size(); ++i) in[i] = static_cast<float>(i % 251) / 255.0f;
+  for (int kept : {1, 3, 4}) {
+    std::vector<std::uint8_t> out(kept * pixels);
+    bytes_from_unit_floats(in.data(), pixels, 4, kept, out.data());
+    for (size_t p = 0; p < pixels; ++p)
+      for (int k = 0; k < kept; ++k) ASSERT_EQ(out[p * kept + k], (4 * p + k) % 251) << kept << " " << p;
+  }
 }
 
 }  // namespace

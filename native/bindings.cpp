@@ -441,18 +441,24 @@ py::array_t<std::uint8_t> png_rows_py(const py::buffer& scanlines, int width, in
   return out;
 }
 
-py::array_t<std::uint8_t> bytes_from_unit_floats_py(const py::array& values) {
+py::array_t<std::uint8_t> bytes_from_unit_floats_py(const py::array& values, int kept) {
   if (!py::isinstance<py::array_t<float>>(values))
     throw py::value_error("values must be a float32 array, got dtype " + std::string(py::str(values.dtype())));
+  if (values.ndim() < 1) throw py::value_error("values must have at least one dimension");
   const auto in = py::array_t<float, py::array::c_style>::ensure(values);
   if (!in) throw std::bad_alloc();  // the contiguous copy failed
+  const int channels = static_cast<int>(in.shape(in.ndim() - 1));
+  if (kept == 0) kept = channels;
+  if (kept < 1 || kept > channels)
+    throw py::value_error("kept must be 0 or 1 to " + std::to_string(channels) + ", got " + std::to_string(kept));
   std::vector<py::ssize_t> shape(in.shape(), in.shape() + in.ndim());
+  shape.back() = kept;
   py::array_t<std::uint8_t> out(shape);
   const float* src = in.data();
   std::uint8_t* dst = out.mutable_data();
-  const std::size_t n = static_cast<std::size_t>(in.size());
+  const std::size_t pixels = channels > 0 ? static_cast<std::size_t>(in.size()) / channels : 0;
   py::gil_scoped_release release;
-  bytes_from_unit_floats(src, n, dst);
+  bytes_from_unit_floats(src, pixels, channels, kept, dst);
   return out;
 }
 
@@ -808,9 +814,10 @@ inflated IDAT data (height rows of a filter byte and width * channels bytes, top
 first): (height, width, channels) uint8, row 0 at the BOTTOM, as Blender stores images.
 ValueError on a bad filter byte or size.)");
 
-  m.def("bytes_from_unit_floats", &bytes_from_unit_floats_py, py::arg("values"),
-        R"(uint8 array of the shape of values (float32): v * 255 + 0.5 truncated, clamped to
-0-255, in float32 arithmetic, so b / 255 gives b back. Runs on all cores.)");
+  m.def("bytes_from_unit_floats", &bytes_from_unit_floats_py, py::arg("values"), py::arg("kept") = 0,
+        R"(uint8 array of values (float32, (..., C)) with their first `kept` of the C channels
+(0: all): v * 255 + 0.5 truncated, clamped to 0-255, in float32 arithmetic, so b / 255
+gives b back. Runs on all cores.)");
 
   m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),

@@ -384,6 +384,10 @@ def test_bytes_from_unit_floats_gives_bytes_back_in_their_shape(native):
     assert np.array_equal(out.ravel(), np.arange(256 * 3) % 256)
     with pytest.raises(ValueError, match="float32"):
         native.bytes_from_unit_floats(values.astype(np.float64))
+    first = native.bytes_from_unit_floats(values, kept=1)
+    assert first.shape == (16, 16, 1) and np.array_equal(first[..., 0], out[..., 0])
+    with pytest.raises(ValueError, match="kept"):
+        native.bytes_from_unit_floats(values, kept=4)
 
 
 def test_png_rows_checks_its_sizes(native):

@@ -390,13 +390,13 @@ def read_pixels(img) -> np.ndarray:
     try:
         buf = np.empty(n, dtype=np.float32)
         img.pixels.foreach_get(buf)
-        out = buf if img.is_float else _native.bytes_from_unit_floats(buf)
+        buf = buf.reshape(h, w, c)
+        if img.is_float:
+            return buf
+        # Blender fills a grey file's G and B with its grey and an RGB file's alpha with 255.
+        return _native.bytes_from_unit_floats(buf, kept={8: 1, 24: 3}.get(img.depth, c))
     except MemoryError as exc:
         raise DefragError(f"Out of memory reading image '{img.name}' ({w}x{h})") from exc
-    out = out.reshape(h, w, c)
-    # Blender fills a grey file's G and B with its grey and an RGB file's alpha with 255.
-    planes = {8: 1, 24: 3}.get(img.depth, c) if not img.is_float else c
-    return np.ascontiguousarray(out[..., :planes]) if planes < c else out
 
 
 def _decoded_png(data: Optional[bytes]) -> Optional[np.ndarray]:

@@ -5,9 +5,9 @@
 namespace atlas {
 namespace {
 
-// Values per OpenMP iteration: large enough that scheduling costs nothing,
+// Pixels per OpenMP iteration: large enough that scheduling costs nothing,
 // small enough that a 4K texture still splits evenly between the cores.
-constexpr std::size_t kBlock = 1 << 16;
+constexpr std::size_t kBlock = 1 << 14;
 
 inline std::uint8_t byte_of(float value) {
   const float scaled = value * 255.0f + 0.5f;
@@ -18,12 +18,13 @@ inline std::uint8_t byte_of(float value) {
 
 }  // namespace
 
-void bytes_from_unit_floats(const float* in, std::size_t n, std::uint8_t* out) {
-  const long long blocks = static_cast<long long>((n + kBlock - 1) / kBlock);
+void bytes_from_unit_floats(const float* in, std::size_t pixels, int channels, int kept, std::uint8_t* out) {
+  const long long blocks = static_cast<long long>((pixels + kBlock - 1) / kBlock);
 #pragma omp parallel for schedule(static)
   for (long long b = 0; b < blocks; ++b) {
-    const std::size_t end = std::min(n, static_cast<std::size_t>(b + 1) * kBlock);
-    for (std::size_t i = static_cast<std::size_t>(b) * kBlock; i < end; ++i) out[i] = byte_of(in[i]);
+    const std::size_t end = std::min(pixels, static_cast<std::size_t>(b + 1) * kBlock);
+    for (std::size_t p = static_cast<std::size_t>(b) * kBlock; p < end; ++p)
+      for (int k = 0; k < kept; ++k) out[p * kept + k] = byte_of(in[p * channels + k]);
   }
 }
 
