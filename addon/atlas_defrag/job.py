@@ -183,7 +183,7 @@ def _as_bake_pixels(pixels: np.ndarray, channels: int) -> np.ndarray:
 
 def _opaque(pixels: np.ndarray) -> bool:
     """Whether an (H, W, 4) image's alpha is 1 (255) everywhere."""
-    return bool(np.all(pixels[..., 3] == (255 if pixels.dtype == np.uint8 else 1.0)))
+    return bool(pixels[..., 3].min() == (255 if pixels.dtype == np.uint8 else 1.0))  # min: no temporary array
 
 
 def _bake_channels(sources, normal_map: bool) -> int:

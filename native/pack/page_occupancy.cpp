@@ -59,16 +59,24 @@ void keep_offsets_inside(const std::vector<Span>& free_runs, Span run,
 }
 
 // Replaces the runs meeting [lo, hi) by the runs of `fresh` (which lies
-// inside it) at least min_length long.
+// inside it) at least min_length long. They overwrite the old ones in place,
+// so the runs after them move once at most (a placed run splits a free run
+// in two, or removes one).
 void replace_runs(std::vector<Span>& runs, int lo, int hi, const std::vector<Span>& fresh,
                   int min_length) {
   auto first = std::lower_bound(runs.begin(), runs.end(), lo,
                                 [](const Span& s, int x) { return s.end <= x; });
   auto last = std::lower_bound(first, runs.end(), hi,
                                [](const Span& s, int x) { return s.begin < x; });
-  first = runs.erase(first, last);
-  for (const Span& s : fresh)
-    if (s.end - s.begin >= min_length) first = std::next(runs.insert(first, s));
+  for (const Span& s : fresh) {
+    if (s.end - s.begin < min_length) continue;
+    if (first != last) {
+      *first++ = s;
+    } else {
+      first = last = std::next(runs.insert(first, s));
+    }
+  }
+  runs.erase(first, last);
 }
 
 }  // namespace
