@@ -134,10 +134,31 @@ TEST(BytesFromUnitFloats, KeepsTheFirstChannelsOfEachPixel) {
   for (size_t i = 0; i < in.size(); ++i) in[i] = static_cast<float>(i % 251) / 255.0f;
   for (int kept : {1, 3, 4}) {
     std::vector<std::uint8_t> out(kept * pixels);
-    bytes_from_unit_floats(in.data(), pixels, 4, kept, out.data());
+    // Nothing left out is filler here, but for kept == 4, where nothing is left out.
+    EXPECT_EQ(bytes_from_unit_floats(in.data(), pixels, 4, kept, out.data()), kept == 4);
     for (size_t p = 0; p < pixels; ++p)
       for (int k = 0; k < kept; ++k) ASSERT_EQ(out[p * kept + k], (4 * p + k) % 251) << kept << " " << p;
   }
+}
+
+TEST(BytesFromUnitFloats, TellsWhetherWhatIsLeftOutIsFiller) {
+  // Blender's pixels of a grey file: the grey in R, G and B, alpha 1.
+  const size_t pixels = 70001;
+  std::vector<float> grey(4 * pixels);
+  for (size_t p = 0; p < pixels; ++p) {
+    const float v = static_cast<float>(p % 256) / 255.0f;
+    grey[4 * p] = grey[4 * p + 1] = grey[4 * p + 2] = v;
+    grey[4 * p + 3] = 1.0f;
+  }
+  std::vector<std::uint8_t> out(3 * pixels);
+  EXPECT_TRUE(bytes_from_unit_floats(grey.data(), pixels, 4, 1, out.data()));
+  EXPECT_TRUE(bytes_from_unit_floats(grey.data(), pixels, 4, 3, out.data()));
+  grey[4 * 65000 + 3] = 0.5f;  // one pixel's alpha edited
+  EXPECT_FALSE(bytes_from_unit_floats(grey.data(), pixels, 4, 3, out.data()));
+  grey[4 * 65000 + 3] = 1.0f;
+  grey[4 * 70000 + 2] = 0.0f;  // one pixel no longer grey
+  EXPECT_FALSE(bytes_from_unit_floats(grey.data(), pixels, 4, 1, out.data()));
+  EXPECT_TRUE(bytes_from_unit_floats(grey.data(), pixels, 4, 3, out.data()));
 }
 
 }  // namespace

@@ -444,7 +444,8 @@ py::array_t<std::uint8_t> png_rows_py(const py::buffer& scanlines, int width, in
 py::array_t<std::uint8_t> bytes_from_unit_floats_py(const py::array& values, int kept) {
   if (!py::isinstance<py::array_t<float>>(values))
     throw py::value_error("values must be a float32 array, got dtype " + std::string(py::str(values.dtype())));
-  if (values.ndim() < 1) throw py::value_error("values must have at least one dimension");
+  if (values.ndim() < 2 || values.shape(values.ndim() - 1) < 1)
+    throw py::value_error("values must be pixels, (..., C) with C >= 1");
   const auto in = py::array_t<float, py::array::c_style>::ensure(values);
   if (!in) throw std::bad_alloc();  // the contiguous copy failed
   const int channels = static_cast<int>(in.shape(in.ndim() - 1));
@@ -452,14 +453,21 @@ py::array_t<std::uint8_t> bytes_from_unit_floats_py(const py::array& values, int
   if (kept < 1 || kept > channels)
     throw py::value_error("kept must be 0 or 1 to " + std::to_string(channels) + ", got " + std::to_string(kept));
   std::vector<py::ssize_t> shape(in.shape(), in.shape() + in.ndim());
-  shape.back() = kept;
-  py::array_t<std::uint8_t> out(shape);
-  const float* src = in.data();
-  std::uint8_t* dst = out.mutable_data();
-  const std::size_t pixels = channels > 0 ? static_cast<std::size_t>(in.size()) / channels : 0;
-  py::gil_scoped_release release;
-  bytes_from_unit_floats(src, pixels, channels, kept, dst);
-  return out;
+  const std::size_t pixels = static_cast<std::size_t>(in.size()) / channels;
+  auto convert = [&](int keep) {
+    shape.back() = keep;
+    py::array_t<std::uint8_t> out(shape);
+    const float* src = in.data();
+    std::uint8_t* dst = out.mutable_data();
+    bool filler;
+    {
+      py::gil_scoped_release release;
+      filler = bytes_from_unit_floats(src, pixels, channels, keep, dst);
+    }
+    return std::make_pair(std::move(out), filler);
+  };
+  auto [out, filler] = convert(kept);
+  return filler ? out : convert(channels).first;
 }
 
 // Whether a's elements are T: by equivalence, as numpy compares dtypes (an
@@ -815,9 +823,10 @@ first): (height, width, channels) uint8, row 0 at the BOTTOM, as Blender stores 
 ValueError on a bad filter byte or size.)");
 
   m.def("bytes_from_unit_floats", &bytes_from_unit_floats_py, py::arg("values"), py::arg("kept") = 0,
-        R"(uint8 array of values (float32, (..., C)) with their first `kept` of the C channels
-(0: all): v * 255 + 0.5 truncated, clamped to 0-255, in float32 arithmetic, so b / 255
-gives b back. Runs on all cores.)");
+        R"(uint8 pixels of values (float32, (..., C)): v * 255 + 0.5 truncated, clamped to 0-255,
+in float32 arithmetic, so b / 255 gives b back. Only the first `kept` channels (0: all)
+when the others are filler as Blender fills the channels a file lacks (colour channels
+repeating the last kept one, alpha 255), else all C. Runs on all cores.)");
 
   m.def("measure", &measure_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_page_sizes"), py::arg("new_uvs"), py::arg("new_face_page"),

@@ -145,3 +145,22 @@ def test_cli_names_what_is_wrong_with_a_bad_gltf(tool_env, tmp_path, changes, me
     assert "Traceback" not in proc.stderr and message in proc.stderr, proc.stderr
     assert proc.stderr.startswith("defrag_scan: error: cannot read"), proc.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("mode", ["L", "I;16"])
+def test_grey_images_load_as_one_channel(mode):
+    """8-bit grey as it is; 16-bit grey scaled to 8 bits (Pillow's own
+    conversion to RGB would clip it to white)."""
+    import io
+
+    import scan_io
+    from PIL import Image
+
+    grey = np.arange(64 * 48, dtype=np.uint16).reshape(48, 64) * 21
+    image = Image.fromarray((grey >> 8).astype(np.uint8) if mode == "L" else grey)
+    buf = io.BytesIO()
+    image.save(buf, "PNG")
+    assert Image.open(io.BytesIO(buf.getvalue())).mode == mode
+    pixels = scan_io.load_image(buf.getvalue())
+    assert pixels.shape == (48, 64, 1) and pixels.dtype == np.uint8
+    assert np.array_equal(pixels[::-1, :, 0], grey >> 8)

@@ -384,10 +384,17 @@ def test_bytes_from_unit_floats_gives_bytes_back_in_their_shape(native):
     assert np.array_equal(out.ravel(), np.arange(256 * 3) % 256)
     with pytest.raises(ValueError, match="float32"):
         native.bytes_from_unit_floats(values.astype(np.float64))
-    first = native.bytes_from_unit_floats(values, kept=1)
+    # Channels left out only when they are filler: grey repeated, alpha 1.
+    grey = np.repeat(values[..., :1], 4, axis=2)
+    grey[..., 3] = 1
+    first = native.bytes_from_unit_floats(grey, kept=1)
     assert first.shape == (16, 16, 1) and np.array_equal(first[..., 0], out[..., 0])
+    assert native.bytes_from_unit_floats(grey[..., :3], kept=3).shape == (16, 16, 3)
+    assert np.array_equal(native.bytes_from_unit_floats(values, kept=1), out)  # G and B differ from R
     with pytest.raises(ValueError, match="kept"):
         native.bytes_from_unit_floats(values, kept=4)
+    with pytest.raises(ValueError, match="pixels"):
+        native.bytes_from_unit_floats(values.ravel())
 
 
 def test_png_rows_checks_its_sizes(native):

@@ -35,6 +35,9 @@ def load_image(source) -> np.ndarray:
 
     Image.MAX_IMAGE_PIXELS = None  # scans routinely exceed Pillow's bomb guard
     img = Image.open(io.BytesIO(source) if isinstance(source, (bytes, bytearray)) else source)
+    if img.mode.startswith("I;16") or img.mode == "I":  # 16-bit grey: Pillow's convert would clip it
+        pixels = (np.asarray(img).astype(np.uint32) >> 8).clip(0, 255).astype(np.uint8)[::-1]
+        return np.ascontiguousarray(pixels[..., None])
     if img.mode not in ("L", "RGB", "RGBA"):
         img = img.convert("RGBA" if "A" in img.getbands() else "RGB")
     pixels = np.asarray(img)[::-1]

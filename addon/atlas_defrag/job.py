@@ -166,18 +166,18 @@ def page_sizes_of(job: JobInput) -> np.ndarray:
 
 
 def _as_bake_pixels(pixels: np.ndarray, channels: int) -> np.ndarray:
-    """C-contiguous (H, W, channels); missing channels: grey 0 / alpha 1."""
+    """C-contiguous (H, W, channels); missing channels: a grey image's grey
+    in R, G and B, else 0, and alpha 1."""
     if pixels.shape[2] == channels:
         return np.ascontiguousarray(pixels)
     h, w, c = pixels.shape
-    one = 1.0 if pixels.dtype != np.uint8 else 255
-    out = np.empty((h, w, channels), dtype=pixels.dtype)
+    out = np.zeros((h, w, channels), dtype=pixels.dtype)
     if c == 1:
-        out[..., : min(3, channels)] = pixels[..., :1]
+        out[..., : min(3, channels)] = pixels
     else:
         out[..., : min(c, channels)] = pixels[..., : min(c, channels)]
     if channels == 4 and c < 4:
-        out[..., 3] = one
+        out[..., 3] = 1.0 if pixels.dtype != np.uint8 else 255
     return out
 
 
@@ -190,11 +190,11 @@ def _bake_channels(sources, normal_map: bool) -> int:
     """The channels a role bakes: the most its images have, without an
     alpha that is opaque in all of them (JPEG files, most scans' PNGs), which
     would add a quarter to the bake, the write and every later read for
-    nothing; a normal map keeps its X, Y and Z."""
+    nothing; a grey normal map bakes X, Y and Z (the bake turns X and Y)."""
     channels = max(s.pixels.shape[2] for s in sources)
     if channels == 4 and all(_opaque(s.pixels) for s in sources if s.pixels.shape[2] == 4):
         channels = 3
-    return max(channels, 3) if normal_map else channels
+    return 3 if normal_map and channels == 1 else channels
 
 
 def check_input(job: JobInput) -> None:

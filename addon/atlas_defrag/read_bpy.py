@@ -372,8 +372,9 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
 
 def read_pixels(img) -> np.ndarray:
     """(H, W, C) row 0 = bottom; uint8 for byte images, float32 for float
-    ones; C is the file's channels for an 8-bit grey (1) or RGB (3) file,
-    else Blender's (4), as decode_png gives them.
+    ones; C is the file's channels for an 8-bit grey (1) or RGB (3) file
+    whose pixels Blender has not changed, else Blender's (4), as decode_png
+    gives them.
 
     bpy hands out pixels as floats only; a byte image's values are b / 255,
     which the native module turns back into b exactly, on every core."""
@@ -393,7 +394,10 @@ def read_pixels(img) -> np.ndarray:
         buf = buf.reshape(h, w, c)
         if img.is_float:
             return buf
-        # Blender fills a grey file's G and B with its grey and an RGB file's alpha with 255.
+        # Blender fills a grey file's G and B with its grey and an RGB file's
+        # alpha with 255. The depth says which file it was, and the pixels
+        # must bear it out (an edited image, or a TGA whose depth is that of
+        # its colour map, keeps all four).
         return _native.bytes_from_unit_floats(buf, kept={8: 1, 24: 3}.get(img.depth, c))
     except MemoryError as exc:
         raise DefragError(f"Out of memory reading image '{img.name}' ({w}x{h})") from exc

@@ -18,14 +18,20 @@ inline std::uint8_t byte_of(float value) {
 
 }  // namespace
 
-void bytes_from_unit_floats(const float* in, std::size_t pixels, int channels, int kept, std::uint8_t* out) {
+bool bytes_from_unit_floats(const float* in, std::size_t pixels, int channels, int kept, std::uint8_t* out) {
   const long long blocks = static_cast<long long>((pixels + kBlock - 1) / kBlock);
-#pragma omp parallel for schedule(static)
+  bool filler = true;
+#pragma omp parallel for schedule(static) reduction(&& : filler)
   for (long long b = 0; b < blocks; ++b) {
     const std::size_t end = std::min(pixels, static_cast<std::size_t>(b + 1) * kBlock);
-    for (std::size_t p = static_cast<std::size_t>(b) * kBlock; p < end; ++p)
-      for (int k = 0; k < kept; ++k) out[p * kept + k] = byte_of(in[p * channels + k]);
+    for (std::size_t p = static_cast<std::size_t>(b) * kBlock; p < end; ++p) {
+      const float* pixel = in + p * channels;
+      for (int k = 0; k < kept; ++k) out[p * kept + k] = byte_of(pixel[k]);
+      for (int k = kept; k < channels; ++k)
+        filler = filler && byte_of(pixel[k]) == (k < 3 ? out[p * kept + kept - 1] : 255);
+    }
   }
+  return filler;
 }
 
 }  // namespace atlas

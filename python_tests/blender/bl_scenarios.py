@@ -370,7 +370,8 @@ def png_read_from_file(pkg):
     decoded for (RGBA under premultiplied or ignored alpha is left to
     Blender), with the file's channels; a loaded one, or one with a tRNS
     chunk, goes through Blender, and one cut short is skipped as Blender
-    skips it. Blender's route gives a grey file's one channel too."""
+    skips it. Blender's route gives a grey file's one channel too, unless
+    its pixels were edited."""
     rb = pkg.read_bpy
     rng = np.random.default_rng(5)
     decoded = set()
@@ -405,6 +406,11 @@ def png_read_from_file(pkg):
             f.write(filtered_png(grey))
         img = bpy.data.images.load(path, check_existing=False)
         assert not rb._plain_png(img) and np.array_equal(rb.read_pixels(img)[::-1], grey)
+        edited = np.empty(len(img.pixels), np.float32)  # one texel painted red: no longer grey
+        img.pixels.foreach_get(edited)
+        edited[:4] = (1, 0, 0, 1)
+        img.pixels.foreach_set(edited)
+        assert img.depth == 8 and rb.read_pixels(img).shape == (29, 41, 4)
         bpy.data.images.remove(img)
         _read_images_mixes_routes(pkg, folder, rng)
 

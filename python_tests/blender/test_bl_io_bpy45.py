@@ -29,7 +29,7 @@ def test_read_tetra(pkg):
     assert set(np.unique(m.face_page)) == {0}
     assert [(im.role, im.image) for im in r.job.pages[0].maps] == [("base_color", "textured_0_v2.jpg")]
     img = r.job.images["textured_0_v2.jpg"]
-    # A JPEG holds RGB: Blender's opaque alpha is not kept.
+    # This JPEG holds RGB: Blender's opaque alpha is not kept.
     assert img.pixels.shape == (2048, 2048, 3) and img.pixels.dtype == np.uint8
     assert img.colorspace == "sRGB" and not img.is_float
     # Row 0 is the bottom row, as Blender stores it.

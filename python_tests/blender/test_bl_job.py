@@ -147,3 +147,32 @@ def test_opaque_alpha_is_not_baked(job, native):
     grey.images["N"].pixels = np.ascontiguousarray(grey.images["N"].pixels[..., :1])
     normals = [im for im in job.run(grey, job.Options(padding=2)).images if im.role == "normal"]
     assert normals and all(im.pixels.shape[2] == 3 for im in normals)
+
+
+def test_bake_channels_of_mixed_images(job):
+    """A role's images may differ in channels: the most win, without an alpha
+    opaque in all of them; every channel an image lacks is filled."""
+    def source(channels, alpha=255, dtype=np.uint8):
+        px = np.full((2, 3, channels), 7, dtype)
+        if channels == 4:
+            px[..., 3] = alpha
+        return types.SimpleNamespace(pixels=px)
+
+    assert job._bake_channels([source(1), source(3)], False) == 3
+    assert job._bake_channels([source(1), source(4)], False) == 3
+    assert job._bake_channels([source(3), source(4, alpha=254)], False) == 4
+    assert job._bake_channels([source(4, alpha=1.0, dtype=np.float32)], False) == 3
+    assert job._bake_channels([source(4, alpha=0.5, dtype=np.float32)], False) == 4
+    assert job._bake_channels([source(1)], True) == 3 and job._bake_channels([source(2)], True) == 2
+    for c in (1, 2, 3):
+        for channels in range(c + 1, 5):
+            px = np.arange(6 * c, dtype=np.uint8).reshape(2, 3, c) + 1
+            out = job._as_bake_pixels(px, channels)
+            assert out.shape == (2, 3, channels) and out.flags.c_contiguous
+            grey_fill = px[..., [0] * min(3, channels)] if c == 1 else None
+            if c == 1:
+                assert np.array_equal(out[..., :min(3, channels)], grey_fill)
+            else:
+                assert np.array_equal(out[..., :c], px) and not out[..., c:min(3, channels)].any()
+            if channels == 4:
+                assert (out[..., 3] == 255).all()
