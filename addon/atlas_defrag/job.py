@@ -188,7 +188,7 @@ def _opaque(pixels: np.ndarray) -> bool:
 
 def _bake_channels(sources, normal_map: bool) -> int:
     """The channels a role bakes: the most its images have, without an
-    alpha that is opaque in all of them (JPEG files, most scans' PNGs), which
+    alpha that is opaque in all of them (most scans' RGBA PNGs), which
     would add a quarter to the bake, the write and every later read for
     nothing; a grey normal map bakes X, Y and Z (the bake turns X and Y)."""
     channels = max(s.pixels.shape[2] for s in sources)
