@@ -169,9 +169,8 @@ def test_bake_channels_of_mixed_images(job):
             px = np.arange(6 * c, dtype=np.uint8).reshape(2, 3, c) + 1
             out = job._as_bake_pixels(px, channels)
             assert out.shape == (2, 3, channels) and out.flags.c_contiguous
-            grey_fill = px[..., [0] * min(3, channels)] if c == 1 else None
             if c == 1:
-                assert np.array_equal(out[..., :min(3, channels)], grey_fill)
+                assert np.array_equal(out[..., :min(3, channels)], px[..., [0] * min(3, channels)])
             else:
                 assert np.array_equal(out[..., :c], px) and not out[..., c:min(3, channels)].any()
             if channels == 4:
