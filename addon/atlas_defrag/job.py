@@ -165,9 +165,11 @@ def page_sizes_of(job: JobInput) -> np.ndarray:
     return sizes
 
 
-def _as_bake_pixels(pixels: np.ndarray, channels: int) -> np.ndarray:
-    """C-contiguous (H, W, channels); missing channels: a grey image's grey
-    in R, G and B, else 0, and alpha 1."""
+def with_channels(pixels: np.ndarray, channels: int) -> np.ndarray:
+    """C-contiguous (H, W, channels) of (H, W, C <= channels) pixels, the
+    missing channels filled as Blender fills them: a grey image's grey in R,
+    G and B, else 0, and alpha 1 (255). The bake's input and the add-on's
+    RGBA images both take this."""
     if pixels.shape[2] == channels:
         return np.ascontiguousarray(pixels)
     h, w, c = pixels.shape
@@ -397,7 +399,7 @@ def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], padding
         sources = [job.images[m.image] for m in maps]
         channels = _bake_channels(sources, any(m.normal_map for m in maps))
         dtype = np.float32 if any(s.pixels.dtype != np.uint8 for s in sources) else np.uint8
-        pixels = [_as_bake_pixels(s.pixels.astype(dtype, copy=False), channels) for s in sources]
+        pixels = [with_channels(s.pixels.astype(dtype, copy=False), channels) for s in sources]
         by_dtype.setdefault(dtype, []).append((role, maps, sources, pixels))
     images: List[OutputImage] = []
     for batch in by_dtype.values():

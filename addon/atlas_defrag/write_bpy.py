@@ -18,7 +18,7 @@ import bpy
 import numpy as np
 
 from . import compat, png_files
-from .job import DefragError, JobResult, OutputImage, loop_uvs
+from .job import DefragError, JobResult, OutputImage, loop_uvs, with_channels
 from .read_bpy import ReadResult, mesh_signature
 
 SUFFIX = "_defrag"
@@ -69,22 +69,6 @@ def _unique_path(directory: str, stem: str, ext: str, taken: set) -> str:
     return path
 
 
-def _rgba(px: np.ndarray) -> np.ndarray:
-    """(H, W, C) pixels as (H, W, 4): grey fills RGB, a missing B is 0, a missing alpha opaque."""
-    c = px.shape[2]
-    if c == 4:
-        return px
-    full = np.empty(px.shape[:2] + (4,), dtype=px.dtype)
-    if c == 1:
-        full[..., :3] = px[..., :1]
-    else:
-        full[..., :min(c, 3)] = px[..., :min(c, 3)]
-        if c == 2:
-            full[..., 2] = 0
-    full[..., 3] = 255 if px.dtype == np.uint8 else 1.0
-    return full
-
-
 def _set_look(img, out: OutputImage) -> None:
     compat.set_colorspace(img, out.colorspace)
     try:
@@ -97,7 +81,7 @@ def _new_image(out: OutputImage, name: str):
     h, w = out.pixels.shape[:2]
     img = bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=bool(out.is_float))
     _set_look(img, out)
-    px = _rgba(out.pixels)
+    px = with_channels(out.pixels, 4)
     if px.dtype == np.uint8:
         flat = px.reshape(-1).astype(np.float32)
         flat *= 1.0 / 255.0
@@ -328,7 +312,7 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
         img = _new_image(out, name)
         created(out, img)
         _store_image(img, out.is_float, image_dir, taken)
-    png_files.write_pngs((path, out.pixels if out.pixels.shape[2] != 2 else _rgba(out.pixels))
+    png_files.write_pngs((path, out.pixels if out.pixels.shape[2] != 2 else with_channels(out.pixels, 4))
                          for out, _, path in png_files_due)
     for out, name, path in png_files_due:
         created(out, _load_saved_png(out, name, path))

@@ -167,7 +167,7 @@ def test_bake_channels_of_mixed_images(job):
     for c in (1, 2, 3):
         for channels in range(c + 1, 5):
             px = np.arange(6 * c, dtype=np.uint8).reshape(2, 3, c) + 1
-            out = job._as_bake_pixels(px, channels)
+            out = job.with_channels(px, channels)
             assert out.shape == (2, 3, channels) and out.flags.c_contiguous
             if c == 1:
                 assert np.array_equal(out[..., :min(3, channels)], px[..., [0] * min(3, channels)])

@@ -18,9 +18,9 @@ def test_png_round_trips_through_pillow_top_row_first(pkg, channels):
     from PIL import Image
 
     image = pixels()[:, :, :channels]
-    decoded = np.asarray(Image.open(io.BytesIO(pkg.png_files.encode_png(image))))
-    assert Image.open(io.BytesIO(pkg.png_files.encode_png(image))).mode == {1: "L", 3: "RGB", 4: "RGBA"}[channels]
-    decoded = decoded.reshape(decoded.shape[:2] + (-1,))
+    png = Image.open(io.BytesIO(pkg.png_files.encode_png(image)))
+    assert png.mode == {1: "L", 3: "RGB", 4: "RGBA"}[channels]
+    decoded = np.asarray(png).reshape(image.shape[:2] + (-1,))
     assert decoded.shape == image.shape
     assert np.array_equal(decoded, image[::-1])  # Blender's row 0 is the bottom one
 
