@@ -87,7 +87,9 @@ std::vector<ScaledChart> scale_charts(const std::vector<const RowMatrixX2d*>& ch
   control.throw_if_cancelled();
   std::vector<ScaledChart> charts(chart_uv.size());
   const int n = static_cast<int>(chart_uv.size());
-  parallel_for(n, 16, [&](int c) {
+  // One chart at a time: a few large charts take most of the work, and
+  // chunks of several left a core idle once they landed in one chunk.
+  parallel_for(n, 1, [&](int c) {
     control.throw_if_cancelled();
     charts[c] = scale_chart(*chart_uv[c], scale, padding, cell, keep_bare);
   });
