@@ -132,8 +132,8 @@ def parse_args(argv):
     parser.add_argument("output", type=Path)
     parser.add_argument("--metrics", action=argparse.BooleanOptionalAction, default=False,
                         help="also measure the quality figures (flips, texels covered twice, density loss, "
-                             "colour PSNR) while the files are written: about a tenth more time on the shared "
-                             "scans (default: off)")
+                             "colour PSNR) while the files are written, at some cost in time (bench/RESULTS.md; "
+                             "default: off)")
     options.add_arguments(parser)
     return parser.parse_args(argv)
 

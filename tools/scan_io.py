@@ -86,8 +86,8 @@ def _read_mtl_textures(obj_path: Path, mtllibs: list[str]) -> dict[str, Path]:
 
 def load_obj(path: Path) -> Scan:
     """The geometry through the native reader (_native.read_obj): parsing in
-    Python took about 24 s for a million faces, the native reader well under
-    a tenth of that (bench/RESULTS.md)."""
+    Python was the command-line entry's slowest stage on large scans
+    (bench/README.md)."""
     from atlas_defrag import _native
 
     obj = _native.read_obj(str(path))

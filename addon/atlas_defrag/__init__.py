@@ -51,7 +51,8 @@ def defragment(obj, **options) -> dict:
     Keyword options: those of options.SCHEMA (README, *Options*), and uv_map
     (default: the active UV map), storage ('PACK' or 'SAVE'), image_dir (with
     'SAVE'), duplicate_materials, new_map_first (default True: the new UV map
-    at index 0, where FBX readers look), progress (callable(stage, fraction)),
+    at index 0, where FBX readers look), progress (callable(stage, fraction),
+    called from the native worker threads: it must not touch bpy),
     cancel (a _native.CancelToken), wait_in_main_thread (the native work on a
     thread of its own, so that signal handlers run meanwhile: see api.defragment).
 

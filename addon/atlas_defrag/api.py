@@ -37,7 +37,7 @@ class Settings:
                 duplicate_materials=bool(kw.pop("duplicate_materials", False)),
                 new_map_first=bool(kw.pop("new_map_first", True)))
         if kw:
-            known = sorted(BY_NAME) + ["duplicate_materials", "image_dir", "storage", "uv_map"]
+            known = sorted(BY_NAME) + ["duplicate_materials", "image_dir", "new_map_first", "storage", "uv_map"]
             raise DefragError("unknown option(s): " + ", ".join(sorted(kw)) + " (known: " + ", ".join(known) + ")")
         s.validate()
         return s
@@ -184,7 +184,8 @@ def _on_worker_thread(fn, *args, **kwargs):
 @contextlib.contextmanager
 def as_defrag_error():
     """Raises what escapes the block as DefragError, the cause kept
-    (__cause__): a wrong argument type, a file that cannot be written."""
+    (__cause__): a wrong argument type, a file that cannot be written, an
+    image Blender could not save or load (bpy raises RuntimeError)."""
     try:
         yield
     except DefragError:
@@ -194,21 +195,18 @@ def as_defrag_error():
         raise DefragError(f"Could not read or write a file{where}: {exc.strerror or exc}") from exc
     except (TypeError, ValueError) as exc:
         raise DefragError(f"Bad argument: {exc}") from exc
+    except RuntimeError as exc:
+        raise DefragError(f"Blender refused: {exc}") from exc
 
 
 def plain(value):
     """Numpy scalars and arrays to JSON-friendly Python values."""
-    try:
-        import numpy as np
-    except ImportError:  # pragma: no cover
-        np = None
     if isinstance(value, dict):
         return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [plain(v) for v in value]
-    if np is not None:
-        if isinstance(value, np.ndarray):
-            return value.tolist()
-        if isinstance(value, np.generic):
-            return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
     return value

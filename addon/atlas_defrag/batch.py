@@ -457,16 +457,10 @@ def _file_problem(path: str, polygons) -> str:
     if os.path.getsize(path) == 0:
         return "empty"
     ext = os.path.splitext(path)[1].lower()
+    if ext in (".png", ".exr", ".glb"):  # binary files, whole when their ends are
+        return _binary_file_problem(path, ext)
     with open(path, "rb") as f:
         data = f.read()
-    if ext == ".png" and not (data.startswith(b"\x89PNG\r\n\x1a\n") and data[-8:-4] == b"IEND"):
-        return "not a complete PNG"
-    if ext == ".exr" and not data.startswith(b"\x76\x2f\x31\x01"):
-        return "not an OpenEXR file"
-    if ext == ".glb":
-        import struct
-        if len(data) < 12 or data[:4] != b"glTF" or struct.unpack_from("<I", data, 8)[0] != len(data):
-            return "shorter than its header says"
     if ext == ".gltf":
         try:
             json.loads(data)
@@ -478,6 +472,23 @@ def _file_problem(path: str, polygons) -> str:
         faces = sum(1 for line in data.splitlines() if line.startswith(b"f "))
         if faces != polygons or not data.endswith(b"\n"):
             return f"{faces} of {polygons} faces"
+    return ""
+
+
+def _binary_file_problem(path: str, ext: str) -> str:
+    """_file_problem of a PNG, EXR or GLB file, from its first and last bytes."""
+    import struct
+    size = os.path.getsize(path)
+    with open(path, "rb") as f:
+        head = f.read(12)
+        f.seek(max(0, size - 8))
+        tail = f.read(8)
+    if ext == ".png" and not (head.startswith(b"\x89PNG\r\n\x1a\n") and tail[:4] == b"IEND"):
+        return "not a complete PNG"
+    if ext == ".exr" and not head.startswith(b"\x76\x2f\x31\x01"):
+        return "not an OpenEXR file"
+    if ext == ".glb" and (len(head) < 12 or head[:4] != b"glTF" or struct.unpack_from("<I", head, 8)[0] != size):
+        return "shorter than its header says"
     return ""
 
 
@@ -507,9 +518,14 @@ def _write_report(path, report):
         return
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(report, f, indent=2, sort_keys=True)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w") as f:
+            json.dump(report, f, indent=2, sort_keys=True)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
 
 
 def _report_path_problem(path) -> str:
@@ -565,7 +581,12 @@ def main_single(argv) -> int:
     if args.skip_existing and os.path.exists(args.output):
         print(f"atlas_defrag: skipped, {args.output} exists")
         return 0
-    token = importlib.import_module(_package().__name__ + "._native").CancelToken()
+    pkg = _package()
+    problem = importlib.import_module(pkg.__name__ + ".native_check").problem(pkg.__name__)
+    if problem:
+        print(f"atlas_defrag: error: {problem}", file=sys.stderr)
+        return 1
+    token = importlib.import_module(pkg.__name__ + "._native").CancelToken()
     try:
         with _Interrupt(token):
             report = run_one(args, token)
@@ -579,7 +600,12 @@ def main_single(argv) -> int:
                                     "output": os.path.abspath(args.output),
                                     "status": "cancelled" if cancelled else "error", "error": msg})
         return EXIT_INTERRUPTED if cancelled else 1
-    _write_report(args.report, report)
+    try:
+        _write_report(args.report, report)
+    except OSError as exc:
+        print(f"atlas_defrag: error: {args.output} was written, but not the report {args.report}: {exc}",
+              file=sys.stderr)
+        return 1
     for w in report["warnings"] + [w for o in report["objects"] for w in o.get("warnings", [])]:
         print(f"atlas_defrag: warning: {w}", file=sys.stderr)
     for o in report["objects"]:

@@ -7,7 +7,6 @@ import contextlib
 
 import bpy
 
-BLENDER_4 = bpy.app.version >= (4, 0, 0)
 
 # Blender allows at most this many UV maps on a mesh (MAX_MTFACE).
 MAX_UV_MAPS = 8

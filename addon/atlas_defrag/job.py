@@ -2,8 +2,8 @@
 """The defragmentation job on plain data: no bpy in this module.
 
 The bpy read module turns an object into a :class:`JobInput`; :func:`run` calls
-the native core (``_native.defragment`` once, then ``_native.bake`` once per
-material group and image role) and returns a :class:`JobResult` that the bpy
+the native core (``_native.defragment`` once, then ``_native.bake_maps`` once
+per material group and set of roles whose images share their sizes) and returns a :class:`JobResult` that the bpy
 write module turns back into a UV map, images and material links.
 
 Conventions (shared with ``_native``):
@@ -33,10 +33,10 @@ class DefragCancelled(DefragError):
     """The run was cancelled; nothing was written."""
 
 
-# Roles in a fixed order; anything else sorts after these by name.
 # Stages of _native.defragment, each reporting its own fraction 0..1.
 LAYOUT_STAGES = ("charts", "aggregate", "flatten", "pack")
 
+# Roles in a fixed order; anything else sorts after these by name.
 ROLE_ORDER = ("base_color", "metallic", "roughness", "occlusion", "emission", "alpha", "normal")
 
 

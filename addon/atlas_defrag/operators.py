@@ -45,6 +45,20 @@ class _Run:
         except BaseException as exc:  # reported on the main thread
             self.error = exc
 
+    def wait(self, each_step):
+        """Runs work() on a thread of its own and joins it, calling
+        each_step() on this thread every 0.05 s: the native progress comes
+        from worker threads, where bpy must not be touched. Returns the
+        result or raises the worker's error."""
+        self.thread = threading.Thread(target=self.work, name="atlas_defrag", daemon=True)
+        self.thread.start()
+        while self.thread.is_alive():
+            self.thread.join(0.05)
+            each_step()
+        if self.error is not None:
+            raise self.error
+        return self.result
+
 
 # The outcome of the last run, for scripts and tests: status is 'finished',
 # 'cancelled' or 'error'; message is what was reported.
@@ -220,7 +234,8 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         return value.lower() if option.choices else value
 
     def _settings(self, obj=None) -> api.Settings:
-        # The UV map chosen in the dialog is the active object's; the others use their active map.
+        # The UV map chosen in the dialog is the active object's; the others use a map of
+        # that name if they have one, else their active map.
         uv_map = self.uv_map if obj is None or self.uv_map in obj.data.uv_layers else None
         return api.Settings.from_kwargs(
             uv_map=uv_map or None, storage=self.storage,
@@ -276,11 +291,9 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         reports = []
         try:
             for k, unit in enumerate(units):
-                def progress(stage, fraction, k=k):
-                    wm.progress_update(int(100 * (k + fraction) / len(units)))
-                read = _prepare(unit)
-                result = api.compute(read, unit[0][1], progress=progress)
-                for report in _finish(unit, read, result):
+                run = _Run(_prepare(unit), unit[0][1], None)
+                result = run.wait(lambda k=k, run=run: wm.progress_update(int(100 * (k + run.fraction) / len(units))))
+                for report in _finish(unit, run.read, result):
                     reports.append(report)
         except DefragCancelled:
             return self._end(context, reports, "Cancelled: nothing was changed" if not reports else "Cancelled")
@@ -385,11 +398,14 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
                     context, f"Defragmenting texture atlas{which}: {run.stage} {100 * run.fraction:.0f}% "
                              f"({time.perf_counter() - run.started:.0f} s, Esc to cancel)")
             return {"RUNNING_MODAL"}
-        error = self._finish_run(run)
-        if error is None and self._queue:
-            error = self._next_run() or None
-            if error is None:
-                return {"RUNNING_MODAL"}
+        try:
+            error = self._finish_run(run)
+            if error is None and self._queue:
+                error = self._next_run() or None
+                if error is None:
+                    return {"RUNNING_MODAL"}
+        except Exception as exc:  # reported, so that the timer and status text go with the modal
+            error = f"{type(exc).__name__}: {exc}"
         self._end_modal(context)
         return self._end(context, self._reports, error)
 
@@ -442,17 +458,19 @@ def _resolve(named, when: str):
 
 def _prepare(unit):
     """The read of one run: one object's, or the shared read of several."""
-    if len(unit) == 1:
-        return api.prepare(*unit[0])
-    return api.prepare_shared([obj for obj, _ in unit], [s for _, s in unit])
+    with api.as_defrag_error():
+        if len(unit) == 1:
+            return api.prepare(*unit[0])
+        return api.prepare_shared([obj for obj, _ in unit], [s for _, s in unit])
 
 
 def _finish(unit, read, result):
     """Writes one run's result, yielding the report of each object."""
-    if len(unit) == 1:
-        yield api.finish(unit[0][0], read, result, unit[0][1])
-        return
-    yield from api.finish_shared([obj for obj, _ in unit], read, result, [s for _, s in unit])
+    with api.as_defrag_error():
+        if len(unit) == 1:
+            yield api.finish(unit[0][0], read, result, unit[0][1])
+            return
+        yield from api.finish_shared([obj for obj, _ in unit], read, result, [s for _, s in unit])
 
 
 def _done_before(reports) -> str:

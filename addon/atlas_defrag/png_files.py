@@ -2,9 +2,8 @@
 """8-bit PNG files to and from numpy arrays: grey, RGB and RGBA written,
 RGB and RGBA read.
 
-Blender's Image.save() encodes one image at a time on one core: on a scan with
-three 2048x2048 maps that was a sixth of the whole batch job. zlib releases the
-GIL, so here the images of a job, and the parts of a large image, are
+Blender's Image.save() encodes one image at a time on one core. zlib releases
+the GIL, so here the images of a job, and the parts of a large image, are
 compressed side by side. Reading, Blender hands out pixels only as floats,
 after holding the image as its own buffer: inflating the file again and
 undoing its row filters natively (decode_png) skips both copies. No bpy in
@@ -25,8 +24,8 @@ _SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _UP_FILTER = 2  # each byte minus the byte above it, modulo 256 (PNG spec 9.2)
 # Scanline bytes compressed as one part: an image larger than this is split
 # into parts that compress on separate threads, joined as one zlib stream
-# (each part ends on a byte boundary by a sync flush). A part this size loses
-# nothing measurable to the dictionary reset at its start.
+# (each part ends on a byte boundary by a sync flush). Parts this large make
+# the dictionary reset at each start negligible.
 _PART_BYTES = 8 << 20
 _ZLIB_HEADER = b"\x78\x01"  # deflate, 32K window, the fastest level
 _ADLER_BASE = 65521
@@ -45,8 +44,9 @@ HEADER_BYTES = 33  # signature, then the IHDR chunk: length, type, 13 bytes, CRC
 
 def _scanlines(pixels: np.ndarray) -> np.ndarray:
     """(H, 1 + W C) filtered rows, top row first: each row starts with its
-    filter type, Up, at zlib level 1 came within 10% of level 3's size at
-    half its time on baked textures."""
+    filter type, Up: with zlib's fastest level it compresses baked textures
+    nearly as well as slower levels, in a fraction of their time
+    (bench/README.md)."""
     if pixels.dtype != np.uint8 or pixels.ndim != 3 or pixels.shape[2] not in _COLOUR_TYPE:
         raise ValueError(f"encode_png needs (H, W, 1, 3 or 4) uint8 pixels, got {pixels.shape} {pixels.dtype}")
     height, width, channels = pixels.shape

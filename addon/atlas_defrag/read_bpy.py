@@ -41,10 +41,8 @@ class MaterialInfo:
 @dataclass
 class ReadResult:
     job: JobInput
-    object_name: str
     mesh_name: str
     uv_map: str  # source UV map
-    active_uv: str
     render_uv: str
     n_loops: int
     tri_loops: np.ndarray  # (F, 3) loop index per corner
@@ -99,7 +97,9 @@ def _refuse_linked(obj) -> None:
                 "Selected Objects, Data and Materials)")
 def check_textures(obj, uv_map: Optional[str] = None) -> None:
     """check_object, and that some material has an image map on the UV map:
-    the checks a dialog can make before it opens (no pixels are read)."""
+    the checks a dialog can make before it opens. Blender loads the images
+    it would read itself, to see that they have pixels; plain PNGs are
+    checked from their files' ends."""
     layer = check_object(obj, uv_map)
     warnings: List[str] = []
     materials = _analyse_slots(obj, layer.name, _render_uv_name(obj.data), warnings)
@@ -189,13 +189,11 @@ def _wrap_emulation_source(link, render_uv: str) -> Optional[str]:
     return found.pop() if len(found) == 1 else None
 
 
-def _downstream_roles(node) -> Tuple[List[str], bool, List[str]]:
+def _downstream_roles(node) -> Tuple[List[str], List[str]]:
     """Roles an Image Texture node feeds: Principled BSDF inputs (through any
     converter nodes), the glTF group's Occlusion, or 'other' for any other
-    shader. Also whether a tangent-space Normal Map node is on the way, and
-    the names of those Normal Map nodes."""
+    shader. Also the names of the tangent-space Normal Map nodes on the way."""
     roles = set()
-    tangent = False
     normal_nodes: List[str] = []
     seen = set()
     stack = [(out, False, False) for out in node.outputs if out.is_linked]
@@ -224,7 +222,6 @@ def _downstream_roles(node) -> Tuple[List[str], bool, List[str]]:
             if idname == "ShaderNodeNormalMap":
                 if to_node.space == "TANGENT":
                     nxt_normal = True
-                    tangent = True
                     if to_node.name not in normal_nodes:
                         normal_nodes.append(to_node.name)
             elif idname in ("ShaderNodeBump", "ShaderNodeDisplacement"):
@@ -236,7 +233,7 @@ def _downstream_roles(node) -> Tuple[List[str], bool, List[str]]:
                 if out.is_linked:
                     stack.append((out, nxt_normal, nxt_bump))
     ordered = sorted(roles, key=role_sort_key)
-    return ordered, tangent, normal_nodes
+    return ordered, normal_nodes
 
 
 def _check_image(img, material_name: str):
@@ -344,7 +341,7 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
             continue
         kind, uv_name = _vector_source(node, render_uv)
         img = node.image
-        roles, tangent, normal_nodes = _downstream_roles(node)
+        roles, normal_nodes = _downstream_roles(node)
         usable = (img is not None and roles and uv_name == uv_map and kind != "other"
                   and node.projection == "FLAT" and not node.mute)
         if usable:
@@ -434,7 +431,7 @@ def read(obj, uv_map: Optional[str] = None) -> ReadResult:
 class _Geometry:
     """The loop triangles of a mesh and their UVs on the source map."""
 
-    positions: np.ndarray  # (V, 3) float64
+    positions: np.ndarray  # (V, 3) float64, world space
     triangles: np.ndarray  # (F, 3) int32 vertex per corner
     tri_loops: np.ndarray  # (F, 3) int32 loop per corner
     tri_polygons: np.ndarray  # (F,) int32
@@ -445,7 +442,6 @@ class _Geometry:
 
 def _read(obj, me, uv_name: str) -> ReadResult:
     render_uv = _render_uv_name(me)
-    active_uv = me.uv_layers.active.name if me.uv_layers.active else uv_name
     warnings: List[str] = []
     geo = _read_geometry(obj, me, me.uv_layers[uv_name])
     materials = _analyse_slots(obj, uv_name, render_uv, warnings)
@@ -459,8 +455,7 @@ def _read(obj, me, uv_name: str) -> ReadResult:
                       face_page=face_page.astype(np.int32)),
         pages=pages, images=_read_images(pages))
     return ReadResult(
-        job=job, object_name=obj.name, mesh_name=obj.data.name, uv_map=uv_name, active_uv=active_uv,
-        render_uv=render_uv, n_loops=geo.n_loops, tri_loops=geo.tri_loops,
+        job=job, mesh_name=obj.data.name, uv_map=uv_name, render_uv=render_uv, n_loops=geo.n_loops, tri_loops=geo.tri_loops,
         tri_polygons=geo.tri_polygons, slot_of_face=slot_of_face.astype(np.int32),
         materials=list(materials.values()), signature=mesh_signature(obj, me), warnings=warnings)
 
@@ -483,7 +478,10 @@ def _read_geometry(obj, me, layer) -> _Geometry:
     loop_uv = np.empty(n_loops * 2, dtype=np.float32)
     layer.data.foreach_get("uv", loop_uv)
     tri_loops = tri["loops"].reshape(n_tris, 3)
-    return _Geometry(positions=positions.reshape(-1, 3).astype(np.float64),
+    # In world space: texels_per_unit counts per unit of the surface as the
+    # scene shows it, and the objects of a shared atlas agree on their sizes.
+    linear = np.array(obj.matrix_world.to_3x3(), dtype=np.float64)
+    return _Geometry(positions=positions.reshape(-1, 3).astype(np.float64) @ linear.T,
                      triangles=tri["vertices"].reshape(n_tris, 3), tri_loops=tri_loops,
                      tri_polygons=tri["polygon_index"], tri_material=tri["material_index"],
                      uvs=loop_uv.reshape(n_loops, 2)[tri_loops].astype(np.float64), n_loops=n_loops)

@@ -77,34 +77,23 @@ def _set_look(img, out: OutputImage) -> None:
         pass
 
 
-def _new_image(out: OutputImage, name: str):
+def _new_float_image(out: OutputImage, name: str):
+    """A float output as a Blender image (8-bit ones go through png_files)."""
     h, w = out.pixels.shape[:2]
-    img = bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=bool(out.is_float))
+    img = bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=True)
     _set_look(img, out)
-    px = with_channels(out.pixels, 4)
-    if px.dtype == np.uint8:
-        flat = px.reshape(-1).astype(np.float32)
-        flat *= 1.0 / 255.0
-    else:
-        flat = np.ascontiguousarray(px, dtype=np.float32).reshape(-1)
-    img.pixels.foreach_set(flat)
+    img.pixels.foreach_set(np.ascontiguousarray(with_channels(out.pixels, 4), dtype=np.float32).reshape(-1))
     img.update()
     return img
 
 
-def _store_image(img, is_float: bool, directory: str, taken: set) -> None:
-    if is_float:
-        # Float buffers are written as they are only when channel packed:
-        # other alpha modes (un)premultiply on save and the values drift.
-        img.alpha_mode = "CHANNEL_PACKED"
-        img.file_format = "OPEN_EXR"
-        if hasattr(img, "use_half_precision"):
-            img.use_half_precision = False
-        ext = ".exr"
-    else:
-        img.file_format = "PNG"
-        ext = ".png"
-    path = _unique_path(directory, _safe_file_stem(img.name), ext, taken)
+def _save_exr(img, path: str) -> None:
+    """Float buffers are written as they are only when channel packed:
+    other alpha modes (un)premultiply on save and the values drift."""
+    img.alpha_mode = "CHANNEL_PACKED"
+    img.file_format = "OPEN_EXR"
+    if hasattr(img, "use_half_precision"):
+        img.use_half_precision = False
     img.filepath_raw = path
     img.save()
     img.source = "FILE"
@@ -131,8 +120,8 @@ def _point_at(img, path: str) -> None:
         img.filepath = path
 
 
-def _place_left_of(node, other, dx=220.0, dy=0.0):
-    other.location = (node.location[0] - dx, node.location[1] + dy)
+def _place_left_of(node, other, dx: float):
+    other.location = (node.location[0] - dx, node.location[1])
 
 
 def _relink(tree, from_socket, to_socket, journal: _Journal):
@@ -238,6 +227,13 @@ def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
         raise
 
 
+def _remove_file(path: str) -> None:
+    try:
+        os.remove(path)
+    except FileNotFoundError:
+        pass
+
+
 def _image_dir(storage: str, image_dir: Optional[str]) -> str:
     """Where the new image files go. Packed images are written to a fresh
     folder in Blender's temporary one first (png_files encodes them in
@@ -249,6 +245,10 @@ def _image_dir(storage: str, image_dir: Optional[str]) -> str:
         if not bpy.data.filepath:
             raise DefragError("Save the .blend file first, or set Images to 'Pack in .blend'")
         image_dir = os.path.dirname(bpy.path.abspath(bpy.data.filepath))
+    image_dir = bpy.path.abspath(image_dir)  # '//textures' is relative to the .blend
+    if not os.path.isabs(image_dir):
+        raise DefragError(f"Image folder '{image_dir}' is relative to an unsaved .blend: "
+                          "save the file first, or give an absolute folder")
     os.makedirs(image_dir, exist_ok=True)
     return image_dir
 
@@ -306,14 +306,15 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
         k = pages.index(out.page) if out.page in pages else 0
         stem = image_stem(out.source)
         name = f"{stem}{SUFFIX}" if k == 0 else f"{stem}{SUFFIX}_{k + 1}"
+        path = _unique_path(image_dir, _safe_file_stem(name), ".exr" if out.is_float else ".png", taken)
+        journal.add(lambda p=path: _remove_file(p))  # a file is written only once its path is journalled
         if not out.is_float:
-            png_files_due.append((out, name, _unique_path(image_dir, _safe_file_stem(name), ".png", taken)))
+            png_files_due.append((out, name, path))
             continue
-        img = _new_image(out, name)
+        img = _new_float_image(out, name)
         created(out, img)
-        _store_image(img, out.is_float, image_dir, taken)
-    png_files.write_pngs((path, out.pixels if out.pixels.shape[2] != 2 else with_channels(out.pixels, 4))
-                         for out, _, path in png_files_due)
+        _save_exr(img, path)
+    png_files.write_pngs((path, out.pixels) for out, _, path in png_files_due)
     for out, name, path in png_files_due:
         created(out, _load_saved_png(out, name, path))
     if storage == "PACK":
@@ -441,9 +442,11 @@ def _keep_originals(target: _Target, duplicate_materials: bool) -> None:
 
 def _polygon_pages(me, read: ReadResult, result: JobResult) -> np.ndarray:
     """(polygons,) the new page of each polygon's first triangle, -1 if none."""
-    n_tris = len(read.tri_loops)
     first_tri = np.full(len(me.polygons), -1, dtype=np.int64)
-    first_tri[read.tri_polygons[::-1]] = np.arange(n_tris - 1, -1, -1)
+    # Loop triangles come polygon by polygon: a polygon's first one is where the index changes.
+    polygons = read.tri_polygons
+    starts = np.flatnonzero(np.r_[True, polygons[1:] != polygons[:-1]])
+    first_tri[polygons[starts]] = starts
     return np.where(first_tri >= 0, result.face_page[np.maximum(first_tri, 0)], -1)
 
 

@@ -219,7 +219,67 @@ def save_beside_blend(pkg):
             b = np.empty(len(img.pixels), np.float32)
             img.pixels.foreach_get(b)
             assert np.array_equal(a, b), f"{name} differs after reload from {path}"
-        return {"files": sorted(os.listdir(tmp))}
+        files = sorted(os.listdir(tmp))
+        _failed_write_leaves_no_file(pkg, bpy.data.objects[obj.name], tmp)
+        assert sorted(os.listdir(tmp)) == files
+        # A folder relative to the .blend ('//'), as Blender's file fields give it.
+        report = pkg.defragment(bpy.data.objects[obj.name], storage="SAVE", image_dir="//textures")
+        written = {os.path.basename(bpy.path.abspath(bpy.data.images[n].filepath)) for n in report["images"]}
+        assert written and written <= set(os.listdir(os.path.join(tmp, "textures"))), written
+        return {"files": files}
+
+
+def _failed_write_leaves_no_file(pkg, obj, folder):
+    """A write that fails after its images were saved takes them away again
+    (and Blender's RuntimeError comes out as DefragError)."""
+    before = H.object_state(obj.name)
+    write_bpy = pkg.write_bpy
+    kept = write_bpy._write_uv_map
+
+    def fail(*args):
+        assert any(f.endswith(".png") for f in os.listdir(folder)), "no image written before the failure"
+        raise RuntimeError("simulated failure after the images were saved")
+
+    write_bpy._write_uv_map = fail
+    try:
+        with _raises(pkg.DefragError):
+            pkg.defragment(obj, storage="SAVE", image_dir=folder)
+    finally:
+        write_bpy._write_uv_map = kept
+    after = H.object_state(obj.name)
+    assert after == before, _diff(before, after)
+
+
+def world_scale_density(pkg):
+    """texels_per_unit counts per unit of the surface in the scene: an object
+    scaled by 2 gets its new texels by its world-space area."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    obj.scale = (2.0, 2.0, 2.0)
+    bpy.context.view_layer.update()
+    texels_per_unit = 512.0
+    report = pkg.defragment(obj, texels_per_unit=texels_per_unit)
+    me = obj.data
+    me.calc_loop_triangles()
+    n = len(me.loop_triangles)
+    loops = np.empty(3 * n, np.int32)
+    me.loop_triangles.foreach_get("loops", loops)
+    uv = np.empty(2 * len(me.loops), np.float32)
+    me.uv_layers[report["uv_map"]].data.foreach_get("uv", uv)
+    sizes = {bpy.data.images[name].size[:] for name in report["images"]}
+    assert len(sizes) == 1, sizes  # one page: UV area times its texels is texel area
+    (w, h), = sizes
+    t = uv.reshape(-1, 2)[loops].reshape(n, 3, 2).astype(np.float64) * (w, h)
+    texel_area = 0.5 * np.abs(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])).sum()
+    co = np.empty(3 * len(me.vertices), np.float32)
+    me.vertices.foreach_get("co", co)
+    verts = np.empty(3 * n, np.int32)
+    me.loop_triangles.foreach_get("vertices", verts)
+    p = (co.reshape(-1, 3).astype(np.float64) * 2.0)[verts].reshape(n, 3, 3)
+    world_area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
+    density = np.sqrt(texel_area / world_area)
+    assert abs(density / texels_per_unit - 1) < 0.05, (density, texels_per_unit)
+    return {"texels_per_world_unit": float(density)}
 
 
 def cancel_leaves_nothing(pkg):
@@ -808,6 +868,7 @@ SCENARIOS = {
     "python_entry": python_entry,
     "duplicate_materials_and_removal": duplicate_materials_and_removal,
     "save_beside_blend": save_beside_blend,
+    "world_scale_density": world_scale_density,
     "cancel_leaves_nothing": cancel_leaves_nothing,
     "worker_thread_run": worker_thread_run,
     "write_identity_layout": write_identity_layout,

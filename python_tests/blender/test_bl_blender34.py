@@ -16,7 +16,7 @@ GROUPS = {
     # redo_asks_first: ed.undo_redo under a window override crashes the bpy 4.5 module.
     "light": ["write_identity_layout", "png_read_from_file", "redo_asks_first"] + ["error_" + c for c in sorted(S.ERRORS)],
     "tetra": ["operator_tetra", "edit_mode_undo", "python_entry", "duplicate_materials_and_removal",
-              "save_beside_blend", "cancel_leaves_nothing", "worker_thread_run"],
+              "save_beside_blend", "world_scale_density", "cancel_leaves_nothing", "worker_thread_run"],
     "smithsonian": ["operator_smithsonian"],
     "meshroom": ["operator_meshroom"],
     "export": ["fbx_round_trip_meshroom", "fbx_round_trip_smithsonian", "obj_round_trip_meshroom", "save_reopen",

@@ -1,0 +1,41 @@
+"""The batch entry's check of the files an export wrote (no Blender needed):
+a file cut short is caught from its ends, without reading large images whole."""
+import struct
+
+import numpy as np
+import pytest
+
+from atlas_defrag import batch, png_files
+
+
+def _glb(body: bytes, declared_extra: int = 0) -> bytes:
+    total = 12 + len(body)
+    return b"glTF" + struct.pack("<II", 2, total + declared_extra) + body
+
+
+@pytest.fixture()
+def png_bytes():
+    pixels = np.arange(4 * 5 * 3, dtype=np.uint8).reshape(4, 5, 3)
+    return png_files.encode_png(pixels)
+
+
+def test_whole_files_pass(tmp_path, png_bytes):
+    (tmp_path / "a.png").write_bytes(png_bytes)
+    (tmp_path / "a.glb").write_bytes(_glb(b"\0" * 20))
+    (tmp_path / "a.exr").write_bytes(b"\x76\x2f\x31\x01" + b"\0" * 40)
+    for name in ("a.png", "a.glb", "a.exr"):
+        assert batch._file_problem(str(tmp_path / name), None) == "", name
+
+
+def test_files_cut_short_are_caught(tmp_path, png_bytes):
+    (tmp_path / "cut.png").write_bytes(png_bytes[: len(png_bytes) // 2])
+    (tmp_path / "cut.glb").write_bytes(_glb(b"\0" * 20, declared_extra=100))
+    (tmp_path / "tiny.glb").write_bytes(b"glTF\x02")
+    (tmp_path / "bad.exr").write_bytes(b"\0" * 40)
+    (tmp_path / "empty.png").write_bytes(b"")
+    assert batch._file_problem(str(tmp_path / "cut.png"), None) == "not a complete PNG"
+    assert batch._file_problem(str(tmp_path / "cut.glb"), None) == "shorter than its header says"
+    assert batch._file_problem(str(tmp_path / "tiny.glb"), None) == "shorter than its header says"
+    assert batch._file_problem(str(tmp_path / "bad.exr"), None) == "not an OpenEXR file"
+    assert batch._file_problem(str(tmp_path / "empty.png"), None) == "empty"
+    assert batch._file_problem(str(tmp_path / "missing.png"), None) == "missing"
