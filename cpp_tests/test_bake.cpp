@@ -564,6 +564,9 @@ TEST(Bake, RejectsBadInputAndHonoursCancel) {
   Layout nan_uv = sc.new_layout;
   nan_uv.uv(4, 1) = std::nan("");
   EXPECT_THROW(bake(sc.old_layout, sc.old_views(), nan_uv, sc.new_pages, run), InputError);
+  Layout far_uv = sc.old_layout;
+  far_uv.uv(2, 0) = 1e12;  // finite, but no texel index reaches it
+  EXPECT_THROW(bake(far_uv, sc.old_views(), sc.new_layout, sc.new_pages, run), InputError);
 
   RunControl cancelled;
   cancelled.cancel();

@@ -2,7 +2,6 @@
 // call checks shapes and dtypes here (ValueError naming the argument) and
 // releases the GIL while the native stages run; defragment and bake forward
 // progress to an optional Python callable and honour an optional CancelToken.
-#include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -111,23 +110,32 @@ LayoutArrays layout_arrays(const py::handle& uvs, const py::handle& face_page, E
   return {to_matrix<RowMatrixX2d>(uv, 3 * faces, 2), int_values(page, page_name), std::move(pages)};
 }
 
-Mesh mesh_from(const py::handle& positions, const py::handle& triangles, const py::handle& uvs,
-               const py::handle& face_page, const std::vector<PageSize>& pages) {
-  const auto pos = checked<double>(positions, "positions", {3}, "(V, 3)");
+// (F, 3) vertex indices, each in [0, vertex_count): read as 64-bit, so that
+// no index wraps into range on its way to int.
+RowMatrixX3i triangle_indices(const py::handle& triangles, py::ssize_t vertex_count) {
   const auto tri = checked<long long>(triangles, "triangles", {3}, "(F, 3)");
-  const LayoutArrays l = layout_arrays(uvs, face_page, tri.shape(0), "uvs", "face_page");
   RowMatrixX3i t(tri.shape(0), 3);
   for (py::ssize_t f = 0; f < tri.shape(0); ++f)
     for (int k = 0; k < 3; ++k) {
       const long long v = tri.at(f, k);
-      if (v < 0 || v >= pos.shape(0)) {
+      if (v < 0 || v >= vertex_count) {
         std::ostringstream msg;
-        msg << "triangle " << f << " has vertex index " << v << " out of range [0, " << pos.shape(0) << ")";
+        msg << "triangle " << f << " has vertex index " << v << " out of range [0, " << vertex_count << ")";
         throw py::value_error(msg.str());
       }
       t(f, k) = static_cast<int>(v);
     }
-  return make_mesh(to_matrix<RowMatrixX3d>(pos, pos.shape(0), 3), t, l.corner_uv, l.face_page, pages);
+  return t;
+}
+
+Mesh mesh_from(const py::handle& positions, const py::handle& triangles, const py::handle& uvs,
+               const py::handle& face_page, const std::vector<PageSize>& pages) {
+  const auto pos = checked<double>(positions, "positions", {3}, "(V, 3)");
+  const RowMatrixX3i t = triangle_indices(triangles, pos.shape(0));
+  const LayoutArrays l = layout_arrays(uvs, face_page, t.rows(), "uvs", "face_page");
+  const RowMatrixX3d p = to_matrix<RowMatrixX3d>(pos, pos.shape(0), 3);
+  py::gil_scoped_release release;  // the weld sorts every corner
+  return make_mesh(p, t, l.corner_uv, l.face_page, pages);
 }
 
 struct CancelToken {
@@ -243,7 +251,7 @@ PipelineOptions pipeline_options(const py::object& obj) {
   if (!(o.aggregate.min_chart_fraction >= 0)) throw py::value_error("min_chart_fraction must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");
-  if (o.aggregate.coherence_free_faces < 0) throw py::value_error("coherence_free_faces must be >= 0 (0: gate every merge)");
+  if (o.aggregate.coherence_free_faces < 0) throw py::value_error("coherence_free_faces must be >= 0 (0: gate every merge but those of charts of at most 100 faces)");
   if (o.aggregate.max_chart_faces < 0) throw py::value_error("max_chart_faces must be >= 0 (0: no cap)");
   if (o.pack.texel_budget < 0) throw py::value_error("texel_budget must be 0 (automatic) or >= 16");
   if (o.slim.max_iterations < 0) throw py::value_error("max_iterations must be >= 0");
@@ -416,11 +424,10 @@ void write_obj_py(const std::string& path, const std::string& library, const py:
                   const py::object& triangles, const py::object& uvs, const py::object& face_material,
                   const std::vector<std::string>& materials) {
   const auto p = checked<double>(positions, "positions", {3}, "(V, 3)");
-  const auto t = checked<int>(triangles, "triangles", {3}, "(F, 3)");
+  const RowMatrixX3i faces = triangle_indices(triangles, p.shape(0));
   const auto u = checked<double>(uvs, "uvs", {3, 2}, "(F, 3, 2)");
   const auto m = checked<long long>(face_material, "face_material", {}, "(F,)");
   const RowMatrixX3d points = to_matrix<RowMatrixX3d>(p, p.shape(0), 3);
-  const RowMatrixX3i faces = to_matrix<RowMatrixX3i>(t, t.shape(0), 3);
   const RowMatrixX2d corner_uv = to_matrix<RowMatrixX2d>(u, 3 * u.shape(0), 2);
   const Eigen::VectorXi material = int_values(m, "face_material");
   py::gil_scoped_release release;
@@ -580,7 +587,10 @@ py::object bake_named_maps(const py::object& old_uvs, const py::object& old_face
     normal = normal_maps.cast<std::vector<bool>>();
     if (normal.size() != maps.size()) throw py::value_error("normal_maps must hold one flag per map");
   }
-  drop_repeated_faces(old_l, new_l);
+  {
+    py::gil_scoped_release release;  // sorts every face
+    drop_repeated_faces(old_l, new_l);
+  }
   const RunControl control = control_from(progress, cancel);
   BakeStats stats;
   const py::list baked = is_uint8_maps(maps, names)

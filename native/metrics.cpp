@@ -7,7 +7,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <numeric>
 #include <sstream>
 #include <utility>
 
@@ -237,7 +236,7 @@ AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, cons
     throw InputError("measure_atlas: topology was built for a different mesh");
   AtlasMeasures m;
 
-  // The chart graph reads the layout from a Mesh: borrow positions/triangles, swap in the layout.
+  // The chart graph reads the layout from a Mesh: a copy of the geometry carrying this layout.
   Mesh layout_mesh;
   layout_mesh.positions = mesh.positions;
   layout_mesh.triangles = mesh.triangles;

@@ -64,7 +64,7 @@ struct ColorFidelity {
 // samples old_images[old page] and new_images[new page] bilinearly with repeat
 // wrapping at the points' UVs. uint8 values are divided by 255, floats used as
 // they are; a non-finite difference counts as 1. The clean / border split takes
-// the old charts from the mesh's own UVs (old_atlas is atlas_of(mesh) in every
+// the old charts from the mesh's own UVs (old_atlas is layout_of(mesh) in every
 // caller). Throws InputError when a used
 // page has no image or an image view is inconsistent.
 template <class T>

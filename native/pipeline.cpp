@@ -272,7 +272,8 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
             4096, std::max<double>(static_cast<double>(std::count(used.begin(), used.end(), 1)),
                                    std::ceil(wanted / max_page))));
       options.max_pages = std::max(1, options.max_pages);
-      if (source_budget) options.texel_budget = static_cast<long long>(wanted);
+      // A density far beyond any page makes `wanted` overflow: max_pages limits it then.
+      if (source_budget) options.texel_budget = static_cast<long long>(std::min(wanted, 4e18));
     }
     const PackResult packed = source_budget && options.fixed_page_size <= 0
                                   ? pack_in_source_budget(uv, options, page_texels(mesh.pages, used), control)
@@ -328,7 +329,8 @@ int detach_turned_faces(const Mesh& mesh, const PipelineResult& result, std::vec
     for (int f : chart.faces)
       winding += signed_area(result.corner_uv.row(3 * f), result.corner_uv.row(3 * f + 1), result.corner_uv.row(3 * f + 2));
     if (chart.faces.size() < 2 || winding == 0) continue;
-    for (size_t j = 0; j < chart.faces.size(); ++j) {
+    // The last face stays: a chart is never emptied.
+    for (size_t j = 0; j < chart.faces.size() && chart.faces.size() > 1; ++j) {
       const int f = chart.faces[j];
       if (stored_winding(result, f, winding) * winding >= 0) continue;
       const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1)),
@@ -362,6 +364,12 @@ double total_area(const Mesh& mesh) {
   double area = 0;
   for (int f = 0; f < mesh.face_count(); ++f) area += mesh.area_3d(f);
   return area;
+}
+
+// A 3D length in the unit of seam, length / sqrt(area); 0 on a mesh without area.
+double per_sqrt_area(double length, const Mesh& mesh) {
+  const double area = total_area(mesh);
+  return area > 0 ? length / std::sqrt(area) : 0.0;
 }
 
 // The cuts for packing see the charts at the scale the packer will use:
@@ -442,7 +450,7 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   const std::vector<char> kept_seams = seams_in_flat_charts(mesh, topology, flat_graph.self_seam, charts);
   const RefineStats refined = refine_seams(mesh, topology, kept_seams, face_group, options.refine, charts);
   report.refine_faces_moved = refined.faces_moved;
-  report.refine_seam_removed = refined.seam_removed_3d / std::sqrt(total_area(welded));
+  report.refine_seam_removed = per_sqrt_area(refined.seam_removed_3d, welded);
   enlarge_tiny_charts(charts);
   turn_solved_charts(charts);
   clock.lap("refine");
@@ -450,12 +458,12 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   const PackingCutStats cuts = cut_for_packing(mesh, topology, packing_cut_options(mesh, charts, options), charts,
                                                control);
   report.packing_cuts = cuts.cuts;
-  report.packing_cut_seam = cuts.seam_added_3d / std::sqrt(total_area(welded));
+  report.packing_cut_seam = per_sqrt_area(cuts.seam_added_3d, welded);
   clock.lap("cut");
 
   // Untextured faces keep their input UVs and page -1. A face whose winding
   // float32 storage turns over becomes a chart of its own and all is packed
-  // again: that happens to a face or two per scan, if at all.
+  // again (rare: slivers a hundredth of a texel high).
   for (;;) {
     result.corner_uv = mesh.corner_uv;
     result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
@@ -508,6 +516,8 @@ PipelineResult with_copies(PipelineResult kept, const Mesh& mesh, const Duplicat
 
 PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group, const PipelineOptions& options,
                           const RunControl& control) {
+  if (!face_group.empty() && static_cast<int>(face_group.size()) != welded.face_count())
+    throw InputError("face_group must hold one group per triangle");
   const DuplicateFaces dup = find_duplicate_faces(welded, face_group);
   if (dup.copies() == 0) return defragment_distinct(welded, face_group, options, control);
   std::vector<int> kept_group;

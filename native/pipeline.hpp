@@ -90,7 +90,8 @@ struct PipelineResult {
   PipelineReport report;
 };
 
-// face_group may be empty; faces of different groups never share a chart or a page.
+// mesh: welded (make_mesh); face_group (F) or empty: faces of different
+// groups never share a chart or a page.
 PipelineResult defragment(const Mesh& mesh, const std::vector<int>& face_group, const PipelineOptions& options,
                           const RunControl& control);
 

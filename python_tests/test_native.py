@@ -217,6 +217,18 @@ def test_wrapping_indices_are_refused(native):
         native.defragment(positions, triangles, uvs, np.array([2**32, 0], np.int64), sizes)
     with pytest.raises(ValueError, match=r"face_group\[1\] = 4294967296 is out of range"):
         native.defragment(positions, triangles, uvs, face_page, sizes, face_group=np.array([0, 2**32]))
+    wrapping = triangles.astype(np.int64)
+    wrapping[0, 0] += 2**32  # would read as the same vertex once narrowed to 32 bits
+    with pytest.raises(ValueError, match=r"vertex index 4294967296 out of range"):
+        native.write_obj("/nonexistent/x.obj", "x.mtl", positions, wrapping, uvs, face_page, ["m"])
+
+
+def test_uvs_far_beyond_any_page_are_refused(native):
+    positions, triangles, uvs, face_page, sizes = tiny()
+    far = uvs.copy()
+    far[0, 0, 0] = 1e12  # finite, but beyond any texel index
+    with pytest.raises(ValueError, match=r"texels from its page"):
+        native.defragment(positions, triangles, far, face_page, sizes)
 
 
 def test_groups_never_share_a_chart_or_a_page(native):

@@ -100,12 +100,14 @@ Eigen::Matrix2d orthogonal_factor(const Eigen::Matrix2d& m) {
 struct FaceMap {
   int new_page = -1;  // -1: degenerate in the new layout, never rasterised
   int old_page = 0;
-  std::array<Eigen::Vector2d, 3> corner;  // new-page texels
-  TexelTriangle raster;                   // which texel centres the face claims (exact)
-  Eigen::Vector2d old_origin;             // corner 0 in old-page texels
-  Eigen::Matrix2d new_to_old;             // Jacobian: old texels per new texel
-  Footprint footprint;                    // new texel's extent in the old page
-  Eigen::Matrix2d frame_turn;             // how the tangent frame turned: applied to normal XY
+  // Zero until map_face sets them (a degenerate face keeps the zeros).
+  std::array<Eigen::Vector2d, 3> corner = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(),
+                                           Eigen::Vector2d::Zero()};  // new-page texels
+  TexelTriangle raster{};                                             // which texel centres the face claims (exact)
+  Eigen::Vector2d old_origin = Eigen::Vector2d::Zero();               // corner 0 in old-page texels
+  Eigen::Matrix2d new_to_old = Eigen::Matrix2d::Zero();               // Jacobian: old texels per new texel
+  Footprint footprint;                                                // new texel's extent in the old page
+  Eigen::Matrix2d frame_turn = Eigen::Matrix2d::Identity();           // how the tangent frame turned: applied to normal XY
   bool copies = false;                    // texel centres land on old texel centres (see kCopyTolerance)
 
   // Affine map old = old_origin + new_to_old (p - corner 0): barycentric interpolation.

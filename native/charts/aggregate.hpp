@@ -18,7 +18,8 @@ struct AggregateOptions {
   Weighting weighting = Weighting::Surface;
   int target_charts = 0;            // stop at this many charts; 0: no target
   // A collapse is made only while the smaller chart covers less than this
-  // fraction of the total area; 1 lets charts grow as far as topology allows.
+  // fraction of the total area; 1 lets charts grow as far as topology
+  // allows, 0 refuses every collapse.
   double min_chart_fraction = 1.0;
   // A merged chart's area-weighted mean normal, |sum_f A_f n_f| / sum_f A_f,
   // may not fall below this. A spherical cap of half-angle t has (1 + cos t)/2,
@@ -30,7 +31,8 @@ struct AggregateOptions {
   // has at most 100) is exempt from min_normal_coherence: a small chart bent
   // past a hemisphere is cheap to flatten, and a relief cut
   // (flatten/relief_cut.hpp) opens it where it would lose density. Larger, the merged charts bend further and lose
-  // colour detail (bench/README.md). 0: the gate applies to every merge.
+  // colour detail (bench/README.md). 0: the gate applies to every merge but
+  // those of a chart of at most 100 faces.
   int coherence_free_faces = 1000;
   // No merged chart grows beyond this many faces: the cost of flattening a
   // chart grows faster than its size (sparse Cholesky fill), and many

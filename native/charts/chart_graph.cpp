@@ -48,8 +48,6 @@ void accumulate_face_stats(const Mesh& mesh, ChartGraph& g) {
     const int chart = g.face_chart[f];
     if (chart < 0) continue;
     ChartStats& s = g.charts[chart];
-    s.page = mesh.face_page[f];
-    ++s.faces;
     s.area_3d += mesh.area_3d(f);
     const double a = mesh.signed_area_uv(f);
     s.area_uv += std::abs(a);

@@ -10,8 +10,6 @@
 namespace atlas {
 
 struct ChartStats {
-  int page = 0;
-  int faces = 0;
   double area_3d = 0;
   double area_uv = 0;          // texels^2, sum of unsigned face areas
   double signed_area_uv = 0;   // texels^2; negative when the chart is mirrored

@@ -46,7 +46,8 @@ DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::
 
 // chi = V - E + F over the faces of cluster c, where a vertex whose faces in
 // c form k separate fans counts k times: touching at a single vertex costs no
-// seam, so such pinches are split rather than refused (see localize in overlap).
+// seam, so such pinches are split rather than refused (see localize in
+// flatten/flatten_chart.cpp).
 // A seam the cluster keeps counts as two edges, one per side.
 int DiskClusters::euler_of(int c) {
   ++stamp_;
@@ -63,7 +64,7 @@ int DiskClusters::euler_of(int c) {
 
 // Inside one cluster every edge has at most two of its faces, consistently
 // wound. With chi == 1 (pinches split) that makes a disk. Merges keep it:
-// merged_euler refuses non-manifold or flipped shared edges.
+// weld_all refuses non-manifold or flipped shared edges.
 bool DiskClusters::manifold_inside(int c) {
   for (int f : faces_[c])
     for (int k = 0; k < 3; ++k) {

@@ -1,8 +1,6 @@
 // Tiny triangle formulas shared by the stages.
 #pragma once
 #include <Eigen/Core>
-#include <algorithm>
-#include <cmath>
 #include <Eigen/Geometry>
 
 namespace atlas {

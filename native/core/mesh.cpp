@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <sstream>
 
@@ -37,6 +38,13 @@ void require_finite(const Matrix& m, const char* name) {
 void require_counts(const RowMatrixX3d& positions, const RowMatrixX3i& triangles, const std::vector<PageSize>& pages) {
   if (positions.rows() == 0) throw InputError("mesh has no vertices");
   if (triangles.rows() == 0) throw InputError("mesh has no triangles");
+  // Corners are numbered 3 f + k with int: past this, they would wrap.
+  if (triangles.rows() > std::numeric_limits<int>::max() / 3) {
+    std::ostringstream msg;
+    msg << "mesh has " << triangles.rows() << " triangles, more than the " << std::numeric_limits<int>::max() / 3
+        << " supported";
+    throw InputError(msg.str());
+  }
   if (pages.empty()) throw InputError("no texture page sizes given");
 }
 

@@ -16,7 +16,9 @@ struct Cancelled : std::runtime_error {
 
 class RunControl {
  public:
-  // report(stage, fraction in [0,1]) is called from the calling thread only.
+  // report(stage, fraction in [0,1]) may run on any thread, one call at a
+  // time (the stages serialise their workers' calls): it takes whatever lock
+  // its target needs (the Python binding takes the GIL).
   using ReportFn = std::function<void(const std::string& stage, double fraction)>;
 
   using Flag = std::shared_ptr<std::atomic<bool>>;
@@ -35,7 +37,7 @@ class RunControl {
     if (cancelled()) throw Cancelled();
   }
 
-  // Main thread only: forwards progress, then honours a pending cancel.
+  // Forwards progress (see ReportFn), then honours a pending cancel.
   void progress(const std::string& stage, double fraction) const {
     if (report_) report_(stage, fraction);
     throw_if_cancelled();

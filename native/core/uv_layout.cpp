@@ -1,9 +1,15 @@
 #include "core/uv_layout.hpp"
 
+#include <algorithm>
 #include <sstream>
 
 namespace atlas {
 namespace {
+
+// Farthest a UV may lie from its page's origin, in texels of that page: the
+// bake and the metrics index texels with int, and pages repeat, so a UV this
+// far out is a broken file, not a tiled layout.
+constexpr double kMaxTexelCoordinate = 1 << 30;
 
 // Throws InputError "what: parts..." (no prefix when what is empty).
 template <class... Parts>
@@ -35,8 +41,12 @@ void require_layout(const UvLayout& layout, Eigen::Index face_count, const std::
     const int page = (*layout.face_page)[f];
     if (page < lowest || page >= page_count)
       refuse(what, "triangle ", f, " uses page ", page, " but only ", page_count, " page(s) were given");
-    if (page >= 0 && !layout.corner_uv->middleRows(3 * f, 3).allFinite())
-      refuse(what, "triangle ", f, " has a non-finite uv");
+    if (page < 0) continue;
+    const auto uv = layout.corner_uv->middleRows(3 * f, 3);
+    if (!uv.allFinite()) refuse(what, "triangle ", f, " has a non-finite uv");
+    const PageSize& size = (*layout.pages)[page];
+    if (uv.cwiseAbs().maxCoeff() * std::max(size.width, size.height) > kMaxTexelCoordinate)
+      refuse(what, "triangle ", f, " has a uv more than ", kMaxTexelCoordinate, " texels from its page");
   }
 }
 

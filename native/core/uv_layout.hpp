@@ -28,7 +28,8 @@ enum class Untextured { allowed, refused };
 // Checks that the layout describes face_count faces: every array present,
 // 3 UV rows per face, every page of positive size,
 // every face on an existing page (or -1 where allowed), finite UVs on
-// textured faces. Throws InputError whose message starts with `what`.
+// textured faces, within 2^30 texels of their page's origin. Throws
+// InputError whose message starts with `what`.
 void require_layout(const UvLayout& layout, Eigen::Index face_count, const std::string& what, Untextured untextured);
 
 // Sum of width * height over the pages p with used[p] (every page when used is empty).

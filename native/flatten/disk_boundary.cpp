@@ -16,8 +16,9 @@ SolveStatus describe(const char* problem, int where) {
 SolveStatus not_disk(const char* why) { return solve_failed(SolveFailure::not_disk, why); }
 
 // Pairs every corner with the corner that starts the opposite half-edge
-// (-1 on the boundary) and counts the undirected edges. Returns "" or the
-// reason: an edge used by more than two faces, or twice in the same direction.
+// (-1 on the boundary) and counts the undirected edges. Returns an ok status,
+// or SolveFailure::not_disk naming an edge used by more than two faces, or
+// twice in the same direction.
 SolveStatus pair_half_edges(const RowMatrixX3i& triangles, std::vector<int>& opposite, int& edge_count) {
   const int corner_count = static_cast<int>(3 * triangles.rows());
   const auto keyed = corners_by_edge(corner_count, [&](int c) { return corner_vertex(triangles, c); });

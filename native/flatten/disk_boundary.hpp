@@ -1,7 +1,6 @@
 // Boundary loop of a triangulated topological disk, with the checks that make
 // it one: a fixed-boundary embedding of anything else folds over.
 #pragma once
-#include <string>
 #include <vector>
 
 #include "core/mesh.hpp"

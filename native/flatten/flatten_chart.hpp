@@ -90,7 +90,8 @@ std::vector<char> charts_with_handles(const Mesh& mesh, const MeshTopology& topo
 // Flattens one aggregated chart (its original charts `members`), splitting on
 // overlap or solver failure until every piece is valid. merges: the
 // aggregation's (Aggregation::merges), which a split undoes from the last;
-// empty, or members that are not one cluster of them, regrow two groups instead.
+// empty, or members that are not one cluster of them, regrow two or more
+// groups instead.
 // chart_faces[c] lists the faces of original chart c.
 std::vector<FlatChart> flatten_without_overlap(const Mesh& mesh, const MeshTopology& topology,
                                                const ChartGraph& graph,

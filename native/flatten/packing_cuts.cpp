@@ -562,6 +562,7 @@ PackingCutStats cut_for_packing(const Mesh& mesh, const MeshTopology& topology, 
                                 std::vector<FlatChart>& charts, const RunControl& control) {
   PackingCutStats stats;
   if (options.seam_budget <= 0) return stats;
+  if (!(options.scale > 0)) throw InputError("cut_for_packing: scale must be > 0");
   CutSearch search(mesh, topology, options, charts);
   search.evaluate_all(control);
   for (int c = search.best_chart(); c >= 0; c = search.best_chart()) {

@@ -16,8 +16,8 @@
 namespace atlas {
 
 struct PackingCutOptions {
-  double scale = 1.0;  // page texels per chart texel, as the packer will place them
-  int padding = 4;     // the packer's padding (a ring each chart owns)
+  double scale = 1.0;  // page texels per chart texel, as the packer will place them; > 0
+  int padding = 4;     // the packer's padding (a ring each chart owns); 0: none
   // Most 3D length the cuts may add, all charts together; 0: no cut.
   double seam_budget = 0;
 };

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <new>
 
 namespace atlas {
 namespace {
@@ -48,7 +50,13 @@ void PairCholesky::analyze(const Eigen::SparseMatrix<double>& a) {
       }
   }
   column_start_.assign(n + 1, 0);
-  for (int k = 0; k < n; ++k) column_start_[k + 1] = column_start_[k] + counts[k] + 1;  // + the diagonal
+  long long entries = 0;
+  for (int k = 0; k < n; ++k) {
+    entries += counts[k] + 1;  // + the diagonal
+    // int positions address L: a factor past them would not fit in memory either.
+    if (entries > std::numeric_limits<int>::max()) throw std::bad_alloc();
+    column_start_[k + 1] = static_cast<int>(entries);
+  }
   rows_.resize(column_start_[n]);
   values_.resize(column_start_[n]);
   column_filled_.assign(n, 0);

@@ -2,7 +2,6 @@
 // in texels, oriented like the mesh and repaired where it is unusable, so that
 // the distortion energy of the map reference -> new UV is finite everywhere.
 #pragma once
-#include <vector>
 
 #include "core/mesh.hpp"
 

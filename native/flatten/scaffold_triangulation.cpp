@@ -1,7 +1,6 @@
 #include "flatten/scaffold_triangulation.hpp"
 
 #include <algorithm>
-#include <cstdint>
 
 #include "core/bucket_grid.hpp"
 #include "core/corners.hpp"

@@ -159,9 +159,9 @@ RowMatrixX2d from_solver(const Eigen::VectorXd& x, const std::vector<int>& order
   return points;
 }
 
-// One face of the proxy, weight |W (J - R)|^2 with J measured against the
-// reference triangle (a, b, c); its matrix slots are left as they were.
-// Gives the face the reference whose edge matrix inverts to inverse_edges.
+// One face of the proxy, weight |W (J - R)|^2, J measured against the
+// reference triangle whose edge matrix inverts to inverse_edges, the face
+// weighing `weight`; its matrix slots are left as they were.
 void set_face_reference(const Eigen::Matrix2d& inverse_edges, double weight, ProxyFace& face) {
   face.area = weight;
   face.inverse_edges = inverse_edges;
@@ -196,7 +196,7 @@ std::vector<ProxyFace> proxy_faces(const RowMatrixX3i& triangles, const RowMatri
 // (dofs 2w, 2w + 1) couples with its neighbours u < w through full 2x2
 // blocks, so the upper triangle's column 2w holds rows 2u, 2u + 1 for each
 // such u, ascending, then 2w; column 2w + 1 the same rows, then 2w, 2w + 1.
-// (A vertex on no face keeps only its diagonal.)
+// Every vertex is on a face (disk_boundary_loop refuses any other).
 void prepare_proxy_system(std::vector<ProxyFace>& faces, int dof_count, ProxySystem& system) {
   const int vertex_count = dof_count / 2;
   const VertexNeighbours near =
@@ -208,9 +208,8 @@ void prepare_proxy_system(std::vector<ProxyFace>& faces, int dof_count, ProxySys
                                 (near.neighbour.begin() + near.start[w]));
   std::vector<int> outer(dof_count + 1, 0);
   for (int w = 0; w < vertex_count; ++w) {
-    const bool on_face = near.start[w + 1] > near.start[w];
     outer[2 * w + 1] = outer[2 * w] + 2 * below[w] + 1;
-    outer[2 * w + 2] = outer[2 * w + 1] + 2 * below[w] + (on_face ? 2 : 1);
+    outer[2 * w + 2] = outer[2 * w + 1] + 2 * below[w] + 2;
   }
   system.matrix.resize(dof_count, dof_count);
   system.matrix.resizeNonZeros(outer[dof_count]);

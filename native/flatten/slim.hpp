@@ -2,7 +2,6 @@
 // initial embedding, then SLIM on the symmetric Dirichlet energy of the map
 // from each face's ORIGINAL UV triangle (the reference) to its new one.
 #pragma once
-#include <string>
 
 #include "core/mesh.hpp"
 #include "core/run_control.hpp"
@@ -20,13 +19,16 @@ struct ChartProblem {
 };
 
 struct SlimOptions {
+  // SLIM and SCAF (see below) each get max_iterations; 0 leaves the
+  // initial embedding as it is.
   int max_iterations = 60;
-  // Stop when (E_k - E_k+1) / E_k falls below. 1e-2 leaves the median chart
-  // within 2-8% of the isometric energy; tighter costs time and, before SCAF
-  // existed, folded more charts over themselves (measured on the three scans).
-  // SLIM and SCAF (see below) each get max_iterations.
+  // Stop when (E_k - E_k+1) / E_k falls below: tighter costs time for little
+  // (bench/README.md); 0 runs every iteration.
   double relative_tolerance = 1e-2;
-  double proximal_weight = 1e-4;     // keeps the proxy system definite (translation)
+  // Keeps the proxy system definite (the translation the energy does not
+  // see); with 0 the factorization retries with a weight of its own
+  // (factorize_proxy).
+  double proximal_weight = 1e-4;
   // A step after which the boundary crosses itself is undone, and the solve
   // goes on inside a scaffold (SCAF, Jiang et al. 2017) that cannot cross.
   // Slower per iteration (the scaffold, so the pattern, is rebuilt every 8
@@ -58,7 +60,8 @@ struct ChartSolution {
 // ChartSolution::status. Throws Cancelled if control is cancelled.
 // uv and the energies are always finite: when the status is not ok, uv is the last
 // flip-free iterate, or the initial map (flipped > 0) if that already folds, or
-// zeros if the chart is not a disk; energies stay 0 until a flip-free map exists.
+// zeros if the problem is malformed, the chart is not a disk or it has no
+// embedding; energies stay 0 until a flip-free map exists.
 // Thread-safe; meant to be called concurrently, one chart per thread.
 ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions& options,
                                  const RunControl& control);

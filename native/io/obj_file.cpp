@@ -10,8 +10,8 @@
 namespace atlas::obj {
 namespace {
 
-// The whole file in memory: a 1M-face scan is about 100 MB of text, and one
-// read is several times faster than line-by-line streams.
+// The whole file in memory: one read, then parsing in place, instead of
+// line-by-line streams (bench/README.md).
 std::string file_contents(const std::string& path) {
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
   if (!file) throw InputError("cannot open " + path);

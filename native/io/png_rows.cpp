@@ -1,5 +1,6 @@
 #include "io/png_rows.hpp"
 
+#include <algorithm>
 #include <cstdlib>
 #include <sstream>
 #include <vector>
@@ -14,7 +15,7 @@ enum Filter : std::uint8_t { None = 0, Sub = 1, Up = 2, Average = 3, Paeth = 4 }
 // PNG spec 9.4: of left a, above b and upper left c, the one nearest to
 // a + b - c, ties going to a, then b. Written with the distances reduced
 // (p - a = b - c, ...) and no branch: most scan textures filter most rows
-// this way, and mispredicted branches made it the decoder's slowest part.
+// this way, and on their noisy rows a branch would mispredict.
 inline std::uint8_t paeth_predictor(int a, int b, int c) {
   const int pa = std::abs(b - c), pb = std::abs(a - c), pc = std::abs(a + b - 2 * c);
   const int nearer_b_or_c = pb <= pc ? b : c;

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "core/parallel_for.hpp"
+#include "core/uv_layout.hpp"
 #include "pack/page_filling.hpp"
 #include "pack/scaled_chart.hpp"
 
@@ -48,22 +49,16 @@ struct Packing {
   int recipe = -1;  // index into kRecipes of the recipe that packed layout, if one did
 };
 
-long long page_texels(const std::vector<PageSize>& pages) {
-  long long total = 0;
-  for (const PageSize& p : pages) total += area(p);
-  return total;
-}
-
 void require_valid(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& o) {
   std::ostringstream msg;
   if (!(o.density_scale > 0.0 && std::isfinite(o.density_scale)))
     msg << "density_scale must be positive and finite, got " << o.density_scale;
-  else if (o.padding < 0)
-    msg << "padding must be >= 0, got " << o.padding;
-  else if (o.max_page_size < kSideQuantum)
-    msg << "max_page_size must be >= " << kSideQuantum << ", got " << o.max_page_size;
-  else if (o.fixed_page_size < 0)
-    msg << "fixed_page_size must be >= 0, got " << o.fixed_page_size;
+  else if (o.padding < 0 || o.padding > kMaxPadding)
+    msg << "padding must be 0.." << kMaxPadding << ", got " << o.padding;
+  else if (o.max_page_size < kSideQuantum || o.max_page_size > kMaxPageSide)
+    msg << "max_page_size must be " << kSideQuantum << ".." << kMaxPageSide << ", got " << o.max_page_size;
+  else if (o.fixed_page_size < 0 || o.fixed_page_size > kMaxPageSide)
+    msg << "fixed_page_size must be 0.." << kMaxPageSide << ", got " << o.fixed_page_size;
   else if (o.max_pages < 0)
     msg << "max_pages must be >= 0, got " << o.max_pages;
   else if (o.texel_budget < 0)

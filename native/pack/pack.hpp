@@ -21,11 +21,16 @@ enum class PageSides {
   PowerOfTwo,
 };
 
+// Bounds of the options, far past any use: page sides and rasters stay in int.
+constexpr int kMaxPadding = 1024;
+constexpr int kMaxPageSide = 1 << 16;
+
 struct PackOptions {
   double density_scale = 1.0;  // texels per original texel
-  int padding = 4;             // empty texels kept around every chart
-  int max_page_size = 8192;    // largest page side
-  int fixed_page_size = 0;     // > 0: square pages of this side, charts scaled to fit one page
+  int padding = 4;             // empty texels kept around every chart; 0: none (at most kMaxPadding)
+  int max_page_size = 8192;    // largest page side (at most kMaxPageSide; 0 is refused)
+  int fixed_page_size = 0;     // > 0: square pages of this side, charts scaled to fit one page;
+                               // 0: the page size follows the charts
   long long texel_budget = 0;  // > 0: total output texels may not exceed this; charts are
                                // scaled down uniformly if they would
   int max_pages = 0;           // > 0: at most this many pages; charts are scaled down

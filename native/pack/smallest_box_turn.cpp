@@ -1,7 +1,6 @@
 #include "pack/smallest_box_turn.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <limits>
 #include <vector>
 
