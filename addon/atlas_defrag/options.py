@@ -60,7 +60,8 @@ SCHEMA: Tuple[Option, ...] = (
            "Output texel density relative to the source (ignored with a fixed page size)",
            low=0.01, high=16.0),
     Option("texels_per_unit", float, 0.0, "Texels per Unit",
-           "Output texel density in texels per unit of surface length (per metre in Blender), "
+           "Output texel density in texels per unit of surface length (per metre in Blender, "
+           "object scale included), "
            "instead of the source's density times Density Scale",
            low=0.001, high=1e9, automatic="the source's density times Density Scale", manual_default=1024.0),
     Option("max_pages", int, 0, "Maximum Pages",
