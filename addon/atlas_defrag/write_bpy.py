@@ -367,13 +367,14 @@ def _uv_array(layer) -> np.ndarray:
 def _move_to_front(me, name: str, journal: _Journal) -> None:
     """Swaps UV map name (the last one) with the first by name and data:
     Blender cannot reorder UV maps, and nodes refer to maps by name."""
-    first = me.uv_layers[0]
+    first, new = me.uv_layers[0], me.uv_layers[name]
     first_name, first_data = first.name, _uv_array(first)
-    parking = name + ".swap"
+    # Short and unused: Blender would cut a long name or rename a taken one.
+    parking = next(p for p in (f"swap.{k}" for k in range(len(me.uv_layers) + 1)) if p not in me.uv_layers)
     first.name = parking
-    me.uv_layers[name].name = first_name
-    me.uv_layers[parking].name = name
-    me.uv_layers[first_name].data.foreach_set("uv", first_data)
+    new.name = first_name
+    first.name = name
+    new.data.foreach_set("uv", first_data)
     mesh_name = me.name
 
     def undo():
