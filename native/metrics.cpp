@@ -215,6 +215,7 @@ inline std::uint64_t splitmix64(std::uint64_t x) {
   return x ^ (x >> 31);
 }
 
+// (bits >> 11) * 2^-53: the top 53 bits as a double in [0, 1), every value equally likely.
 inline double unit_double(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1.0p-53; }
 
 template <class T>
@@ -363,6 +364,7 @@ bool bilinear_texels_in_chart(const std::vector<int>& owner, const PageSize& pag
   return true;
 }
 
+// PSNR = -10 log10(MSE) for values in [0, 1] (peak 1), MSE = error / values.
 double psnr_of(double error, long long values) {
   const double mse = values > 0 ? error / values : 0.0;
   const double psnr = mse > 0 ? -10.0 * std::log10(mse) : kMaxPsnrDb;

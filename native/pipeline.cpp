@@ -340,6 +340,8 @@ int detach_turned_faces(const Mesh& mesh, const PipelineResult& result, std::vec
       FlatChart lone;
       lone.faces = {f};
       lone.corner_uv.resize(3, 2);
+      // Laid flat with a at the origin and b on the x axis: c at
+      // ((c - a).(b - a) / |ab|, 2 A / |ab|).
       const double x = (c - a).dot(b - a) / ab;
       lone.corner_uv << 0, 0, ab, 0, x, 2 * area / ab;
       const double density = std::sqrt(std::abs(mesh.signed_area_uv(f)) / area);

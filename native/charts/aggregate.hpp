@@ -69,6 +69,10 @@ struct Aggregation {
   int chart_count() const { return static_cast<int>(members.size()); }
 };
 
+// Greedy edge collapse on the chart graph (thesis 5.2): the adjacent pair of
+// lowest cost (w_3D or w_UV, eq. 5.1, 5.2) merges first, while the union
+// stays a disk (or merges partially, see AggregateOptions::partial_merges)
+// and the options' gates let it. graph is build_chart_graph(mesh, topology, ...).
 Aggregation aggregate_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
                              const AggregateOptions& options, const RunControl& control);
 

@@ -35,12 +35,14 @@ struct ChartGraph {
   int chart_count() const { return static_cast<int>(charts.size()); }
 };
 
-// face_group may be empty (one group). Untextured faces (page -1) join no chart.
+// face_group (F) or empty (one group): faces of different groups never share
+// a chart. Untextured faces (page -1) join no chart.
 ChartGraph build_chart_graph(const Mesh& mesh, const MeshTopology& topology,
                              const std::vector<int>& face_group);
 
 // Length of every interior edge whose two faces disagree in UV (or page),
 // counted once, divided by sqrt(total 3D area): a scale-free seam measure.
+// corner_uv (3F,2), face_page (F).
 double seam_length_ratio(const Mesh& mesh, const MeshTopology& topology,
                          const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page);
 

@@ -22,6 +22,8 @@ struct MeshTopology {
   int edge_valence(int e) const { return edge_offsets[e + 1] - edge_offsets[e]; }
 };
 
+// triangles (F,3) indices into vertex_count vertices: every undirected edge
+// once, with the corners on it and each corner's edge.
 MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count);
 
 // 3D length of edge e.

@@ -16,6 +16,7 @@ namespace atlas {
 // open along two edges. Returns true when the result is a disk (one boundary
 // loop, chi == 1); false leaves a chart with handles or in several pieces,
 // which the caller must split instead.
+// triangles (F,3) and vertex_source (V) are changed in place.
 bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source);
 
 }  // namespace atlas

@@ -41,6 +41,7 @@ struct CellGrid {
 CellGrid cell_grid(const RowMatrixX2d& uv, double scale) {
   const double extent = scale * (uv.colwise().maxCoeff() - uv.colwise().minCoeff()).maxCoeff();
   CellGrid grid;
+  // extent + 2: a conservative raster spans up to two texels more than the chart.
   grid.cell = std::max(1, static_cast<int>(std::ceil((extent + 2) / kGridCells)));
   // Rasterised straight onto the cells: a cell is set when the chart
   // covers any part of it, as it would any of its texels.
@@ -462,7 +463,8 @@ std::optional<Split> split_along(const Mesh& mesh, const FlatChart& chart, const
   return split;
 }
 
-// 3D length per page texel of the chart, to price a chord in seam.
+// 3D length per page texel of the chart, to price a chord in seam:
+// sqrt(A_3D / A_uv) / scale over the chart's faces.
 double length_per_texel(const Mesh& mesh, const FlatChart& chart, double scale) {
   double uv_area = 0, area = 0;
   for (size_t i = 0; i < chart.faces.size(); ++i) {

@@ -22,7 +22,7 @@ struct ReferenceTriangles {
 //    texel density (sum of reference areas / sum of 3D areas over good faces);
 //    if the 3D triangle is degenerate too, by an equilateral triangle of the
 //    chart's mean reference area.
-// triangles index positions; reference_uv has 3 rows per face, mirrored one entry per face.
+// triangles (F,3) index positions (V,3); reference_uv (3F,2); mirrored (F).
 ReferenceTriangles repaired_reference_triangles(const RowMatrixX3i& triangles,
                                                 const RowMatrixX3d& positions,
                                                 const RowMatrixX2d& reference_uv,

@@ -30,7 +30,7 @@ struct ScaledChart {
   std::array<TexelMask, kTurns> bare;
 };
 
-// scale * R^turn * uv, R the quarter turn (x, y) -> (-y, x).
+// scale * R^turn * uv for uv (N,2), R the quarter turn (x, y) -> (-y, x).
 RowMatrixX2d turned_corners(const RowMatrixX2d& uv, double scale, int turn);
 
 // Every chart (corners in texels, all finite) at `scale`; `cell` texels per
