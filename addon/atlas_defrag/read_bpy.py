@@ -478,13 +478,27 @@ def _read_geometry(obj, me, layer) -> _Geometry:
     loop_uv = np.empty(n_loops * 2, dtype=np.float32)
     layer.data.foreach_get("uv", loop_uv)
     tri_loops = tri["loops"].reshape(n_tris, 3)
-    # In world space: texels_per_unit counts per unit of the surface as the
-    # scene shows it, and the objects of a shared atlas agree on their sizes.
-    linear = np.array(obj.matrix_world.to_3x3(), dtype=np.float64)
-    return _Geometry(positions=positions.reshape(-1, 3).astype(np.float64) @ linear.T,
+    return _Geometry(positions=_scene_sized(obj, positions.reshape(-1, 3).astype(np.float64)),
                      triangles=tri["vertices"].reshape(n_tris, 3), tri_loops=tri_loops,
                      tri_polygons=tri["polygon_index"], tri_material=tri["material_index"],
                      uvs=loop_uv.reshape(n_loops, 2)[tri_loops].astype(np.float64), n_loops=n_loops)
+
+
+def _scene_sized(obj, positions: np.ndarray) -> np.ndarray:
+    """(V, 3) positions at the size the scene shows them (object and parent
+    scales): texels_per_unit counts per unit of that surface, and the objects
+    of a shared atlas agree on their sizes. A rotation is left out (no stage
+    depends on it, and it would only add round-off), and so is a transform
+    that flattens the object (the mesh's own shape is the one to keep)."""
+    linear = np.array(obj.matrix_world.to_3x3(), dtype=np.float64)
+    scales = np.linalg.norm(linear, axis=0)
+    if not np.all(scales > 0) or abs(np.linalg.det(linear)) < 1e-12 * np.prod(scales):
+        return positions
+    gram = linear.T @ linear / scales.max() ** 2
+    if np.allclose(scales, scales[0], rtol=1e-6) and np.allclose(gram, np.eye(3), atol=1e-6):
+        scale = float(scales.mean())  # a uniform scale times a rotation
+        return positions if abs(scale - 1.0) < 1e-6 else positions * scale
+    return positions @ linear.T
 
 
 def _analyse_slots(obj, uv_name: str, render_uv: str, warnings: List[str]) -> Dict[str, MaterialInfo]:

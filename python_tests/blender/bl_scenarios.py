@@ -252,16 +252,29 @@ def _failed_write_leaves_no_file(pkg, obj, folder):
 
 def world_scale_density(pkg):
     """texels_per_unit counts per unit of the surface in the scene: an object
-    scaled by 2 gets its new texels by its world-space area."""
-    H.reset()
-    obj = H.import_model(H.model_path("tetra"))
-    obj.scale = (2.0, 2.0, 2.0)
-    bpy.context.view_layer.update()
-    # A UV map name near Blender's limit of 63 bytes: the new map's is cut
-    # short, and moving it to the front must not depend on longer names.
-    obj.data.uv_layers.active.name = "u" * 60
-    texels_per_unit = 512.0
-    report = pkg.defragment(obj, texels_per_unit=texels_per_unit)
+    scaled (uniformly and turned, or along one axis) gets its new texels by
+    its world-space area."""
+    densities = {}
+    for scale, turn in (((2.0, 2.0, 2.0), 0.5), ((1.0, 2.0, 1.0), 0.0)):
+        H.reset()
+        obj = H.import_model(H.model_path("tetra"))
+        obj.scale, obj.rotation_euler[2] = scale, turn
+        bpy.context.view_layer.update()
+        # A UV map name near Blender's limit of 63 bytes: the new map's is cut
+        # short, and moving it to the front must not depend on longer names.
+        obj.data.uv_layers.active.name = "u" * 60
+        texels_per_unit = 512.0
+        report = pkg.defragment(obj, texels_per_unit=texels_per_unit)
+        density = _texels_per_world_unit(obj, report)
+        assert abs(density / texels_per_unit - 1) < 0.05, (scale, density, texels_per_unit)
+        me = obj.data
+        assert me.uv_layers[0].name == report["uv_map"] and "u" * 60 in me.uv_layers, [u.name for u in me.uv_layers]
+        densities[str(scale)] = float(density)
+    return densities
+
+
+def _texels_per_world_unit(obj, report) -> float:
+    """sqrt(texel area / world-space area) of obj's new UV map (one page)."""
     me = obj.data
     me.calc_loop_triangles()
     n = len(me.loop_triangles)
@@ -278,12 +291,10 @@ def world_scale_density(pkg):
     me.vertices.foreach_get("co", co)
     verts = np.empty(3 * n, np.int32)
     me.loop_triangles.foreach_get("vertices", verts)
-    p = (co.reshape(-1, 3).astype(np.float64) * 2.0)[verts].reshape(n, 3, 3)
+    world = co.reshape(-1, 3).astype(np.float64) @ np.array(obj.matrix_world.to_3x3(), np.float64).T
+    p = world[verts].reshape(n, 3, 3)
     world_area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
-    density = np.sqrt(texel_area / world_area)
-    assert abs(density / texels_per_unit - 1) < 0.05, (density, texels_per_unit)
-    assert me.uv_layers[0].name == report["uv_map"] and "u" * 60 in me.uv_layers, [u.name for u in me.uv_layers]
-    return {"texels_per_world_unit": float(density)}
+    return float(np.sqrt(texel_area / world_area))
 
 
 def cancel_leaves_nothing(pkg):
