@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import bpy
@@ -83,12 +83,27 @@ def finish_shared(objects, shared: SharedRead, result: job.JobResult, settings: 
     report's numbers are the shared job's; atlas_objects names every object."""
     images = write_bpy.SharedImages()
     names = [obj.name for obj in objects]
+    in_common = _materials_in_common(shared.reads)
     for obj, read, faces, s in zip(objects, shared.reads, shared.faces, settings):
+        if any(info.name in in_common for info in read.materials):
+            # Each object rewires its materials to its own UV map and pages:
+            # one material both rewired would keep the last object's only.
+            s = replace(s, duplicate_materials=True)
         report = finish(obj, read, job.split(result, faces), s, shared_images=images)
         part = result.face_page[faces]
         report.update(atlas_objects=names, faces=faces.stop - faces.start,
                       pages_used=sorted(int(q) for q in np.unique(part[part >= 0])))
         yield report
+
+
+def _materials_in_common(reads) -> set:
+    """Names of the materials that several of the reads use."""
+    seen, common = set(), set()
+    for read in reads:
+        names = {info.name for info in read.materials if info.page >= 0}
+        common |= seen & names
+        seen |= names
+    return common
 
 
 def compute(read: read_bpy.ReadResult, settings: Settings, progress=None, cancel=None,

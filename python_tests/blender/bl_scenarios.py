@@ -711,6 +711,27 @@ def one_atlas_for_all_selected(pkg):
     return {"new": m}
 
 
+def one_atlas_shared_material(pkg):
+    """One atlas for two objects that share a material but not their UV map's
+    name: each ends with a material that reads its own new UV map."""
+    H.reset()
+    a = H.textured_plane(name="First")
+    b = H.textured_plane(name="Second")
+    b.data.materials[0] = a.data.materials[0]
+    b.data.uv_layers[0].name = "OtherUV"
+    H.make_active(a)
+    b.select_set(True)
+    assert run_operator(pkg, one_atlas=True) == {"FINISHED"}
+    read_maps = {}
+    for obj in (a, b):
+        tree = obj.material_slots[0].material.node_tree
+        maps = {n.uv_map for n in tree.nodes if n.bl_idname == "ShaderNodeUVMap" and n.label == pkg.write_bpy.UV_NODE_LABEL}
+        assert maps and all(m in obj.data.uv_layers for m in maps), (obj.name, maps, [u.name for u in obj.data.uv_layers])
+        read_maps[obj.name] = sorted(maps)
+    assert a.material_slots[0].material != b.material_slots[0].material
+    return read_maps
+
+
 def _shared_atlas_measures(pkg, names, uv_map):
     """_native.measure of the objects' new UV maps together, each face on the
     page of the new image its material now shows (pages by image name)."""
@@ -896,6 +917,7 @@ SCENARIOS = {
     "redo_asks_first": redo_asks_first,
     "several_objects_one_fails": several_objects_one_fails,
     "one_atlas_for_all_selected": one_atlas_for_all_selected,
+    "one_atlas_shared_material": one_atlas_shared_material,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)
