@@ -168,7 +168,7 @@ def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **opt
         read = prepare(obj, settings)
         t_read = time.perf_counter() - t0
         if wait_in_main_thread:
-            result = _on_worker_thread(compute, read, settings, progress=progress, cancel=cancel)
+            result = on_worker_thread(compute, read, settings, progress=progress, cancel=cancel)
         else:
             result = compute(read, settings, progress=progress, cancel=cancel)
         report = finish(obj, read, result, settings)
@@ -176,9 +176,10 @@ def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **opt
     return report
 
 
-def _on_worker_thread(fn, *args, **kwargs):
-    """fn(*args, **kwargs) on another thread, joined in 50 ms steps; its
-    exception is raised here."""
+def on_worker_thread(fn, *args, each_step=None, **kwargs):
+    """fn(*args, **kwargs) on another thread, joined in 50 ms steps, after
+    each of which this thread calls each_step() (if given: bpy work such as
+    showing progress belongs here, not in fn); fn's exception is raised here."""
     outcome = {}
 
     def work():
@@ -191,6 +192,8 @@ def _on_worker_thread(fn, *args, **kwargs):
     worker.start()
     while worker.is_alive():
         worker.join(0.05)
+        if each_step is not None:
+            each_step()
     if "error" in outcome:
         raise outcome["error"]
     return outcome["value"]

@@ -46,18 +46,11 @@ class _Run:
             self.error = exc
 
     def wait(self, each_step):
-        """Runs work() on a thread of its own and joins it, calling
-        each_step() on this thread every 0.05 s: the native progress comes
-        from worker threads, where bpy must not be touched. Returns the
-        result or raises the worker's error."""
-        self.thread = threading.Thread(target=self.work, name="atlas_defrag", daemon=True)
-        self.thread.start()
-        while self.thread.is_alive():
-            self.thread.join(0.05)
-            each_step()
-        if self.error is not None:
-            raise self.error
-        return self.result
+        """The result of the native work, run on a thread of its own while
+        this thread calls each_step() every 0.05 s: the native progress comes
+        from worker threads, where bpy must not be touched."""
+        return api.on_worker_thread(api.compute, self.read, self.settings, progress=self.progress,
+                                    cancel=self.token, each_step=each_step)
 
 
 # The outcome of the last run, for scripts and tests: status is 'finished',
