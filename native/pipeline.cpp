@@ -368,12 +368,6 @@ double total_area(const Mesh& mesh) {
   return area;
 }
 
-// A 3D length in the unit of seam, length / sqrt(area); 0 on a mesh without area.
-double per_sqrt_area(double length, const Mesh& mesh) {
-  const double area = total_area(mesh);
-  return area > 0 ? length / std::sqrt(area) : 0.0;
-}
-
 // The cuts for packing see the charts at the scale the packer will use:
 // density_scale, or texels_per_unit over the charts' mean density (per
 // group the packer's differs a little; a fixed page size scales them later).
@@ -518,8 +512,7 @@ PipelineResult with_copies(PipelineResult kept, const Mesh& mesh, const Duplicat
 
 PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group, const PipelineOptions& options,
                           const RunControl& control) {
-  if (!face_group.empty() && static_cast<int>(face_group.size()) != welded.face_count())
-    throw InputError("face_group must hold one group per triangle");
+  require_face_groups(face_group, welded.face_count());
   const DuplicateFaces dup = find_duplicate_faces(welded, face_group);
   if (dup.copies() == 0) return defragment_distinct(welded, face_group, options, control);
   std::vector<int> kept_group;

@@ -97,8 +97,7 @@ void accumulate_boundaries(const Mesh& mesh, const MeshTopology& topology, const
 }  // namespace
 
 ChartGraph build_chart_graph(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& face_group) {
-  if (!face_group.empty() && static_cast<int>(face_group.size()) != mesh.face_count())
-    throw InputError("face_group must hold one group per triangle");
+  require_face_groups(face_group, mesh.face_count());
   ChartGraph g;
   int count = 0;
   g.face_chart = label_charts(mesh, topology, face_group, count);
@@ -111,7 +110,7 @@ ChartGraph build_chart_graph(const Mesh& mesh, const MeshTopology& topology, con
 
 double seam_length_ratio(const Mesh& mesh, const MeshTopology& topology, const RowMatrixX2d& corner_uv,
                          const Eigen::VectorXi& face_page) {
-  double seam = 0, area = 0;
+  double seam = 0;
   for (int e = 0; e < topology.edge_count(); ++e) {
     if (topology.edge_valence(e) < 2) continue;
     const int c0 = topology.edge_corners[topology.edge_offsets[e]];
@@ -121,9 +120,18 @@ double seam_length_ratio(const Mesh& mesh, const MeshTopology& topology, const R
     if (textured && !uv_continuous_across(topology, mesh.triangles, corner_uv, face_page, e))
       seam += edge_length_3d(mesh, c0);
   }
-  for (int f = 0; f < mesh.face_count(); ++f)
-    area += mesh.area_3d(f);
-  return area > 0 ? seam / std::sqrt(area) : 0.0;
+  return per_sqrt_area(seam, mesh);
+}
+
+double per_sqrt_area(double length, const Mesh& mesh) {
+  double area = 0;
+  for (int f = 0; f < mesh.face_count(); ++f) area += mesh.area_3d(f);
+  return area > 0 ? length / std::sqrt(area) : 0.0;
+}
+
+void require_face_groups(const std::vector<int>& face_group, int face_count) {
+  if (!face_group.empty() && static_cast<int>(face_group.size()) != face_count)
+    throw InputError("face_group must hold one group per triangle");
 }
 
 }  // namespace atlas

@@ -35,6 +35,9 @@ struct ChartGraph {
   int chart_count() const { return static_cast<int>(charts.size()); }
 };
 
+// Throws InputError unless face_group is empty or holds one group per face.
+void require_face_groups(const std::vector<int>& face_group, int face_count);
+
 // face_group (F) or empty (one group): faces of different groups never share
 // a chart. Untextured faces (page -1) join no chart.
 ChartGraph build_chart_graph(const Mesh& mesh, const MeshTopology& topology,
@@ -45,5 +48,9 @@ ChartGraph build_chart_graph(const Mesh& mesh, const MeshTopology& topology,
 // corner_uv (3F,2), face_page (F).
 double seam_length_ratio(const Mesh& mesh, const MeshTopology& topology,
                          const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page);
+
+// A 3D length in the unit of seam_length_ratio: length / sqrt(total 3D
+// area), 0 on a mesh without area.
+double per_sqrt_area(double length, const Mesh& mesh);
 
 }  // namespace atlas
