@@ -724,8 +724,7 @@ def one_atlas_shared_material(pkg):
     assert run_operator(pkg, one_atlas=True) == {"FINISHED"}
     read_maps = {}
     for obj in (a, b):
-        tree = obj.material_slots[0].material.node_tree
-        maps = {n.uv_map for n in tree.nodes if n.bl_idname == "ShaderNodeUVMap" and n.label == pkg.write_bpy.UV_NODE_LABEL}
+        maps = {H.vector_uv_map(n) for n in H.image_nodes(obj.material_slots[0].material)}
         assert maps and all(m in obj.data.uv_layers for m in maps), (obj.name, maps, [u.name for u in obj.data.uv_layers])
         read_maps[obj.name] = sorted(maps)
     assert a.material_slots[0].material != b.material_slots[0].material
