@@ -39,3 +39,28 @@ def test_files_cut_short_are_caught(tmp_path, png_bytes):
     assert batch._file_problem(str(tmp_path / "bad.exr"), None) == "not an OpenEXR file"
     assert batch._file_problem(str(tmp_path / "empty.png"), None) == "empty"
     assert batch._file_problem(str(tmp_path / "missing.png"), None) == "missing"
+
+
+OBJ = b"# made by a test\nmtllib scan.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\nf 3/1 2/1 1/1\n"
+
+
+def test_obj_faces_counted_and_cut_caught(tmp_path):
+    (tmp_path / "whole.obj").write_bytes(OBJ)
+    (tmp_path / "cut.obj").write_bytes(OBJ[:-14])
+    assert batch._file_problem(str(tmp_path / "whole.obj"), 2) == ""
+    assert batch._file_problem(str(tmp_path / "whole.obj"), 3) == "2 of 3 faces"
+    assert batch._file_problem(str(tmp_path / "cut.obj"), 2) == "1 of 2 faces"
+
+
+def test_obj_material_libraries_found_and_checked(tmp_path):
+    (tmp_path / "scan.obj").write_bytes(b"mtllib first.mtl\r\n" + OBJ + b"  mtllib  last.mtl\n# mtllib not.mtl")
+    names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "scan.obj"))}
+    assert names == {"scan.obj", "first.mtl", "scan.mtl", "last.mtl"}
+    for lib in ("first.mtl", "scan.mtl"):
+        (tmp_path / lib).write_bytes(b"newmtl a\nmap_Kd a.png\n")
+    with pytest.raises(batch.BatchError, match="last.mtl is missing"):
+        batch._verify_obj_references(str(tmp_path), "scan.obj", ["a.png"])
+    (tmp_path / "last.mtl").write_bytes(b"newmtl b\n")
+    batch._verify_obj_references(str(tmp_path), "scan.obj", ["a.png"])
+    with pytest.raises(batch.BatchError, match="do not name b.png"):
+        batch._verify_obj_references(str(tmp_path), "scan.obj", ["a.png", "b.png"])

@@ -291,10 +291,9 @@ def _input_files(src: str) -> set:
     folder = os.path.dirname(src)
     try:
         if src.lower().endswith(".obj"):
-            with open(src, "r", encoding="utf-8", errors="replace") as f:
-                for line in f:
-                    if line.startswith("mtllib"):
-                        files.update(os.path.join(folder, n) for n in line.split()[1:])
+            with open(src, "rb") as f:
+                for line in _lines_starting(f.read(), b"mtllib"):
+                    files.update(os.path.join(folder, n) for n in line.decode("utf-8", "replace").split()[1:])
         elif src.lower().endswith(".gltf"):
             with open(src, "r", encoding="utf-8") as f:
                 gltf = json.load(f)
@@ -469,7 +468,7 @@ def _file_problem(path: str, polygons) -> str:
     if ext == ".mtl" and b"newmtl" not in data:
         return "no material in it"
     if ext == ".obj" and polygons is not None:
-        faces = sum(1 for line in data.splitlines() if line.startswith(b"f "))
+        faces = data.count(b"\nf ") + data.startswith(b"f ")
         if faces != polygons or not data.endswith(b"\n"):
             return f"{faces} of {polygons} faces"
     return ""
@@ -498,7 +497,7 @@ def _verify_obj_references(folder: str, model: str, images) -> None:
     carries over from the input (even broken ones) are not checked."""
     with open(os.path.join(folder, model), "rb") as f:
         libs = [ln.split(None, 1)[1].strip().decode("utf-8", "replace")
-                for ln in f if ln.startswith(b"mtllib")]
+                for ln in _lines_starting(f.read(), b"mtllib") if len(ln.split()) > 1]
     named = set()
     for lib in libs:
         lib_path = os.path.join(folder, lib)
@@ -511,6 +510,22 @@ def _verify_obj_references(folder: str, model: str, images) -> None:
     if unnamed:
         raise BatchError(f"writing {model} failed: its materials do not name {', '.join(unnamed)}: "
                          "is the disk full?")
+
+
+def _lines_starting(data: bytes, prefix: bytes) -> list:
+    """The lines of data whose first word starts with prefix, without their
+    line ends. bytes.find skips the millions of other lines of a large OBJ,
+    which a loop over lines would take seconds to read."""
+    lines = []
+    at = data.find(prefix)
+    while at != -1:
+        start = data.rfind(b"\n", 0, at) + 1
+        end = data.find(b"\n", at)
+        end = len(data) if end == -1 else end
+        if not data[start:at].strip():
+            lines.append(data[at:end].rstrip(b"\r"))
+        at = data.find(prefix, end)
+    return lines
 
 
 def _write_report(path, report):
