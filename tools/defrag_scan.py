@@ -1,6 +1,6 @@
 """Defragments a scan's atlas without Blender and prints what changed.
 
-    PYTHONPATH=build/addon .venv/bin/python tools/defrag_scan.py IN.obj|IN.gltf|IN.glb OUT_DIR [options]
+    PYTHONPATH=build/addon .venv/bin/python tools/defrag_scan.py IN.obj|IN.gltf|IN.glb|IN.ply OUT_DIR [options]
 
 Runs the add-on's job (atlas_defrag.job.run, the same layout and bake as in
 Blender), writes OUT_DIR/<name>.obj + .mtl + one PNG per page and map, and

@@ -1,8 +1,9 @@
-"""Reads textured scans (OBJ+MTL, glTF, GLB) into plain numpy arrays, without Blender.
+"""Reads textured scans (OBJ+MTL, glTF, GLB, PLY) into plain numpy arrays, without Blender.
 
 Used by the tests, the benchmark and the command-line demo; the add-on reads
 meshes through bpy instead. Polygons are fan-triangulated (OBJ by the native
-reader, _native.read_obj), because the native stages take triangles only.
+reader, _native.read_obj; PLY by ply_io), because the native stages take
+triangles only.
 """
 from __future__ import annotations
 
@@ -15,6 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+import ply_io  # beside this file
 
 
 @dataclass
@@ -61,7 +64,9 @@ def load(path) -> Scan:
         return load_glb(path)
     if suffix == ".gltf":
         return load_gltf(path)
-    raise ValueError(f"unsupported scan format: {path.suffix} (OBJ, glTF or GLB)")
+    if suffix == ".ply":
+        return load_ply(path)
+    raise ValueError(f"unsupported scan format: {path.suffix} (OBJ, glTF, GLB or PLY)")
 
 
 # ---- OBJ ------------------------------------------------------------------
@@ -112,6 +117,28 @@ def load_obj(path: Path) -> Scan:
     face_page = np.where(has_uv, material_page[obj["face_material"]], -1).astype(np.int32)
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
     return Scan(obj["positions"], tris, uvs, face_page, sizes, pages, [{"base_color": p} for p in pages])
+
+
+# ---- PLY ------------------------------------------------------------------
+
+def load_ply(path: Path) -> Scan:
+    """Texture k is the header's k-th TextureFile (faces with texnumber k);
+    faces whose texture is missing, or without UVs, are left untextured."""
+    mesh = ply_io.read(path.read_bytes())
+    textures = [path.parent / name.replace("\\", "/") for name in mesh.textures]
+    pages, page_of = [], np.full(len(textures) + 1, -1, dtype=np.int32)  # the last: no such texture
+    for k, tex in enumerate(textures):
+        if tex.exists():
+            page_of[k] = len(pages)
+            pages.append(tex)
+    if mesh.uvs is None or not pages:
+        face_page = np.full(len(mesh.triangles), -1, dtype=np.int32)
+    else:
+        face_page = page_of[np.where((mesh.texnumber >= 0) & (mesh.texnumber < len(textures)), mesh.texnumber, -1)]
+    uvs = mesh.uvs if mesh.uvs is not None else np.zeros((len(mesh.triangles), 3, 2))
+    sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
+    return Scan(mesh.positions, mesh.triangles.astype(np.int32), uvs, face_page, sizes, pages,
+                [{"base_color": p} for p in pages])
 
 
 # ---- glTF and GLB -----------------------------------------------------------

@@ -1,0 +1,117 @@
+"""PLY scans in the command-line entry (tools/ply_io.py): the two ways scanning
+pipelines store UVs, both byte orders and ASCII, polygons, and broken files."""
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+CLI = Path(__file__).resolve().parent.parent / "tools" / "defrag_scan.py"
+
+
+def _header(fmt, vertices, faces, vertex_props, face_props, textures):
+    lines = ["ply", f"format {fmt} 1.0", *(f"comment TextureFile {t}" for t in textures),
+             f"element vertex {vertices}", *(f"property {p}" for p in vertex_props),
+             f"element face {faces}", *(f"property {p}" for p in face_props), "end_header"]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def write_face_texcoords(path, scan, order="<"):
+    """MeshLab and OpenMVS style: shared vertices, 6 UV values per face, texnumber."""
+    fmt = "binary_little_endian" if order == "<" else "binary_big_endian"
+    vertex = np.asarray(scan.positions, order + "f8")
+    face = np.zeros(len(scan.triangles), np.dtype([("n", "u1"), ("i", order + "i4", (3,)), ("m", "u1"),
+                                                   ("uv", order + "f4", (6,)), ("tex", order + "i4")]))
+    face["n"], face["i"], face["m"] = 3, scan.triangles, 6
+    face["uv"], face["tex"] = scan.uvs.reshape(-1, 6), scan.face_page
+    head = _header(fmt, len(vertex), len(face), ["double x", "double y", "double z"],
+                   ["list uchar int vertex_indices", "list uchar float texcoord", "int texnumber"],
+                   [str(p) for p in scan.page_images])
+    path.write_bytes(head + vertex.tobytes() + face.tobytes())
+
+
+def write_vertex_uvs(path, scan):
+    """Blender style, in ASCII: a vertex per face corner with its s and t."""
+    corners = scan.positions[scan.triangles].reshape(-1, 3)
+    rows = np.hstack([corners, scan.uvs.reshape(-1, 2)])
+    faces = np.hstack([np.full((len(scan.triangles), 1), 3), np.arange(3 * len(scan.triangles)).reshape(-1, 3)])
+    head = _header("ascii", len(rows), len(faces), ["float x", "float y", "float z", "float s", "float t"],
+                   ["list uchar uint vertex_indices"], [str(scan.page_images[0])])
+    body = [" ".join(f"{v:.9g}" for v in r) for r in rows] + [" ".join(map(str, f)) for f in faces]
+    path.write_bytes(head + ("\n".join(body) + "\n").encode())
+
+
+@pytest.mark.parametrize("order", ["<", ">"])
+def test_face_texcoords_read_back_exactly(scans, tmp_path, order):
+    import scan_io
+
+    scan = scans("tetra")
+    write_face_texcoords(tmp_path / "scan.ply", scan, order)
+    ply = scan_io.load(tmp_path / "scan.ply")
+    assert np.array_equal(ply.positions, scan.positions) and np.array_equal(ply.triangles, scan.triangles)
+    assert np.array_equal(ply.uvs, scan.uvs.astype(np.float32)) and np.array_equal(ply.face_page, scan.face_page)
+    assert np.array_equal(ply.page_sizes, scan.page_sizes)
+
+
+def test_vertex_uvs_split_at_seams_read_back(scans, tmp_path):
+    import scan_io
+
+    scan = scans("tetra")
+    write_vertex_uvs(tmp_path / "scan.ply", scan)
+    ply = scan_io.load(tmp_path / "scan.ply")
+    assert np.allclose(ply.positions[ply.triangles], scan.positions[scan.triangles], rtol=1e-6, atol=1e-9)
+    assert np.allclose(ply.uvs, scan.uvs, atol=1e-7)
+    textured = scan.face_page >= 0
+    assert (ply.face_page[textured] == 0).all()
+
+
+def test_cli_on_a_ply_scan_matches_the_obj(scans, scan_path, tool_env, tmp_path):
+    """The same mesh and UVs through PLY and OBJ: the same charts, seams and texels."""
+    write_face_texcoords(tmp_path / "tetra.ply", scans("tetra"))
+    outs = []
+    for source in (scan_path("tetra"), tmp_path / "tetra.ply"):
+        run = subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path / source.suffix[1:])],
+                             capture_output=True, text=True, timeout=300, env=tool_env)
+        assert run.returncode == 0, run.stderr
+        outs.append([ln for ln in run.stdout.splitlines() if ln.split()[:1] in (["charts"], ["texels"])])
+    assert outs[0] == outs[1] and len(outs[0]) == 2
+    assert (tmp_path / "ply" / "tetra_defrag.obj").exists()
+
+
+def test_polygons_of_several_sizes_are_fanned(tmp_path):
+    import ply_io
+
+    data = _header("ascii", 5, 3, ["float x", "float y", "float z", "float u", "float v"],
+                   ["list uchar int vertex_index"], []) + (
+        b"0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n0 1 0 0 1\n2 2 0 1 1\n4 0 1 2 3\n3 1 4 2\n2 0 1\n")
+    mesh = ply_io.read(data)
+    assert mesh.triangles.tolist() == [[0, 1, 2], [0, 2, 3], [1, 4, 2]]
+    assert mesh.uvs[2].tolist() == [[1, 0], [1, 1], [1, 1]]
+    assert mesh.texnumber.tolist() == [0, 0, 0] and mesh.textures == []
+
+
+@pytest.mark.parametrize("cut, message", [
+    (lambda d: d[:-7], "ends inside its 'face' element"),
+    (lambda d: d.replace(b"3 0 1 2", b"3 0 1 9"), "outside 0..3"),
+    (lambda d: d.replace(b"1 1 0\n", b"1 x 0\n"), "not a number"),
+    (lambda d: d.replace(b"format ascii", b"format utf8"), "unsupported PLY format"),
+    (lambda d: d.replace(b"end_header", b"end"), "not a PLY file"),
+])
+def test_broken_files_say_what_is_wrong(tmp_path, cut, message):
+    import ply_io
+
+    data = _header("ascii", 4, 2, ["float x", "float y", "float z"], ["list uchar int vertex_indices"], []) + (
+        b"0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n")
+    assert len(ply_io.read(data).triangles) == 2
+    with pytest.raises(ValueError, match=message):
+        ply_io.read(cut(data))
+
+
+def test_cli_names_a_ply_without_texture(tool_env, tmp_path):
+    path = tmp_path / "bare.ply"
+    path.write_bytes(_header("ascii", 3, 1, ["float x", "float y", "float z"], ["list uchar int vertex_indices"],
+                             []) + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    run = subprocess.run([sys.executable, str(CLI), str(path), str(tmp_path / "out")],
+                         capture_output=True, text=True, timeout=60, env=tool_env)
+    assert run.returncode == 1 and "no face uses an image texture" in run.stderr

@@ -1,0 +1,253 @@
+"""Reads a textured PLY mesh (ASCII or binary, either byte order) into numpy arrays.
+
+Scanning pipelines write UVs in one of two ways, and both are read:
+- per face, a list property `texcoord` of 2 values per corner, with an
+  optional `texnumber` naming the texture (MeshLab, OpenMVS);
+- per vertex, `s t`, `u v`, `texture_u texture_v` or `texture_s texture_t`,
+  with vertices split at seams (Blender, many scanner apps).
+Textures are the header's `comment TextureFile <name>` lines, in texnumber
+order. Polygons are fan-triangulated, as the OBJ reader does.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+          "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+          "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+_VERTEX_UV_NAMES = (("s", "t"), ("u", "v"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
+
+
+@dataclass
+class Property:
+    name: str
+    type: str                 # numpy type code of the value(s), e.g. "f4"
+    count_type: str = None    # numpy type code of a list's length; None: a single value
+
+
+@dataclass
+class Element:
+    name: str
+    count: int
+    properties: list = field(default_factory=list)
+
+
+@dataclass
+class PlyMesh:
+    positions: np.ndarray     # (V, 3) float64
+    triangles: np.ndarray     # (F, 3) int64, fan-triangulated polygons
+    uvs: np.ndarray           # (F, 3, 2) float64, v up; None when the file has no UVs
+    texnumber: np.ndarray     # (F,) int64, index into textures (0 when the file gives none)
+    textures: list            # file names from the header, as written
+
+
+def _type(name: str) -> str:
+    if name not in _TYPES:
+        raise ValueError(f"unknown PLY property type '{name}'")
+    return _TYPES[name]
+
+
+def parse_header(data: bytes):
+    """(format, [Element], texture names, offset of the body)."""
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise ValueError("not a PLY file (no 'ply' ... 'end_header' header)")
+    newline = data.find(b"\n", end)
+    body = len(data) if newline < 0 else newline + 1
+    fmt, elements, textures = None, [], []
+    for line in data[:end].decode("latin-1").splitlines()[1:]:
+        words = line.split()
+        if not words:
+            continue
+        if words[0] == "format" and len(words) > 1:
+            fmt = words[1]
+        elif words[0] == "comment" and len(words) > 2 and words[1].lower() == "texturefile":
+            textures.append(line.split(None, 2)[2].strip())
+        elif words[0] == "element" and len(words) == 3:
+            elements.append(Element(words[1], int(words[2])))
+        elif words[0] == "property" and elements and len(words) >= 3:
+            if words[1] == "list" and len(words) == 5:
+                elements[-1].properties.append(Property(words[4], _type(words[3]), _type(words[2])))
+            elif words[1] != "list":
+                elements[-1].properties.append(Property(words[2], _type(words[1])))
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise ValueError(f"unsupported PLY format '{fmt}'")
+    return fmt, elements, textures, body
+
+
+# An element's values: per scalar property an (N,) array; per list property
+# (flat values, counts), the values of all rows one after another.
+
+def _binary_rows(element: Element, data: bytes, at: int, order: str):
+    """(values, offset after the element). Lists as long as the first row's
+    are read as one block; rows of other lengths, record by record."""
+    lengths = []
+    probe = at
+    for p in element.properties:
+        if p.count_type is None:
+            probe += np.dtype(p.type).itemsize
+        else:
+            n = int(np.frombuffer(data, order + p.count_type, 1, probe)[0]) if element.count else 0
+            lengths.append(n)
+            probe += np.dtype(p.count_type).itemsize + n * np.dtype(p.type).itemsize
+    fields, k = [], iter(lengths)
+    for i, p in enumerate(element.properties):
+        if p.count_type is None:
+            fields.append((f"v{i}", order + p.type))
+        else:
+            fields += [(f"n{i}", order + p.count_type), (f"v{i}", order + p.type, (next(k),))]
+    dtype = np.dtype(fields)
+    if at + element.count * dtype.itemsize <= len(data):
+        rows = np.frombuffer(data, dtype, element.count, at)
+        if all((rows[f"n{i}"] == rows[f"n{i}"][:1]).all() for i, p in enumerate(element.properties)
+               if p.count_type is not None):
+            values = {p.name: rows[f"v{i}"] if p.count_type is None else
+                      (rows[f"v{i}"].reshape(-1), rows[f"n{i}"].astype(np.int64))
+                      for i, p in enumerate(element.properties)}
+            return values, at + element.count * dtype.itemsize
+    return _binary_rows_one_by_one(element, data, at, order)
+
+
+def _collected(element: Element, columns: dict, counts: dict) -> dict:
+    """The values of an element read row by row (lists of arrays per property)."""
+    def flat(arrays):
+        return np.concatenate(arrays) if arrays else np.zeros(0)
+    return {p.name: flat(columns[p.name]) if p.count_type is None else
+            (flat(columns[p.name]), np.array(counts[p.name], dtype=np.int64)) for p in element.properties}
+
+
+def _binary_rows_one_by_one(element: Element, data: bytes, at: int, order: str):
+    columns = {p.name: [] for p in element.properties}
+    counts = {p.name: [] for p in element.properties if p.count_type is not None}
+    for _ in range(element.count):
+        for p in element.properties:
+            n = 1
+            if p.count_type is not None:
+                n = int(np.frombuffer(data, order + p.count_type, 1, at)[0])
+                at += np.dtype(p.count_type).itemsize
+                counts[p.name].append(n)
+            columns[p.name].append(np.frombuffer(data, order + p.type, n, at))
+            at += n * np.dtype(p.type).itemsize
+    return _collected(element, columns, counts), at
+
+
+def _ascii_rows(element: Element, numbers: np.ndarray, at: int):
+    """(values, index after the element) from the body's numbers. Rows as long
+    as the first one are read as one block; other lengths, row by row."""
+    width, lengths, probe = 0, [], at
+    for p in element.properties:
+        n = int(numbers[probe]) if p.count_type is not None and element.count else 0
+        lengths.append(n)
+        step = 1 if p.count_type is None else 1 + n
+        width, probe = width + step, probe + step
+    end = at + element.count * width
+    if end <= len(numbers):
+        rows = numbers[at:end].reshape(element.count, width)
+        values, col = {}, 0
+        for p, n in zip(element.properties, lengths):
+            if p.count_type is None:
+                values[p.name], col = rows[:, col], col + 1
+            elif (rows[:, col] == n).all():
+                values[p.name], col = (rows[:, col + 1:col + 1 + n].reshape(-1), rows[:, col].astype(np.int64)), col + 1 + n
+            else:
+                break
+        else:
+            return values, end
+    return _ascii_rows_one_by_one(element, numbers, at)
+
+
+def _ascii_rows_one_by_one(element: Element, numbers: np.ndarray, at: int):
+    columns = {p.name: [] for p in element.properties}
+    counts = {p.name: [] for p in element.properties if p.count_type is not None}
+    for _ in range(element.count):
+        for p in element.properties:
+            n = 1
+            if p.count_type is not None:
+                n = int(numbers[at])
+                at += 1
+                counts[p.name].append(n)
+            columns[p.name].append(numbers[at:at + n])
+            at += n
+    return _collected(element, columns, counts), at
+
+
+def read_elements(data: bytes, fmt: str, elements: list, body: int) -> dict:
+    """name -> values of the vertex and face elements (later elements are not read)."""
+    out, wanted = {}, {"vertex", "face"}
+    if fmt == "ascii":
+        numbers = np.array(data[body:].split(), dtype=np.float64)
+        at = 0
+        for element in elements:
+            if wanted <= set(out):
+                break
+            try:
+                out[element.name], at = _ascii_rows(element, numbers, at)
+            except IndexError:
+                at = len(numbers) + 1
+            if at > len(numbers):
+                raise ValueError(f"the file ends inside its '{element.name}' element")
+        return out
+    order = "<" if fmt == "binary_little_endian" else ">"
+    at = body
+    for element in elements:
+        if wanted <= set(out):
+            break
+        try:
+            out[element.name], at = _binary_rows(element, data, at, order)
+        except ValueError as exc:  # numpy's "buffer is smaller than requested size"
+            raise ValueError(f"the file ends inside its '{element.name}' element") from exc
+    return out
+
+
+def fan(flat: np.ndarray, counts: np.ndarray):
+    """Corners (T, 3) into flat of the fan triangles of the polygons, and the
+    polygon of each triangle; polygons of fewer than 3 corners give none."""
+    counts = np.asarray(counts, dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    per_polygon = np.maximum(counts - 2, 0)
+    polygon = np.repeat(np.arange(len(counts)), per_polygon)
+    first_triangle = np.concatenate([[0], np.cumsum(per_polygon)[:-1]])
+    i = np.arange(len(polygon)) - first_triangle[polygon] + 1
+    base = starts[polygon]
+    return np.stack([base, base + i, base + i + 1], axis=1), polygon
+
+
+def _vertex_uvs(vertex: dict):
+    for u, v in _VERTEX_UV_NAMES:
+        if u in vertex and v in vertex:
+            return np.stack([vertex[u], vertex[v]], axis=1).astype(np.float64)
+    return None
+
+
+def read(data: bytes) -> PlyMesh:
+    """The mesh of a PLY file's bytes; ValueError saying what is wrong otherwise."""
+    fmt, elements, textures, body = parse_header(data)
+    try:
+        values = read_elements(data, fmt, elements, body)
+    except ValueError as exc:
+        if "could not convert" in str(exc):
+            raise ValueError("a value of its ASCII body is not a number") from exc
+        raise
+    vertex, face = values.get("vertex", {}), values.get("face", {})
+    if not all(c in vertex for c in "xyz"):
+        raise ValueError("no vertex positions (x, y, z)")
+    positions = np.stack([vertex[c] for c in "xyz"], axis=1).astype(np.float64)
+    indices = face.get("vertex_indices", face.get("vertex_index"))
+    if not isinstance(indices, tuple):
+        raise ValueError("no faces (a 'vertex_indices' list)")
+    corners, polygon = fan(*indices)
+    triangles = indices[0].astype(np.int64)[corners] if len(corners) else np.zeros((0, 3), np.int64)
+    if len(triangles) and (triangles.min() < 0 or triangles.max() >= len(positions)):
+        raise ValueError(f"a face refers to a vertex outside 0..{len(positions) - 1}")
+    uvs = None
+    texcoord = face.get("texcoord")
+    if isinstance(texcoord, tuple) and np.array_equal(texcoord[1], 2 * indices[1]):
+        uvs = texcoord[0].astype(np.float64).reshape(-1, 2)[corners]
+    elif (per_vertex := _vertex_uvs(vertex)) is not None:
+        uvs = per_vertex[triangles]
+    texnumber = face.get("texnumber")
+    texnumber = np.zeros(len(triangles), np.int64) if texnumber is None or isinstance(texnumber, tuple) \
+        else texnumber.astype(np.int64)[polygon]
+    return PlyMesh(positions, triangles, uvs, texnumber, textures)
