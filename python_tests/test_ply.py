@@ -1,4 +1,4 @@
-"""PLY scans in the command-line entry (tools/ply_io.py): the two ways scanning
+"""PLY scans read by atlas_defrag.ply_io (the command-line entry and the batch): the two ways scanning
 pipelines store UVs, both byte orders and ASCII, polygons, and broken files."""
 import subprocess
 import sys
@@ -80,7 +80,7 @@ def test_cli_on_a_ply_scan_matches_the_obj(scans, scan_path, tool_env, tmp_path)
 
 
 def test_polygons_of_several_sizes_are_fanned(tmp_path):
-    import ply_io
+    from atlas_defrag import ply_io
 
     data = _header("ascii", 5, 3, ["float x", "float y", "float z", "float u", "float v"],
                    ["list uchar int vertex_index"], []) + (
@@ -91,6 +91,20 @@ def test_polygons_of_several_sizes_are_fanned(tmp_path):
     assert mesh.texnumber.tolist() == [0, 0, 0] and mesh.textures == []
 
 
+def test_binary_polygons_of_several_sizes_are_fanned():
+    import struct
+
+    from atlas_defrag import ply_io
+
+    head = _header("binary_big_endian", 5, 2, ["float x", "float y", "float z"], ["list uchar int vertex_indices"], [])
+    vertices = struct.pack(">15f", 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 2, 2, 0)
+    faces = struct.pack(">B4i", 4, 0, 1, 2, 3) + struct.pack(">B3i", 3, 1, 4, 2)
+    mesh = ply_io.read(head + vertices + faces + b"trailing bytes of an element not read")
+    assert mesh.triangles.tolist() == [[0, 1, 2], [0, 2, 3], [1, 4, 2]] and mesh.uvs is None
+    with pytest.raises(ValueError, match="ends inside its 'face' element"):
+        ply_io.read(head + vertices + faces[:-1])
+
+
 @pytest.mark.parametrize("cut, message", [
     (lambda d: d[:-7], "ends inside its 'face' element"),
     (lambda d: d.replace(b"3 0 1 2", b"3 0 1 9"), "outside 0..3"),
@@ -99,7 +113,7 @@ def test_polygons_of_several_sizes_are_fanned(tmp_path):
     (lambda d: d.replace(b"end_header", b"end"), "not a PLY file"),
 ])
 def test_broken_files_say_what_is_wrong(tmp_path, cut, message):
-    import ply_io
+    from atlas_defrag import ply_io
 
     data = _header("ascii", 4, 2, ["float x", "float y", "float z"], ["list uchar int vertex_indices"], []) + (
         b"0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n")

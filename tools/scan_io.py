@@ -2,7 +2,7 @@
 
 Used by the tests, the benchmark and the command-line demo; the add-on reads
 meshes through bpy instead. Polygons are fan-triangulated (OBJ by the native
-reader, _native.read_obj; PLY by ply_io), because the native stages take
+reader, _native.read_obj; PLY by the add-on's ply_io), because the native stages take
 triangles only.
 """
 from __future__ import annotations
@@ -16,8 +16,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-import ply_io  # beside this file
 
 
 @dataclass
@@ -124,6 +122,8 @@ def load_obj(path: Path) -> Scan:
 def load_ply(path: Path) -> Scan:
     """Texture k is the header's k-th TextureFile (faces with texnumber k);
     faces whose texture is missing, or without UVs, are left untextured."""
+    from atlas_defrag import ply_io
+
     mesh = ply_io.read(path.read_bytes())
     textures = [path.parent / name.replace("\\", "/") for name in mesh.textures]
     pages, page_of = [], np.full(len(textures) + 1, -1, dtype=np.int32)  # the last: no such texture

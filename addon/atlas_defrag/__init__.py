@@ -25,8 +25,8 @@ bl_info = {
 import importlib
 
 if "job" in locals():  # script reload: reload the submodules already loaded
-    for _name in ("options", "job", "png_files", "native_check", "compat", "read_bpy", "write_bpy", "api",
-                  "operators", "ui"):
+    for _name in ("options", "job", "png_files", "ply_io", "native_check", "compat", "read_bpy", "write_bpy",
+                  "ply_import", "api", "operators", "ui"):
         if _name in globals():
             importlib.reload(globals()[_name])
 
@@ -36,7 +36,7 @@ from .job import DefragCancelled, DefragError  # noqa: E402,F401
 __all__ = ["defragment", "DefragError", "DefragCancelled", "register", "unregister"]
 
 # Loaded on first use, so that importing the package needs no bpy.
-_BPY_MODULES = ("compat", "read_bpy", "write_bpy", "api", "operators", "ui")
+_BPY_MODULES = ("compat", "read_bpy", "write_bpy", "ply_import", "api", "operators", "ui")
 
 
 def __getattr__(name):

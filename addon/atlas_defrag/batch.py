@@ -138,11 +138,11 @@ def import_model(path: str):
     elif ext in (".gltf", ".glb"):
         _numpy_bool_alias()
         bpy.ops.import_scene.gltf(filepath=path)
-    elif ext == ".ply":
-        if _has_op(bpy.ops.wm, "ply_import"):
-            bpy.ops.wm.ply_import(filepath=path)
-        else:
-            bpy.ops.import_mesh.ply(filepath=path)
+    elif ext == ".ply":  # Blender's importers drop per-face UVs (see ply_import)
+        try:
+            _package().ply_import.import_ply(path)
+        except (OSError, ValueError) as exc:
+            raise BatchError(f"cannot read {path}: {exc}") from exc
     else:
         raise BatchError(f"unsupported input format '{ext}' (use {', '.join(INPUT_EXTS)})")
     new = [o for o in bpy.data.objects if o not in before]
@@ -151,38 +151,10 @@ def import_model(path: str):
     return new
 
 
-def _ply_texture(path: str):
-    """The image a PLY header names ('comment TextureFile x.png'), if any."""
-    try:
-        with open(path, "rb") as f:
-            for _ in range(200):
-                line = f.readline()
-                if not line or line.strip() == b"end_header":
-                    break
-                parts = line.decode("latin-1").split(None, 2)
-                if len(parts) == 3 and parts[0] == "comment" and parts[1].lower() == "texturefile":
-                    tex = os.path.join(os.path.dirname(path), parts[2].strip())
-                    return tex if os.path.exists(tex) else None
-    except OSError:
-        return None
-    return None
-
-
-def _give_texture(obj, image_path: str):
+def _give_texture(pkg, obj, image_path: str):
     """A material with the image on Base Color, for meshes that have none."""
-    import bpy
-    img = bpy.data.images.load(image_path, check_existing=True)
-    mat = bpy.data.materials.new(os.path.splitext(os.path.basename(image_path))[0])
-    if bpy.app.version < (5, 0, 0):  # always on in 5.0, where the property is deprecated
-        mat.use_nodes = True
-    tree = mat.node_tree
-    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
-    tex = tree.nodes.new("ShaderNodeTexImage")
-    tex.image = img
-    tex.location = (bsdf.location[0] - 400, bsdf.location[1])
-    tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
     obj.data.materials.clear()
-    obj.data.materials.append(mat)
+    obj.data.materials.append(pkg.ply_import.image_material(image_path))
 
 
 def _has_image_texture(pkg, obj) -> bool:
@@ -251,9 +223,8 @@ def run_one(args, cancel=None) -> dict:
     _refuse_overwriting(inputs, _model_files(dst))
     t_import = time.perf_counter() - t0
     meshes = [o for o in objects if o.type == "MESH"]
-    texture = args.texture or (_ply_texture(src) if src.lower().endswith(".ply") else None)
-    if texture:
-        _give_missing_textures(pkg, meshes, os.path.abspath(texture))
+    if args.texture:
+        _give_missing_textures(pkg, meshes, os.path.abspath(args.texture))
     out_dir = os.path.dirname(dst) or "."
     os.makedirs(out_dir, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix=".atlas_defrag_", dir=out_dir)
@@ -358,7 +329,7 @@ def _import_input(src: str, dst: str):
 def _give_missing_textures(pkg, meshes, texture: str) -> None:
     for o in meshes:
         if not _has_image_texture(pkg, o) and len(o.data.uv_layers):
-            _give_texture(o, texture)
+            _give_texture(pkg, o, texture)
 
 
 def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict, cancel=None) -> None:

@@ -1,14 +1,16 @@
 # SPDX-License-Identifier: MIT
-"""The operator, its dialog and its menu entries."""
+"""The operators (defragment, import a textured PLY scan), the dialog and the menu entries."""
 
+import os
 import re
 import threading
 import time
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy_extras.io_utils import ImportHelper
 
-from . import api, compat, job, native_check, write_bpy
+from . import api, compat, job, native_check, ply_import, write_bpy
 from .job import DefragCancelled, DefragError
 from .options import SCHEMA
 
@@ -505,25 +507,52 @@ def menu_func(self, context):
     self.layout.operator(UV_OT_defragment_atlas.bl_idname, icon="UV")
 
 
+class IMPORT_MESH_OT_textured_scan_ply(bpy.types.Operator, ImportHelper):
+    """Import a textured PLY scan with its UVs per face (OpenMVS, MeshLab) or per vertex, and a material per TextureFile image"""
+    bl_idname = "import_mesh.textured_scan_ply"
+    bl_label = "Textured Scan (.ply)"
+    bl_options = {"REGISTER", "UNDO"}
+    filename_ext = ".ply"
+    filter_glob: StringProperty(default="*.ply", options={"HIDDEN"})
+
+    def execute(self, context):
+        try:
+            obj = ply_import.import_ply(self.filepath)
+        except (OSError, ValueError, MemoryError) as exc:
+            self.report({"ERROR"}, f"Cannot import {os.path.basename(self.filepath)}: {exc or 'out of memory'}")
+            return {"CANCELLED"}
+        for other in context.view_layer.objects:
+            other.select_set(False)
+        obj.select_set(True)
+        context.view_layer.objects.active = obj
+        return {"FINISHED"}
+
+
+def import_menu_func(self, context):
+    self.layout.operator(IMPORT_MESH_OT_textured_scan_ply.bl_idname, text="Textured Scan PLY (Atlas Defrag)")
+
+
 # Edit Mode: the UV menus. Object Mode, where a user lands after importing a
 # scan: the Object menu and the UV Editor's Image menu (menu search finds these).
 MENUS = ("IMAGE_MT_uvs", "VIEW3D_MT_uv_map", "VIEW3D_MT_object", "IMAGE_MT_image")
-classes = (UV_OT_defragment_atlas,)
+classes = (UV_OT_defragment_atlas, IMPORT_MESH_OT_textured_scan_ply)
+
+
+def _menu_entries():
+    """(menu, draw function) pairs this add-on adds, of the menus this Blender has."""
+    pairs = [(name, menu_func) for name in MENUS] + [("TOPBAR_MT_file_import", import_menu_func)]
+    return [(getattr(bpy.types, name), func) for name, func in pairs if getattr(bpy.types, name, None)]
 
 
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
-    for name in MENUS:
-        menu = getattr(bpy.types, name, None)
-        if menu is not None:
-            menu.append(menu_func)
+    for menu, func in _menu_entries():
+        menu.append(func)
 
 
 def unregister():
-    for name in MENUS:
-        menu = getattr(bpy.types, name, None)
-        if menu is not None:
-            menu.remove(menu_func)
+    for menu, func in _menu_entries():
+        menu.remove(func)
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

@@ -52,6 +52,29 @@ def model_path(key: str) -> str:
     return str(path)
 
 
+def openmvs_style_ply(path) -> int:
+    """The tetra scan as OpenMVS and MeshLab write PLY: binary, shared
+    vertices, 6 UV values per face and a texnumber (-1: no texture), which
+    Blender's own PLY importers drop."""
+    import numpy as np
+
+    from atlas_defrag import _native
+
+    obj = _native.read_obj(model_path("tetra"))
+    textured = obj["texcoord_index"][:, 0] >= 0
+    face = np.zeros(len(obj["triangles"]), np.dtype([("n", "u1"), ("i", "<i4", (3,)), ("m", "u1"),
+                                                     ("uv", "<f4", (6,)), ("tex", "<i4")]))
+    face["n"], face["i"], face["m"], face["tex"] = 3, obj["triangles"], 6, np.where(textured, 0, -1)
+    face["uv"] = obj["texcoords"][np.maximum(obj["texcoord_index"], 0)].reshape(-1, 6)
+    texture = os.path.join(os.path.dirname(model_path("tetra")), "textures", "textured_0_v2.jpg")
+    head = (f"ply\nformat binary_little_endian 1.0\ncomment TextureFile {texture}\n"
+            f"element vertex {len(obj['positions'])}\nproperty double x\nproperty double y\nproperty double z\n"
+            f"element face {len(face)}\nproperty list uchar int vertex_indices\n"
+            "property list uchar float texcoord\nproperty int texnumber\nend_header\n")
+    path.write_bytes(head.encode() + np.asarray(obj["positions"], "<f8").tobytes() + face.tobytes())
+    return int(textured.sum())
+
+
 # --------------------------------------------------------------------------- scenes
 def reset() -> None:
     """An empty scene. (read_homefile keeps enabled add-ons, unlike

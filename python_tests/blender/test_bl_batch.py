@@ -152,6 +152,20 @@ def test_batch_ply_with_texture_comment(tmp_path, runner):
     assert (out.parent / "cube_tex_defrag.png").is_file()
 
 
+@pytest.mark.parametrize("runner", ["blender34", "bpy45"])
+def test_batch_openmvs_ply_keeps_its_face_uvs(tmp_path, runner):
+    """Per-face UVs reach the job: the tetra scan's charts merge as from its OBJ."""
+    textured = H.openmvs_style_ply(tmp_path / "scan.ply")
+    run = blender34_batch if runner == "blender34" else bpy45_batch
+    out = tmp_path / "out" / "scan.obj"
+    proc = run(tmp_path / "scan.ply", out, "--report", tmp_path / "r.json")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (report,) = json.loads((tmp_path / "r.json").read_text())["objects"]
+    assert textured > 13000 and report["charts_before"] == 159 and report["charts_after"] <= 40, report
+    _, maps = _read_obj_output(out)
+    assert maps == ["scan_textured_0_v2_defrag.png"], maps
+
+
 def test_gnu_parallel_recipe_skips_what_is_done(tmp_path):
     """The README's GNU parallel recipe, with -S : (this machine as the one
     login) over three models: every output written; run again, nothing is

@@ -17,7 +17,8 @@ from blenv import HERE, REPO, require_native
 BPY5_PYTHON = Path(os.environ.get("ATLAS_BPY5_PYTHON", REPO / ".venv-bpy5" / "bin" / "python"))
 SUITES = ["test_bl_bpy45.py", "test_bl_io_bpy45.py", "test_bl_ui_bpy.py", "test_bl_png.py", "test_bl_job.py",
           "test_bl_packaging.py::test_install_extension_bpy45", "test_bl_batch.py::test_batch45_obj_to_glb_and_back",
-          "test_bl_batch.py::test_batch45_glb_to_obj"]
+          "test_bl_batch.py::test_batch45_glb_to_obj",
+          "test_bl_batch.py::test_batch_openmvs_ply_keeps_its_face_uvs[bpy45]"]
 
 
 def test_bpy50_suites():

@@ -195,6 +195,25 @@ def test_operator_properties_follow_the_schema(pkg):
             assert p.default == pytest.approx(o.default)
 
 
+def test_import_textured_scan_ply(pkg, tmp_path):
+    """File > Import > Textured Scan PLY: the per-face UVs and the TextureFile
+    image reach the mesh, which the add-on then reads as the OBJ's; a broken
+    file is reported and adds nothing."""
+    H.reset()
+    textured = H.openmvs_style_ply(tmp_path / "scan.ply")
+    assert bpy.ops.import_mesh.textured_scan_ply(filepath=str(tmp_path / "scan.ply")) == {"FINISHED"}
+    obj = bpy.context.view_layer.objects.active
+    assert obj.name == "scan" and len(obj.data.polygons) == 13666 and obj.data.uv_layers.active.name == "UVMap"
+    r = pkg.read_bpy.read(obj)
+    assert [m.image for m in r.job.pages[0].maps] == ["textured_0_v2.jpg"]
+    assert int((r.job.mesh.face_page >= 0).sum()) == textured
+    (tmp_path / "cut.ply").write_bytes((tmp_path / "scan.ply").read_bytes()[:-100])
+    count = len(bpy.data.objects)
+    with pytest.raises(RuntimeError, match="ends inside its 'face' element"):
+        bpy.ops.import_mesh.textured_scan_ply(filepath=str(tmp_path / "cut.ply"))
+    assert len(bpy.data.objects) == count
+
+
 def test_read_gltf_wrap_emulation_and_transforms(pkg):
     """glTF mirrored-repeat emulation (maths between UV map and image) is a
     plain UV lookup; a texture transform (Mapping) is not, and says so."""

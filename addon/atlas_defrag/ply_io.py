@@ -6,7 +6,9 @@ Scanning pipelines write UVs in one of two ways, and both are read:
 - per vertex, `s t`, `u v`, `texture_u texture_v` or `texture_s texture_t`,
   with vertices split at seams (Blender, many scanner apps).
 Textures are the header's `comment TextureFile <name>` lines, in texnumber
-order. Polygons are fan-triangulated, as the OBJ reader does.
+order. Polygons are fan-triangulated, as the OBJ reader does. No bpy: the
+command-line entry (tools/scan_io.py) reads scans with it too, and the batch
+entry through ply_import.
 """
 from __future__ import annotations
 
@@ -107,7 +109,9 @@ def _binary_rows(element: Element, data: bytes, at: int, order: str):
                       (rows[f"v{i}"].reshape(-1), rows[f"n{i}"].astype(np.int64))
                       for i, p in enumerate(element.properties)}
             return values, at + element.count * dtype.itemsize
-    return _binary_rows_one_by_one(element, data, at, order)
+    def take(i, kind, n):
+        return np.frombuffer(data, order + kind, n, i), i + n * np.dtype(kind).itemsize
+    return _rows_one_by_one(element, at, take)
 
 
 def _collected(element: Element, columns: dict, counts: dict) -> dict:
@@ -118,18 +122,20 @@ def _collected(element: Element, columns: dict, counts: dict) -> dict:
             (flat(columns[p.name]), np.array(counts[p.name], dtype=np.int64)) for p in element.properties}
 
 
-def _binary_rows_one_by_one(element: Element, data: bytes, at: int, order: str):
+def _rows_one_by_one(element: Element, at, take):
+    """(values, position after the element), where take(at, type, n) gives
+    n values of numpy type `type` at position `at` and the position after them."""
     columns = {p.name: [] for p in element.properties}
     counts = {p.name: [] for p in element.properties if p.count_type is not None}
     for _ in range(element.count):
         for p in element.properties:
             n = 1
             if p.count_type is not None:
-                n = int(np.frombuffer(data, order + p.count_type, 1, at)[0])
-                at += np.dtype(p.count_type).itemsize
+                count, at = take(at, p.count_type, 1)
+                n = int(count[0])
                 counts[p.name].append(n)
-            columns[p.name].append(np.frombuffer(data, order + p.type, n, at))
-            at += n * np.dtype(p.type).itemsize
+            values, at = take(at, p.type, n)
+            columns[p.name].append(values)
     return _collected(element, columns, counts), at
 
 
@@ -155,22 +161,7 @@ def _ascii_rows(element: Element, numbers: np.ndarray, at: int):
                 break
         else:
             return values, end
-    return _ascii_rows_one_by_one(element, numbers, at)
-
-
-def _ascii_rows_one_by_one(element: Element, numbers: np.ndarray, at: int):
-    columns = {p.name: [] for p in element.properties}
-    counts = {p.name: [] for p in element.properties if p.count_type is not None}
-    for _ in range(element.count):
-        for p in element.properties:
-            n = 1
-            if p.count_type is not None:
-                n = int(numbers[at])
-                at += 1
-                counts[p.name].append(n)
-            columns[p.name].append(numbers[at:at + n])
-            at += n
-    return _collected(element, columns, counts), at
+    return _rows_one_by_one(element, at, lambda i, _, n: (numbers[i:i + n], i + n))
 
 
 def read_elements(data: bytes, fmt: str, elements: list, body: int) -> dict:
