@@ -333,16 +333,21 @@ std::vector<std::vector<int>> texel_charts(const UvLayout& atlas, const std::vec
     if (p < 0 || face_chart[f] < 0) continue;
     const PageSize page = sizes[p];
     const Eigen::Vector2d scale(page.width, page.height);
+    Eigen::Vector2d corner[3];
+    for (int k = 0; k < 3; ++k) corner[k] = atlas.corner_uv->row(3 * f + k).transpose().cwiseProduct(scale);
+    // Tiled UVs (UDIM tiles, repeating textures) are read wrapped, as
+    // sample_texture reads them: the triangle moves by whole pages to start
+    // in this one, and what passes its far borders wraps around.
+    const Eigen::Vector2d tile =
+        (corner[0].cwiseMin(corner[1]).cwiseMin(corner[2]).array() / scale.array()).floor().matrix();
+    const Eigen::Vector2d shift = tile.cwiseProduct(scale);
     TexelTriangle t;
-    if (!t.setup(atlas.corner_uv->row(3 * f).transpose().cwiseProduct(scale),
-                 atlas.corner_uv->row(3 * f + 1).transpose().cwiseProduct(scale),
-                 atlas.corner_uv->row(3 * f + 2).transpose().cwiseProduct(scale)))
-      continue;
-    for (int y = std::max(0, t.row_begin); y < std::min(page.height, t.row_end); ++y) {
+    if (!tile.allFinite() || !t.setup(corner[0] - shift, corner[1] - shift, corner[2] - shift)) continue;
+    for (int y = std::max(0, t.row_begin); y < std::min(t.row_begin + page.height, t.row_end); ++y) {
       int x0, x1;
       t.row_span(y, x0, x1);
-      for (int x = std::max(0, x0); x < std::min(page.width, x1); ++x) {
-        int& o = owner[p][static_cast<size_t>(y) * page.width + x];
+      for (int x = std::max(0, x0); x < std::min(x0 + page.width, x1); ++x) {
+        int& o = owner[p][static_cast<size_t>(y % page.height) * page.width + x % page.width];
         o = o == kNoChart || o == face_chart[f] ? face_chart[f] : kManyCharts;
       }
     }

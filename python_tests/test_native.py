@@ -145,6 +145,23 @@ def test_bake_keeps_colours(native, scans, tetra_result):
     assert fidelity["psnr_db"] > 30
 
 
+def test_clean_samples_of_a_tiled_atlas_are_told_apart(native, scans, tetra_result):
+    """UVs one or more pages off (UDIM tiles, as Meshroom writes them) read
+    the texture wrapped: the split into clean and border samples is that of
+    the same atlas in its first tile."""
+    import scan_io
+
+    scan, result = tetra_result
+    old = [scan_io.load_image(p) for p in scan.page_images]
+    new = native.bake(scan.uvs, scan.face_page, old, result["uvs"], result["face_page"], result["page_sizes"])
+    figures = []
+    for shift in ((0, 0), (1, 0), (-3, 2)):
+        fidelity = native.compare_colors(scan.positions, scan.triangles, scan.uvs + shift, scan.face_page, old,
+                                         result["uvs"], result["face_page"], new, samples=20000)
+        figures.append((fidelity["clean_share"], round(fidelity["psnr_db"], 6)))
+    assert figures[0][0] > 0.9 and figures[1:] == figures[:1] * 2, figures
+
+
 def test_progress_and_cancel(native, scans):
     scan = scans("tetra")
     stages = []
