@@ -147,6 +147,42 @@ def test_cli_names_what_is_wrong_with_a_bad_gltf(tool_env, tmp_path, changes, me
     assert not (tmp_path / "out").exists()
 
 
+def _textured_triangle_gltf(tmp_path, material: dict, texture: dict):
+    """One triangle with UVs, the given material and texture; image 0 a 6 x 4 WebP."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    webp = io.BytesIO()
+    Image.new("RGB", (6, 4), (200, 100, 50)).save(webp, "WEBP")
+    data = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes() + \
+        np.array([[0, 0], [1, 0], [0, 1]], np.float32).tobytes()
+    return _one_triangle_gltf(
+        tmp_path, "textured.gltf",
+        meshes=[{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 0}]}],
+        accessors=[{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+                   {"bufferView": 0, "byteOffset": 36, "componentType": 5126, "count": 3, "type": "VEC2"}],
+        bufferViews=[{"buffer": 0, "byteLength": len(data)}],
+        buffers=[{"byteLength": len(data), "uri": "data:;base64," + base64.b64encode(data).decode()}],
+        materials=[material], textures=[texture],
+        images=[{"uri": "data:image/webp;base64," + base64.b64encode(webp.getvalue()).decode()}])
+
+
+def test_gltf_diffuse_texture_and_webp_images_are_read(tmp_path):
+    """Specular-glossiness materials give their diffuse texture, EXT_texture_webp its image."""
+    import scan_io
+
+    spec_gloss = {"extensions": {"KHR_materials_pbrSpecularGlossiness": {"diffuseTexture": {"index": 0}}}}
+    scan = scan_io.load(_textured_triangle_gltf(tmp_path, spec_gloss, {"extensions": {"EXT_texture_webp": {"source": 0}}}))
+    assert scan.face_page.tolist() == [0] and scan.page_sizes.tolist() == [[6, 4]]
+    assert scan_io.load_image(scan.page_images[0])[0, 0].tolist() == pytest.approx([200, 100, 50], abs=8)
+    ktx2_only = {"extensions": {"KHR_texture_basisu": {"source": 0}}}
+    with pytest.raises(ValueError, match="no image this reader can decode .KHR_texture_basisu"):
+        scan_io.load(_textured_triangle_gltf(tmp_path, {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+                                             ktx2_only))
+
+
 @pytest.mark.parametrize("mode", ["L", "I;16"])
 def test_grey_images_load_as_one_channel(mode):
     """8-bit grey as it is; 16-bit grey scaled to 8 bits (Pillow's own

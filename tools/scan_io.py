@@ -171,8 +171,24 @@ def _uri_bytes(uri: str, folder: Path) -> bytes:
     return (folder / urllib.parse.unquote(uri)).read_bytes()
 
 
+class UnreadableTexture(ValueError):
+    """A texture whose images are all in formats this reader cannot decode."""
+
+
+def _texture_source(texture: dict) -> int:
+    """The image of a texture: its own source (the PNG or JPEG fallback when
+    there is one), else the WebP one of EXT_texture_webp, which Pillow reads.
+    ValueError for images only in formats Pillow cannot read (KTX2)."""
+    if "source" in texture:
+        return texture["source"]
+    extensions = texture.get("extensions", {})
+    if "source" in extensions.get("EXT_texture_webp", {}):
+        return extensions["EXT_texture_webp"]["source"]
+    raise UnreadableTexture(f"a texture has no image this reader can decode ({', '.join(extensions) or 'no source'})")
+
+
 def _image_bytes(gltf: dict, buffers: list, folder: Path, texture_index: int) -> bytes:
-    image = gltf["images"][gltf["textures"][texture_index]["source"]]
+    image = gltf["images"][_texture_source(gltf["textures"][texture_index])]
     if "uri" in image:
         return _uri_bytes(image["uri"], folder)
     view = gltf["bufferViews"][image["bufferView"]]
@@ -249,6 +265,8 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
                          "support")
     try:
         scan = _scan_from_gltf(gltf, read_buffers(), path.parent)
+    except UnreadableTexture:
+        raise
     except OSError as exc:
         raise ValueError(f"a file it refers to cannot be read: {exc}") from exc
     except (KeyError, IndexError, TypeError, AttributeError, ValueError, struct.error) as exc:
@@ -279,7 +297,10 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
             idx = _primitive_triangles(gltf, buffers, prim, len(pos))
             material = gltf["materials"][prim["material"]] if "material" in prim else {}
             pbr = material.get("pbrMetallicRoughness", {})
-            tex = pbr.get("baseColorTexture")
+            # Older exports (Sketchfab among them) give the colour as the diffuse
+            # texture of the specular-glossiness extension only.
+            tex = pbr.get("baseColorTexture") or material.get("extensions", {}).get(
+                "KHR_materials_pbrSpecularGlossiness", {}).get("diffuseTexture")
             if "TEXCOORD_0" in prim["attributes"]:
                 uv = _accessor(gltf, buffers, prim["attributes"]["TEXCOORD_0"]).astype(np.float64)
                 uv[:, 1] = 1.0 - uv[:, 1]  # glTF puts v = 0 at the top
