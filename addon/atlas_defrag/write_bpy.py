@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import tempfile
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Tuple
@@ -225,6 +226,9 @@ def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
     except BaseException:
         journal.rollback()
         raise
+    finally:
+        if storage == "PACK":  # the packed images hold the bytes now: runs would pile up pages here
+            shutil.rmtree(image_dir, ignore_errors=True)
 
 
 def _remove_file(path: str) -> None:

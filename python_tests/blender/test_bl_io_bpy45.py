@@ -231,7 +231,8 @@ def test_read_gltf_wrap_emulation_and_transforms(pkg):
 
 def test_write_float_image_packed(pkg):
     """Packed float images: written to a temporary EXR first, then packed; the
-    path ends in the image's name (what exporters name the texture)."""
+    path ends in the image's name (what exporters name the texture), and the
+    temporary file is gone once the bytes are packed."""
     H.reset()
     obj = H.textured_plane(float_buffer=True, image_size=(16, 8))
     settings = pkg.api.Settings.from_kwargs()
@@ -241,6 +242,7 @@ def test_write_float_image_packed(pkg):
     img = bpy.data.images[report["images"][0]]
     assert img.is_float and img.packed_file is not None
     assert os.path.basename(img.filepath) == "Plane_tex_defrag.exr", img.filepath
+    assert not os.path.exists(os.path.dirname(bpy.path.abspath(img.filepath)))
     b = np.empty(len(img.pixels), np.float32)
     img.pixels.foreach_get(b)
     assert np.allclose(b.reshape(8, 16, 4), src.pixels, atol=1e-4)
