@@ -64,3 +64,15 @@ def test_obj_material_libraries_found_and_checked(tmp_path):
     batch._verify_obj_references(str(tmp_path), "scan.obj", ["a.png"])
     with pytest.raises(batch.BatchError, match="do not name b.png"):
         batch._verify_obj_references(str(tmp_path), "scan.obj", ["a.png", "b.png"])
+
+
+def test_importer_errors_come_without_their_traceback():
+    wrapped = RuntimeError(
+        "Error: Python: Traceback (most recent call last):\n"
+        '  File "/usr/share/blender/scripts/addons/io_scene_gltf2/__init__.py", line 1245, in execute\n'
+        "    return self.import_gltf2(context)\n"
+        "RuntimeError: internal error setting the array\n\n"
+        "Location: /usr/share/blender/scripts/modules/bpy/ops.py:113\n")
+    assert batch._importer_error(wrapped) == "RuntimeError: internal error setting the array"
+    plain = RuntimeError("Error: Couldn't parse glTF. Check that the file is valid\n\nLocation: ops.py:113")
+    assert batch._importer_error(plain) == "Error: Couldn't parse glTF. Check that the file is valid"

@@ -26,6 +26,7 @@ import importlib
 import importlib.util
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -127,9 +128,30 @@ def _has_op(module, name: str) -> bool:
 
 
 def import_model(path: str):
+    """The objects an importer made of path; BatchError naming what failed."""
+    import bpy
+    before = set(bpy.data.objects)
+    try:
+        _run_importer(path)
+    except RuntimeError as exc:
+        raise BatchError(f"Blender's importer failed: {_importer_error(exc)}") from exc
+    new = [o for o in bpy.data.objects if o not in before]
+    if not any(o.type == "MESH" for o in new):
+        raise BatchError(f"no mesh imported from {path}")
+    return new
+
+
+def _importer_error(exc: RuntimeError) -> str:
+    """The error an import operator raised, without the traceback and the
+    operator's location that Blender wraps it in."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip() and not ln.startswith("Location:")]
+    errors = [ln for ln in lines if re.match(r"^(\w+(Error|Exception)|Error):", ln)]
+    return (errors or lines or [repr(exc)])[-1]
+
+
+def _run_importer(path: str) -> None:
     import bpy
     ext = os.path.splitext(path)[1].lower()
-    before = set(bpy.data.objects)
     if ext == ".obj":
         if _has_op(bpy.ops.wm, "obj_import"):
             bpy.ops.wm.obj_import(filepath=path)
@@ -145,10 +167,6 @@ def import_model(path: str):
             raise BatchError(f"cannot read {path}: {exc}") from exc
     else:
         raise BatchError(f"unsupported input format '{ext}' (use {', '.join(INPUT_EXTS)})")
-    new = [o for o in bpy.data.objects if o not in before]
-    if not any(o.type == "MESH" for o in new):
-        raise BatchError(f"no mesh imported from {path}")
-    return new
 
 
 def _give_texture(pkg, obj, image_path: str):
