@@ -22,6 +22,33 @@ MergeCheck refused(MergeRefusal why) {
   return out;
 }
 
+// shared (n) edges and the shared edges at each of their vertices. When they
+// form one closed loop (two charts that together close a surface, as the two
+// halves of a small floating blob do), the loop's edges labelled 0 for the
+// first half of its length, walking from shared[0], and 1 for the rest: two
+// arcs, either of which welds into a disk. Empty otherwise.
+std::vector<int> loop_halves(const MeshTopology& topology, const std::vector<int>& shared,
+                             const std::unordered_map<int, std::vector<int>>& edges_at_vertex,
+                             const std::vector<double>& edge_lengths) {
+  const int n = static_cast<int>(shared.size());
+  for (const auto& [vertex, edges] : edges_at_vertex)
+    if (edges.size() != 2) return {};
+  const double total = std::accumulate(edge_lengths.begin(), edge_lengths.end(), 0.0);
+  std::vector<int> half(n, -1);
+  double walked = 0;
+  int edge = 0, vertex = topology.edge_vertices(shared[0], 1);
+  for (int step = 0; step < n; ++step) {
+    if (half[edge] >= 0) return {};  // back at the start before visiting every edge: several loops
+    half[edge] = walked < 0.5 * total ? 0 : 1;
+    walked += edge_lengths[edge];
+    const std::vector<int>& at = edges_at_vertex.at(vertex);
+    edge = at[0] == edge ? at[1] : at[0];
+    vertex = topology.edge_vertices(shared[edge], 0) == vertex ? topology.edge_vertices(shared[edge], 1)
+                                                               : topology.edge_vertices(shared[edge], 0);
+  }
+  return half;
+}
+
 }  // namespace
 
 DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
@@ -172,7 +199,8 @@ MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
   return refused(MergeRefusal::NotDisk);
 }
 
-// Arcs: maximal simple paths of shared edges. All arcs but one are marked
+// Arcs: maximal simple paths of shared edges (a closed loop counts as its two
+// halves). All arcs but one are marked
 // seams for the time of one weld_all, which says whether the union is then
 // acceptable (two disks sharing k arcs make chi = 2 - k when all are welded,
 // and a disk when one is). The longest arcs are tried first, a few of them,
@@ -192,14 +220,16 @@ MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& 
   UnionFind arcs(n);
   for (const auto& [vertex, edges] : edges_at_vertex)
     if (edges.size() == 2 && fan_count(vertex, a, a) == 1 && fan_count(vertex, b, b) == 1) arcs.unite(edges[0], edges[1]);
-  const std::vector<int> arc = arcs.dense_labels();
-  const int arc_count = *std::max_element(arc.begin(), arc.end()) + 1;
-  if (arc_count == 1) return refused(MergeRefusal::NotDisk);
-  std::vector<double> length(arc_count, 0.0), edge_lengths(n);
-  for (int i = 0; i < n; ++i) {
-    edge_lengths[i] = edge_length(mesh_, topology_, shared[i]);
-    length[arc[i]] += edge_lengths[i];
+  std::vector<double> edge_lengths(n);
+  for (int i = 0; i < n; ++i) edge_lengths[i] = edge_length(mesh_, topology_, shared[i]);
+  std::vector<int> arc = arcs.dense_labels();
+  if (*std::max_element(arc.begin(), arc.end()) == 0) {
+    arc = loop_halves(topology_, shared, edges_at_vertex, edge_lengths);
+    if (arc.empty()) return refused(MergeRefusal::NotDisk);
   }
+  const int arc_count = *std::max_element(arc.begin(), arc.end()) + 1;
+  std::vector<double> length(arc_count, 0.0);
+  for (int i = 0; i < n; ++i) length[arc[i]] += edge_lengths[i];
   const double shared_length = std::accumulate(edge_lengths.begin(), edge_lengths.end(), 0.0);
   std::vector<int> order(arc_count);
   std::iota(order.begin(), order.end(), 0);
