@@ -116,51 +116,103 @@ struct Coverage {
   long long overlap = 0;
 };
 
-Coverage rasterise_coverage(const Mesh& mesh, const UvLayout& atlas) {
-  const int faces = mesh.face_count();
+// The faces' UV triangles in texels, rows clipped to their page, and per
+// face whether it claims any texel of its page (untextured faces do not).
+struct PageTriangles {
+  std::vector<TexelTriangle> tri;
+  std::vector<char> live;
+};
+
+PageTriangles page_triangles(const UvLayout& atlas, int faces) {
   const std::vector<PageSize>& pages = *atlas.pages;
   const Eigen::VectorXi& face_page = *atlas.face_page;
-
-  std::vector<TexelTriangle> tri(faces);
-  std::vector<char> live(faces, 0);
+  PageTriangles out{std::vector<TexelTriangle>(faces), std::vector<char>(faces, 0)};
 #pragma omp parallel for schedule(static)
   for (int f = 0; f < faces; ++f) {
     const int p = face_page[f];
     if (p < 0) continue;
-    if (!tri[f].setup(atlas.uv_texels(f, 0), atlas.uv_texels(f, 1), atlas.uv_texels(f, 2))) continue;
-    TexelTriangle& t = tri[f];
+    if (!out.tri[f].setup(atlas.uv_texels(f, 0), atlas.uv_texels(f, 1), atlas.uv_texels(f, 2))) continue;
+    TexelTriangle& t = out.tri[f];
     t.row_begin = std::max(t.row_begin, 0);
     t.row_end = std::min(t.row_end, pages[p].height);
-    live[f] = t.row_begin < t.row_end && t.col_begin < pages[p].width && t.col_end > 0;
+    out.live[f] = t.row_begin < t.row_end && t.col_begin < pages[p].width && t.col_end > 0;
   }
+  return out;
+}
 
-  // Global band numbering: page p owns bands [band_base[p], band_base[p+1]).
-  std::vector<int> band_base(pages.size() + 1, 0);
-  for (std::size_t p = 0; p < pages.size(); ++p)
-    band_base[p + 1] = band_base[p] + (pages[p].height + kBandRows - 1) / kBandRows;
-  const int bands = band_base.back();
-
+// The pages cut into bands of kBandRows rows, and the live faces of every
+// band: what one coverage work item counts.
+struct Bands {
+  // Global band numbering: page p owns bands [base[p], base[p+1]).
+  std::vector<int> base;
+  std::vector<int> page;  // per band
   // Faces of every band (CSR, in face order).
-  std::vector<long long> offsets(bands + 1, 0);
-  for (int f = 0; f < faces; ++f) {
-    if (!live[f]) continue;
-    const int base = band_base[face_page[f]];
-    for (int b = tri[f].row_begin / kBandRows; b <= (tri[f].row_end - 1) / kBandRows; ++b) ++offsets[base + b + 1];
-  }
-  for (int b = 0; b < bands; ++b) offsets[b + 1] += offsets[b];
-  std::vector<int> band_faces(offsets.back());
-  {
-    std::vector<long long> cursor(offsets.begin(), offsets.end() - 1);
+  std::vector<long long> offsets;
+  std::vector<int> faces;
+};
+
+Bands face_bands(const std::vector<PageSize>& pages, const Eigen::VectorXi& face_page, const PageTriangles& clipped) {
+  const int faces = static_cast<int>(clipped.tri.size());
+  Bands out;
+  out.base.assign(pages.size() + 1, 0);
+  for (std::size_t p = 0; p < pages.size(); ++p)
+    out.base[p + 1] = out.base[p] + (pages[p].height + kBandRows - 1) / kBandRows;
+  const int bands = out.base.back();
+  // Calls visit(band, face) for every band each live face meets, in face order.
+  auto for_each_face_band = [&](auto visit) {
     for (int f = 0; f < faces; ++f) {
-      if (!live[f]) continue;
-      const int base = band_base[face_page[f]];
-      for (int b = tri[f].row_begin / kBandRows; b <= (tri[f].row_end - 1) / kBandRows; ++b)
-        band_faces[cursor[base + b]++] = f;
+      if (!clipped.live[f]) continue;
+      const int base = out.base[face_page[f]];
+      const TexelTriangle& t = clipped.tri[f];
+      for (int b = t.row_begin / kBandRows; b <= (t.row_end - 1) / kBandRows; ++b) visit(base + b, f);
+    }
+  };
+  out.offsets.assign(bands + 1, 0);
+  for_each_face_band([&](int b, int) { ++out.offsets[b + 1]; });
+  for (int b = 0; b < bands; ++b) out.offsets[b + 1] += out.offsets[b];
+  out.faces.resize(out.offsets.back());
+  std::vector<long long> cursor(out.offsets.begin(), out.offsets.end() - 1);
+  for_each_face_band([&](int b, int f) { out.faces[cursor[b]++] = f; });
+  out.page.resize(bands);
+  for (std::size_t p = 0; p < pages.size(); ++p)
+    for (int b = out.base[p]; b < out.base[p + 1]; ++b) out.page[b] = static_cast<int>(p);
+  return out;
+}
+
+// Covered and overlapping texels of band b, counted in `band` (a buffer of
+// kBandRows rows of the widest page).
+Coverage band_coverage(const std::vector<PageSize>& pages, const Bands& bands, const std::vector<TexelTriangle>& tri,
+                       int b, std::uint8_t* band) {
+  const int p = bands.page[b], width = pages[p].width;
+  const int y0 = (b - bands.base[p]) * kBandRows, y1 = std::min(pages[p].height, y0 + kBandRows);
+  std::memset(band, 0, static_cast<std::size_t>(width) * (y1 - y0));
+  for (long long i = bands.offsets[b]; i < bands.offsets[b + 1]; ++i) {
+    const TexelTriangle& t = tri[bands.faces[i]];
+    const int ya = std::max(y0, t.row_begin), yb = std::min(y1, t.row_end);
+    for (int y = ya; y < yb; ++y) {
+      int xa, xb;
+      t.row_span(y, xa, xb);
+      xa = std::max(xa, 0);
+      xb = std::min(xb, width);
+      std::uint8_t* row = band + static_cast<std::size_t>(y - y0) * width;
+      for (int x = xa; x < xb; ++x) row[x] = static_cast<std::uint8_t>(row[x] + (row[x] < 2));
     }
   }
-  std::vector<int> band_page(bands);
-  for (std::size_t p = 0; p < pages.size(); ++p)
-    for (int b = band_base[p]; b < band_base[p + 1]; ++b) band_page[b] = static_cast<int>(p);
+  const std::size_t n = static_cast<std::size_t>(width) * (y1 - y0);
+  Coverage c;
+  for (std::size_t i = 0; i < n; ++i) {
+    c.covered += band[i] != 0;
+    c.overlap += band[i] == 2;
+  }
+  return c;
+}
+
+// Texels of the pages that faces cover, and those two or more faces cover.
+Coverage rasterise_coverage(const Mesh& mesh, const UvLayout& atlas) {
+  const std::vector<PageSize>& pages = *atlas.pages;
+  const PageTriangles clipped = page_triangles(atlas, mesh.face_count());
+  const Bands bands = face_bands(pages, *atlas.face_page, clipped);
+  const int band_count = static_cast<int>(bands.page.size());
 
   int widest = 0;
   for (const PageSize& p : pages) widest = std::max(widest, p.width);
@@ -175,32 +227,11 @@ Coverage rasterise_coverage(const Mesh& mesh, const UvLayout& atlas) {
   {
     std::vector<std::uint8_t>& counts = band_counts[omp_get_thread_num()];
 #pragma omp for schedule(dynamic, 4)
-    for (int b = 0; b < bands; ++b) {
-      if (offsets[b] == offsets[b + 1]) continue;
-      const int p = band_page[b], width = pages[p].width;
-      const int y0 = (b - band_base[p]) * kBandRows, y1 = std::min(pages[p].height, y0 + kBandRows);
-      std::uint8_t* band = counts.data();
-      std::memset(band, 0, static_cast<std::size_t>(width) * (y1 - y0));
-      for (long long i = offsets[b]; i < offsets[b + 1]; ++i) {
-        const TexelTriangle& t = tri[band_faces[i]];
-        const int ya = std::max(y0, t.row_begin), yb = std::min(y1, t.row_end);
-        for (int y = ya; y < yb; ++y) {
-          int xa, xb;
-          t.row_span(y, xa, xb);
-          xa = std::max(xa, 0);
-          xb = std::min(xb, width);
-          std::uint8_t* row = band + static_cast<std::size_t>(y - y0) * width;
-          for (int x = xa; x < xb; ++x) row[x] = static_cast<std::uint8_t>(row[x] + (row[x] < 2));
-        }
-      }
-      const std::size_t n = static_cast<std::size_t>(width) * (y1 - y0);
-      long long c = 0, o = 0;
-      for (std::size_t i = 0; i < n; ++i) {
-        c += band[i] != 0;
-        o += band[i] == 2;
-      }
-      covered += c;
-      overlap += o;
+    for (int b = 0; b < band_count; ++b) {
+      if (bands.offsets[b] == bands.offsets[b + 1]) continue;
+      const Coverage c = band_coverage(pages, bands, clipped.tri, b, counts.data());
+      covered += c.covered;
+      overlap += c.overlap;
     }
   }
   return {covered, overlap};
@@ -377,6 +408,120 @@ double psnr_of(double error, long long values) {
   return std::isfinite(psnr) ? std::clamp(psnr, -kMaxPsnrDb, kMaxPsnrDb) : -kMaxPsnrDb;
 }
 
+// Faces textured in both layouts with positive 3D area, and the cumulative
+// 3D area over them: what surface points are drawn from.
+struct AreaCdf {
+  std::vector<int> face;
+  std::vector<double> cdf;
+  double total = 0;
+};
+
+AreaCdf textured_area(const Mesh& mesh, const UvLayout& old_atlas, const UvLayout& new_atlas) {
+  AreaCdf out;
+  for (int f = 0; f < mesh.face_count(); ++f) {
+    if ((*old_atlas.face_page)[f] < 0 || (*new_atlas.face_page)[f] < 0) continue;
+    const double a = mesh.area_3d(f);
+    if (!(a > 0)) continue;
+    out.total += a;
+    out.face.push_back(f);
+    out.cdf.push_back(out.total);
+  }
+  return out;
+}
+
+// The two layouts compared, with what tells a clean sample from a border one.
+template <class T>
+struct ColorPair {
+  const UvLayout& old_atlas;
+  const std::vector<ImageView<T>>& old_images;
+  const UvLayout& new_atlas;
+  const std::vector<ImageView<T>>& new_images;
+  const std::vector<int>& face_chart;          // per face
+  const std::vector<std::vector<int>>& owner;  // texel_charts of the old layout
+  const std::vector<PageSize>& old_sizes;      // of the old images
+};
+
+// Colour differences of some samples; [0] clean and [1] border points.
+struct ColorSums {
+  std::array<double, 2> error = {0.0, 0.0};  // squared differences
+  std::array<long long, 2> values = {0, 0};  // channel values compared
+  long long off = 0, clean = 0;              // samples off by > 32/255, clean samples
+};
+
+// Texel position in `image` of barycentrics (w0, w1, w2) of face f in `atlas`.
+template <class T>
+Eigen::Vector2d texel_at(const UvLayout& atlas, const ImageView<T>& image, int f, double w0, double w1, double w2) {
+  const RowMatrixX2d& uv = *atlas.corner_uv;
+  const Eigen::Vector2d p = w0 * uv.row(3 * f).transpose() + w1 * uv.row(3 * f + 1).transpose() +
+                            w2 * uv.row(3 * f + 2).transpose();
+  return Eigen::Vector2d(p.x() * image.width, p.y() * image.height);
+}
+
+// Adds to sums the colours of both layouts at barycentrics (w0, w1, w2) of face f.
+template <class T>
+void add_sample(const ColorPair<T>& pair, int f, double w0, double w1, double w2, ColorSums& sums) {
+  double old_px[kMaxTexelChannels], new_px[kMaxTexelChannels];
+  const int old_page = (*pair.old_atlas.face_page)[f];
+  const ImageView<T>& old_image = pair.old_images[old_page];
+  const ImageView<T>& new_image = pair.new_images[(*pair.new_atlas.face_page)[f]];
+  const Eigen::Vector2d old_at = texel_at(pair.old_atlas, old_image, f, w0, w1, w2);
+  sample_texture(old_image, old_at, Footprint{}, old_px);
+  sample_texture(new_image, texel_at(pair.new_atlas, new_image, f, w0, w1, w2), Footprint{}, new_px);
+  const int kind =
+      bilinear_texels_in_chart(pair.owner[old_page], pair.old_sizes[old_page], old_at, pair.face_chart[f]) ? 0 : 1;
+  const int channels = std::min({3, old_image.channels, new_image.channels});
+  bool is_off = false;
+  for (int c = 0; c < channels; ++c) {
+    double d = std::abs(new_px[c] - old_px[c]) * texel_scale<T>();
+    if (!std::isfinite(d)) d = 1.0;
+    sums.error[kind] += d * d;
+    is_off = is_off || d > 32.0 / 255.0;
+  }
+  sums.values[kind] += channels;
+  sums.off += is_off;
+  sums.clean += kind == 0;
+}
+
+// Sums of samples [begin, end) of `samples`, drawn over `area` from `stream`.
+template <class T>
+ColorSums sample_run(const ColorPair<T>& pair, const AreaCdf& area, int samples, std::uint64_t stream, int begin,
+                     int end) {
+  ColorSums sums;
+  // Jittered stratified picks: sample i lands uniformly in the i-th of `samples`
+  // equal slices of the cumulative area, so picks rise with i and the face search
+  // is a merge walk; samples of one face are consecutive, which keeps texel reads local.
+  std::size_t j = 0;
+  for (int i = begin; i < end; ++i) {
+    const std::uint64_t state = stream + 3 * static_cast<std::uint64_t>(i);
+    const double pick = (i + unit_double(splitmix64(state))) / samples * area.total;
+    const double s = std::sqrt(unit_double(splitmix64(state + 1))), t = unit_double(splitmix64(state + 2));
+    if (i == begin) j = std::upper_bound(area.cdf.begin(), area.cdf.end(), pick) - area.cdf.begin();
+    while (j < area.cdf.size() && area.cdf[j] <= pick) ++j;
+    j = std::min(j, area.face.size() - 1);
+    const double w0 = 1 - s, w1 = s * (1 - t), w2 = s * t;  // uniform barycentrics
+    add_sample(pair, area.face[j], w0, w1, w2, sums);
+  }
+  return sums;
+}
+
+// The fidelity figures of `samples` samples from their sums per chunk, added in chunk order.
+ColorFidelity fidelity_of(const std::vector<ColorSums>& chunk_sums, int samples) {
+  ColorSums sums;
+  for (const ColorSums& chunk : chunk_sums) {
+    for (int k = 0; k < 2; ++k) sums.error[k] += chunk.error[k], sums.values[k] += chunk.values[k];
+    sums.off += chunk.off;
+    sums.clean += chunk.clean;
+  }
+  ColorFidelity result;
+  result.clean_samples = sums.clean;
+  result.samples = samples;
+  result.share_off_32 = static_cast<double>(sums.off) / samples;
+  result.psnr_db = psnr_of(sums.error[0] + sums.error[1], sums.values[0] + sums.values[1]);
+  result.psnr_clean_db = psnr_of(sums.error[0], sums.values[0]);
+  result.psnr_border_db = psnr_of(sums.error[1], sums.values[1]);
+  return result;
+}
+
 }  // namespace
 
 template <class T>
@@ -387,102 +532,26 @@ ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const 
   require_layout(new_atlas, mesh.face_count(), "compare_colors (new)", Untextured::allowed);
   require_images(old_images, old_atlas, "old");
   require_images(new_images, new_atlas, "new");
-  ColorFidelity result;
-  const int faces = mesh.face_count();
-
-  // Cumulative 3D area over faces textured in both layouts.
-  std::vector<int> face;
-  std::vector<double> cdf;
-  double total = 0;
-  for (int f = 0; f < faces; ++f) {
-    if ((*old_atlas.face_page)[f] < 0 || (*new_atlas.face_page)[f] < 0) continue;
-    const double a = mesh.area_3d(f);
-    if (!(a > 0)) continue;
-    total += a;
-    face.push_back(f);
-    cdf.push_back(total);
-  }
-  if (face.empty() || samples <= 0) return result;
+  const AreaCdf area = textured_area(mesh, old_atlas, new_atlas);
+  if (area.face.empty() || samples <= 0) return ColorFidelity{};
 
   std::vector<PageSize> old_sizes;
   for (const ImageView<T>& image : old_images) old_sizes.push_back({image.width, image.height});
   const std::vector<int> face_chart =
       build_chart_graph(mesh, build_topology(mesh.triangles, mesh.vertex_count()), {}).face_chart;
   const std::vector<std::vector<int>> owner = texel_charts(old_atlas, old_sizes, face_chart);
+  const ColorPair<T> pair{old_atlas, old_images, new_atlas, new_images, face_chart, owner, old_sizes};
 
-  const double scale = texel_scale<T>();
   constexpr int kChunk = 4096;  // per-chunk partial sums keep the total independent of thread count
   const int chunks = (samples + kChunk - 1) / kChunk;
-  // Per chunk, [0] clean and [1] border points.
-  std::vector<std::array<double, 2>> chunk_error(chunks, {0.0, 0.0});
-  std::vector<std::array<long long, 2>> chunk_values(chunks, {0, 0});
-  std::vector<long long> chunk_off(chunks, 0), chunk_clean(chunks, 0);
+  std::vector<ColorSums> chunk_sums(chunks);
   const std::uint64_t stream = splitmix64(0x5eed0000ull ^ seed);
-
 #pragma omp parallel for schedule(dynamic, 1)
   for (int chunk = 0; chunk < chunks; ++chunk) {
     const int begin = chunk * kChunk, end = std::min(samples, begin + kChunk);
-    std::array<double, 2> error = {0.0, 0.0};
-    std::array<long long, 2> values = {0, 0};
-    long long off = 0, clean = 0;
-    double old_px[kMaxTexelChannels], new_px[kMaxTexelChannels];
-    // Jittered stratified picks: sample i lands uniformly in the i-th of `samples`
-    // equal slices of the cumulative area, so picks rise with i and the face search
-    // is a merge walk; samples of one face are consecutive, which keeps texel reads local.
-    std::size_t j = 0;
-    for (int i = begin; i < end; ++i) {
-      const std::uint64_t state = stream + 3 * static_cast<std::uint64_t>(i);
-      const double pick = (i + unit_double(splitmix64(state))) / samples * total;
-      const double s = std::sqrt(unit_double(splitmix64(state + 1))), t = unit_double(splitmix64(state + 2));
-      if (i == begin) j = std::upper_bound(cdf.begin(), cdf.end(), pick) - cdf.begin();
-      while (j < cdf.size() && cdf[j] <= pick) ++j;
-      j = std::min(j, face.size() - 1);
-      const int f = face[j];
-      const double w0 = 1 - s, w1 = s * (1 - t), w2 = s * t;  // uniform barycentrics
-      auto at = [&](const UvLayout& atlas, const ImageView<T>& image) {
-        const RowMatrixX2d& uv = *atlas.corner_uv;
-        const Eigen::Vector2d p = w0 * uv.row(3 * f).transpose() + w1 * uv.row(3 * f + 1).transpose() +
-                                  w2 * uv.row(3 * f + 2).transpose();
-        return Eigen::Vector2d(p.x() * image.width, p.y() * image.height);
-      };
-      const ImageView<T>& old_image = old_images[(*old_atlas.face_page)[f]];
-      const ImageView<T>& new_image = new_images[(*new_atlas.face_page)[f]];
-      const int old_page = (*old_atlas.face_page)[f];
-      const Eigen::Vector2d old_at = at(old_atlas, old_image);
-      sample_texture(old_image, old_at, Footprint{}, old_px);
-      sample_texture(new_image, at(new_atlas, new_image), Footprint{}, new_px);
-      const int kind = bilinear_texels_in_chart(owner[old_page], old_sizes[old_page], old_at, face_chart[f]) ? 0 : 1;
-      const int channels = std::min({3, old_image.channels, new_image.channels});
-      bool is_off = false;
-      for (int c = 0; c < channels; ++c) {
-        double d = std::abs(new_px[c] - old_px[c]) * scale;
-        if (!std::isfinite(d)) d = 1.0;
-        error[kind] += d * d;
-        is_off = is_off || d > 32.0 / 255.0;
-      }
-      values[kind] += channels;
-      off += is_off;
-      clean += kind == 0;
-    }
-    chunk_error[chunk] = error;
-    chunk_off[chunk] = off;
-    chunk_clean[chunk] = clean;
-    chunk_values[chunk] = values;
+    chunk_sums[chunk] = sample_run(pair, area, samples, stream, begin, end);
   }
-  std::array<double, 2> error = {0.0, 0.0};
-  std::array<long long, 2> values = {0, 0};
-  long long off = 0;
-  for (int c = 0; c < chunks; ++c) {
-    for (int k = 0; k < 2; ++k) error[k] += chunk_error[c][k], values[k] += chunk_values[c][k];
-    off += chunk_off[c];
-    result.clean_samples += chunk_clean[c];
-  }
-  result.samples = samples;
-  result.share_off_32 = static_cast<double>(off) / samples;
-  result.psnr_db = psnr_of(error[0] + error[1], values[0] + values[1]);
-  result.psnr_clean_db = psnr_of(error[0], values[0]);
-  result.psnr_border_db = psnr_of(error[1], values[1]);
-  return result;
+  return fidelity_of(chunk_sums, samples);
 }
 
 template ColorFidelity compare_colors<std::uint8_t>(const Mesh&, const UvLayout&,
