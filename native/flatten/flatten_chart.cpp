@@ -172,6 +172,132 @@ SubMesh sub_mesh(const Mesh& mesh, const std::vector<int>& faces) {
   return sub;
 }
 
+// Per member (its position in `members`), the members it shares a mergeable
+// adjacency of the graph with.
+std::vector<std::vector<int>> member_neighbours(const ChartGraph& graph, const std::vector<int>& members) {
+  std::unordered_map<int, int> local;
+  for (int i = 0; i < static_cast<int>(members.size()); ++i) local[members[i]] = i;
+  std::vector<std::vector<int>> neighbours(members.size());
+  for (const ChartAdjacency& adj : graph.adjacency) {
+    const auto a = local.find(adj.a), b = local.find(adj.b);
+    if (a == local.end() || b == local.end() || !adj.mergeable) continue;
+    neighbours[a->second].push_back(b->second);
+    neighbours[b->second].push_back(a->second);
+  }
+  return neighbours;
+}
+
+// Per edge of `sub` (the faces `faces`, labelled by member in `label`), the
+// seams its DiskClusters keeps: where a member meets itself in UV, and where
+// the graph keeps a seam.
+std::vector<char> member_seams(const MeshTopology& topology, const ChartGraph& graph, const std::vector<int>& faces,
+                               const SubMesh& sub, const std::vector<int>& label) {
+  // The graph's seams (partial merges' open arcs among them) stay open too.
+  std::vector<char> seams = self_seams(sub.topology, sub.mesh.triangles, sub.mesh.corner_uv, sub.mesh.face_page, label);
+  for (size_t i = 0; i < faces.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      if (graph.self_seam[topology.corner_edge[3 * faces[i] + k]]) seams[sub.topology.corner_edge[3 * i + k]] = 1;
+  return seams;
+}
+
+// The member reached last from `from` through the neighbours (breadth first;
+// the first of the farthest, never `from` itself).
+int farthest_member(const std::vector<std::vector<int>>& neighbours, int from) {
+  const int m = static_cast<int>(neighbours.size());
+  std::vector<int> distance(m, -1);
+  std::queue<int> bfs;
+  bfs.push(from);
+  distance[from] = 0;
+  while (!bfs.empty()) {
+    const int i = bfs.front();
+    bfs.pop();
+    for (int n : neighbours[i])
+      if (distance[n] < 0) distance[n] = distance[i] + 1, bfs.push(n);
+  }
+  int farthest = from == 0 ? 1 : 0;
+  for (int i = 0; i < m; ++i)
+    if (i != from && distance[i] > distance[farthest]) farthest = i;
+  return farthest;
+}
+
+// The two seeds of split_members (positions in `members`, areas `area`): the
+// largest member other than the culprit, and the culprit or else the member
+// farthest from the largest.
+std::pair<int, int> split_seeds(const std::vector<int>& members, const std::vector<double>& area,
+                                const std::vector<std::vector<int>>& neighbours, int culprit) {
+  const int m = static_cast<int>(members.size());
+  const int culprit_index = culprit < 0 ? -1 : static_cast<int>(std::find(members.begin(), members.end(), culprit) - members.begin());
+  int seed0 = culprit_index == 0 ? 1 : 0;
+  for (int i = 0; i < m; ++i)
+    if (i != culprit_index && area[i] > area[seed0]) seed0 = i;
+  return {seed0, culprit_index < 0 ? farthest_member(neighbours, seed0) : culprit_index};
+}
+
+// Groups of members (positions in the members) that grow a neighbour at a
+// time while DiskClusters finds the union a disk.
+class MemberGroups {
+ public:
+  MemberGroups(DiskClusters& disks, const std::vector<std::vector<int>>& neighbours, const std::vector<double>& area)
+      : disks_(disks), neighbours_(neighbours), area_(area), group_of_(area.size(), -1) {}
+
+  // Starts a group of member i alone.
+  void seed(int i) {
+    group_of_[i] = static_cast<int>(groups_.size());
+    groups_.push_back({i});
+    cluster_.push_back(i);
+    group_area_.push_back(area_[i]);
+  }
+
+  // Whether group g took a member: the first neighbour of its members, in
+  // their order, that no group holds and whose merge DiskClusters allows.
+  bool grow(int g) {
+    for (int i : groups_[g])
+      for (int n : neighbours_[i]) {
+        if (group_of_[n] >= 0) continue;
+        if (const MergeCheck check = disks_.check_merge(cluster_[g], n)) {
+          cluster_[g] = disks_.merge(cluster_[g], n, check);
+          group_of_[n] = g;
+          groups_[g].push_back(n);
+          group_area_[g] += area_[n];
+          return true;
+        }
+      }
+    return false;
+  }
+
+  bool grouped(int i) const { return group_of_[i] >= 0; }
+  double area(int g) const { return group_area_[g]; }
+  const std::vector<std::vector<int>>& groups() const { return groups_; }
+
+ private:
+  DiskClusters& disks_;
+  const std::vector<std::vector<int>>& neighbours_;
+  const std::vector<double>& area_;
+  std::vector<int> group_of_;
+  std::vector<std::vector<int>> groups_;
+  std::vector<int> cluster_;
+  std::vector<double> group_area_;
+};
+
+// Two seeds grow in turn, the smaller group first; members neither can take
+// seed further groups of their own, so pieces stay as large as topology allows.
+// Returns the groups, as positions in the members.
+std::vector<std::vector<int>> grown_groups(MemberGroups& groups, int members, std::pair<int, int> seeds) {
+  groups.seed(seeds.first);
+  groups.seed(seeds.second);
+  for (bool grew = true; grew;) {
+    const int small = groups.area(0) <= groups.area(1) ? 0 : 1;
+    grew = groups.grow(small) || groups.grow(1 - small);
+  }
+  for (int i = 0; i < members; ++i) {
+    if (groups.grouped(i)) continue;
+    groups.seed(i);
+    while (groups.grow(static_cast<int>(groups.groups().size()) - 1)) {
+    }
+  }
+  return groups.groups();
+}
+
 // Regrows the members into disk groups from two seeds that grow in turn, the
 // smaller group first: the largest member, and the culprit (the original chart
 // at a boundary crossing, so the crossing ends up between the groups) or else
@@ -181,90 +307,20 @@ std::vector<std::vector<int>> split_members(const Mesh& mesh, const MeshTopology
                                             const std::vector<std::vector<int>>& chart_faces,
                                             const std::vector<int>& members, int culprit) {
   const int m = static_cast<int>(members.size());
-  std::unordered_map<int, int> local;
-  for (int i = 0; i < m; ++i) local[members[i]] = i;
-  std::vector<std::vector<int>> neighbours(m);
-  for (const ChartAdjacency& adj : graph.adjacency) {
-    const auto a = local.find(adj.a), b = local.find(adj.b);
-    if (a == local.end() || b == local.end() || !adj.mergeable) continue;
-    neighbours[a->second].push_back(b->second);
-    neighbours[b->second].push_back(a->second);
-  }
+  const std::vector<std::vector<int>> neighbours = member_neighbours(graph, members);
   // DiskClusters on the members' faces alone: its work and memory then scale
   // with this chart rather than with the whole scan.
   std::vector<int> faces, label;
   for (int i = 0; i < m; ++i)
     for (int f : chart_faces[members[i]]) faces.push_back(f), label.push_back(i);
   const SubMesh sub = sub_mesh(mesh, faces);
-  // The graph's seams (partial merges' open arcs among them) stay open too.
-  std::vector<char> seams = self_seams(sub.topology, sub.mesh.triangles, sub.mesh.corner_uv, sub.mesh.face_page, label);
-  for (size_t i = 0; i < faces.size(); ++i)
-    for (int k = 0; k < 3; ++k)
-      if (graph.self_seam[topology.corner_edge[3 * faces[i] + k]]) seams[sub.topology.corner_edge[3 * i + k]] = 1;
-  DiskClusters disks(sub.mesh, sub.topology, label, m, std::move(seams));
+  DiskClusters disks(sub.mesh, sub.topology, label, m, member_seams(topology, graph, faces, sub, label));
 
-  auto area = [&](int i) { return graph.charts[members[i]].area_uv; };
-  const int culprit_index = culprit < 0 ? -1 : static_cast<int>(std::find(members.begin(), members.end(), culprit) - members.begin());
-  int seed0 = culprit_index == 0 ? 1 : 0;
-  for (int i = 0; i < m; ++i)
-    if (i != culprit_index && area(i) > area(seed0)) seed0 = i;
-  int seed1 = culprit_index;
-  if (culprit_index < 0) {
-    std::vector<int> distance(m, -1);
-    std::queue<int> bfs;
-    bfs.push(seed0);
-    distance[seed0] = 0;
-    while (!bfs.empty()) {
-      const int i = bfs.front();
-      bfs.pop();
-      for (int n : neighbours[i])
-        if (distance[n] < 0) distance[n] = distance[i] + 1, bfs.push(n);
-    }
-    seed1 = seed0 == 0 ? 1 : 0;
-    for (int i = 0; i < m; ++i)
-      if (i != seed0 && distance[i] > distance[seed1]) seed1 = i;
-  }
-
-  // Two seeds grow in turn, the smaller group first; members neither can take
-  // seed further groups of their own, so pieces stay as large as topology allows.
-  std::vector<int> group_of(m, -1);
-  std::vector<std::vector<int>> groups;
-  std::vector<int> cluster;
-  std::vector<double> group_area;
-  auto seed = [&](int i) {
-    group_of[i] = static_cast<int>(groups.size());
-    groups.push_back({i});
-    cluster.push_back(i);
-    group_area.push_back(area(i));
-  };
-  auto grow = [&](int g) {
-    for (int i : groups[g])
-      for (int n : neighbours[i]) {
-        if (group_of[n] >= 0) continue;
-        if (const MergeCheck check = disks.check_merge(cluster[g], n)) {
-          cluster[g] = disks.merge(cluster[g], n, check);
-          group_of[n] = g;
-          groups[g].push_back(n);
-          group_area[g] += area(n);
-          return true;
-        }
-      }
-    return false;
-  };
-  seed(seed0);
-  seed(seed1);
-  for (bool grew = true; grew;) {
-    const int small = group_area[0] <= group_area[1] ? 0 : 1;
-    grew = grow(small) || grow(1 - small);
-  }
-  for (int i = 0; i < m; ++i) {
-    if (group_of[i] >= 0) continue;
-    seed(i);
-    while (grow(static_cast<int>(groups.size()) - 1)) {
-    }
-  }
+  std::vector<double> area(m);
+  for (int i = 0; i < m; ++i) area[i] = graph.charts[members[i]].area_uv;
+  MemberGroups groups(disks, neighbours, area);
   std::vector<std::vector<int>> out;
-  for (const auto& g : groups) {
+  for (const auto& g : grown_groups(groups, m, split_seeds(members, area, neighbours, culprit))) {
     out.emplace_back();
     for (int i : g) out.back().push_back(members[i]);
   }
