@@ -409,6 +409,58 @@ void summarize_energy(const std::vector<FlatChart>& charts, PipelineReport& repo
   }
 }
 
+// The input's chart count, seam length and texels (of the pages its textured faces use), into report.
+void report_input(const Mesh& welded, const MeshTopology& topology, const ChartGraph& graph, PipelineReport& report) {
+  report.charts_before = graph.chart_count();
+  report.seam_before = seam_length_ratio(welded, topology, welded.corner_uv, welded.face_page);
+  std::vector<char> used(welded.pages.size(), 0);
+  for (int f = 0; f < welded.face_count(); ++f)
+    if (welded.face_page[f] >= 0) used[welded.face_page[f]] = 1;
+  report.texels_before = page_texels(welded.pages, used);
+}
+
+// The flattened charts of mesh (the cut surface of welded) made ready to
+// pack: faces moved between them where that shortens the seams (graph_seams,
+// per edge, and the cuts of the flattening stay), tiny charts enlarged and
+// solved ones turned to their smallest box. What moved goes into report.
+void refine_charts(const Mesh& welded, const Mesh& mesh, const MeshTopology& topology,
+                   const std::vector<char>& graph_seams, const std::vector<int>& face_group,
+                   const RefineOptions& options, std::vector<FlatChart>& charts, PipelineReport& report) {
+  // Before tiny charts are enlarged: the refinement compares texel areas.
+  const std::vector<char> kept_seams = seams_in_flat_charts(mesh, topology, graph_seams, charts);
+  const RefineStats refined = refine_seams(mesh, topology, kept_seams, face_group, options, charts);
+  report.refine_faces_moved = refined.faces_moved;
+  report.refine_seam_removed = per_sqrt_area(refined.seam_removed_3d, welded);
+  enlarge_tiny_charts(charts);
+  turn_solved_charts(charts);
+}
+
+// Packs the charts into result. Untextured faces keep their input UVs and
+// page -1. A face whose winding float32 storage turns over becomes a chart of
+// its own and all is packed again (rare: slivers a hundredth of a texel high).
+void pack_keeping_windings(const Mesh& mesh, const std::vector<int>& face_group, const PipelineOptions& options,
+                           const RunControl& control, std::vector<FlatChart>& charts, PipelineResult& result) {
+  for (;;) {
+    result.corner_uv = mesh.corner_uv;
+    result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
+    result.pages.clear();
+    pack_groups(mesh, face_group, charts, options, control, result);
+    const int detached = detach_turned_faces(mesh, result, charts);
+    if (detached == 0) break;
+    result.report.faces_detached += detached;
+  }
+}
+
+// Into result: each face's chart (-1 for none; face_count faces), and per chart
+// its face count, whether it was solved and its energies.
+void record_charts(const std::vector<FlatChart>& charts, int face_count, PipelineResult& result) {
+  result.face_chart = Eigen::VectorXi::Constant(face_count, -1);
+  for (const FlatChart& c : charts) {
+    for (int f : c.faces) result.face_chart[f] = static_cast<int>(result.charts.size());
+    result.charts.push_back({static_cast<int>(c.faces.size()), !c.kept_original, c.energy_initial, c.energy_final});
+  }
+}
+
 PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& face_group,
                                    const PipelineOptions& options, const RunControl& control) {
   PipelineResult result;
@@ -416,12 +468,7 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   StageClock clock(report);
   const MeshTopology welded_topology = build_topology(welded.triangles, welded.vertex_count());
   const ChartGraph welded_graph = build_chart_graph(welded, welded_topology, face_group);
-  report.charts_before = welded_graph.chart_count();
-  report.seam_before = seam_length_ratio(welded, welded_topology, welded.corner_uv, welded.face_page);
-  std::vector<char> used(welded.pages.size(), 0);
-  for (int f = 0; f < welded.face_count(); ++f)
-    if (welded.face_page[f] >= 0) used[welded.face_page[f]] = 1;
-  report.texels_before = page_texels(welded.pages, used);
+  report_input(welded, welded_topology, welded_graph, report);
   // Everything from here on works on the cut surface (see cut_mesh.hpp). Its
   // charts are the input's, except that a chart joined only across a winding
   // flip falls in two.
@@ -442,13 +489,7 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   std::vector<FlatChart> charts = flatten_all(mesh, topology, flat_graph, aggregation, options.slim, options.relief_cuts,
                                             control, report);
   clock.lap("flatten");
-  // Before tiny charts are enlarged: the refinement compares texel areas.
-  const std::vector<char> kept_seams = seams_in_flat_charts(mesh, topology, flat_graph.self_seam, charts);
-  const RefineStats refined = refine_seams(mesh, topology, kept_seams, face_group, options.refine, charts);
-  report.refine_faces_moved = refined.faces_moved;
-  report.refine_seam_removed = per_sqrt_area(refined.seam_removed_3d, welded);
-  enlarge_tiny_charts(charts);
-  turn_solved_charts(charts);
+  refine_charts(welded, mesh, topology, flat_graph.self_seam, face_group, options.refine, charts, report);
   clock.lap("refine");
 
   const PackingCutStats cuts = cut_for_packing(mesh, topology, packing_cut_options(mesh, charts, options), charts,
@@ -457,26 +498,11 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   report.packing_cut_seam = per_sqrt_area(cuts.seam_added_3d, welded);
   clock.lap("cut");
 
-  // Untextured faces keep their input UVs and page -1. A face whose winding
-  // float32 storage turns over becomes a chart of its own and all is packed
-  // again (rare: slivers a hundredth of a texel high).
-  for (;;) {
-    result.corner_uv = mesh.corner_uv;
-    result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
-    result.pages.clear();
-    pack_groups(mesh, face_group, charts, options, control, result);
-    const int detached = detach_turned_faces(mesh, result, charts);
-    if (detached == 0) break;
-    report.faces_detached += detached;
-  }
+  pack_keeping_windings(mesh, face_group, options, control, charts, result);
   report.texels_after = page_texels(result.pages, {});
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);
-  result.face_chart = Eigen::VectorXi::Constant(mesh.face_count(), -1);
-  for (const FlatChart& c : charts) {
-    for (int f : c.faces) result.face_chart[f] = static_cast<int>(result.charts.size());
-    result.charts.push_back({static_cast<int>(c.faces.size()), !c.kept_original, c.energy_initial, c.energy_final});
-  }
+  record_charts(charts, mesh.face_count(), result);
   clock.lap("pack");
 
   report.seam_after = seam_length_ratio(welded, welded_topology, result.corner_uv, result.face_page);
