@@ -16,7 +16,8 @@ bl_info = {
     "author": "Atlas Defrag developers",
     "version": (0, 1, 0),
     "blender": (3, 4, 0),
-    "location": "3D Viewport > Object (or UV in Edit Mode), UV Editor > Image / UV, Sidebar > Atlas Defrag",
+    "location": "3D Viewport > Object (or UV in Edit Mode), UV Editor > Image / UV, Sidebar > Atlas Defrag, "
+                "File > Import > Textured Scan PLY",
     "description": "Merge fragmented UV charts of scanned meshes and bake new textures",
     "category": "UV",
     "support": "COMMUNITY",
