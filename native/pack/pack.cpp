@@ -381,6 +381,64 @@ PackResult to_result(const std::vector<const RowMatrixX2d*>& chart_uv, const Pac
   return result;
 }
 
+// The result for no charts: one empty page of the smallest (or the fixed) size.
+PackResult empty_result(const PackOptions& options) {
+  PackResult empty;
+  empty.scale = options.density_scale;
+  const int side = options.fixed_page_size > 0 ? options.fixed_page_size : kSideQuantum;
+  empty.pages.push_back({side, side});
+  empty.chart_translation.resize(0, 2);
+  return empty;
+}
+
+// Per chart, its corners: chart_uv's own, or where some are not finite, a
+// repaired copy held in `repaired`.
+std::vector<const RowMatrixX2d*> finite_charts(const std::vector<RowMatrixX2d>& chart_uv,
+                                               std::vector<RowMatrixX2d>& repaired) {
+  repaired.reserve(chart_uv.size());  // no reallocation: the result points into it
+  std::vector<const RowMatrixX2d*> uv(chart_uv.size());
+  for (size_t c = 0; c < chart_uv.size(); ++c) {
+    if (chart_uv[c].allFinite()) {
+      uv[c] = &chart_uv[c];
+    } else {
+      repaired.push_back(with_finite_corners(chart_uv[c]));
+      uv[c] = &repaired.back();
+    }
+  }
+  return uv;
+}
+
+// Default sizing: the packing at the largest scale <= `scale` that keeps
+// within the limits, on the smallest page the recipes find when one page does.
+Packing pack_within_limits(const std::vector<const RowMatrixX2d*>& uv, double scale,
+                           const Frame& frame, int max_side, const PackOptions& options,
+                           const RunControl& control) {
+  const PageLimits limits{options.texel_budget, options.max_pages};
+  // Charts whose own area already breaks the texel limit are not packed at
+  // full scale first: rasterising thousands of them there costs more than
+  // all the packings at the scale that fits.
+  const double area = corner_area(uv) * scale * scale;
+  const long long texel_limit = std::min<long long>(
+      options.texel_budget > 0 ? options.texel_budget : std::numeric_limits<long long>::max(),
+      options.max_pages > 0 ? static_cast<long long>(options.max_pages) * max_side * max_side
+                            : std::numeric_limits<long long>::max());
+  if (area > static_cast<double>(texel_limit))
+    return shrink_to_limits(uv, scale * std::sqrt(kExpectedFill * texel_limit / area), scale,
+                            scale, frame, max_side, limits, control);
+  // The first pair of orders, then the others only if the charts fit:
+  // a page that broke the limits is shrunk in one order.
+  Packing packing = pack_free(uv, scale, frame, max_side, limits.pages, kRecipesAtOnce, control);
+  const double ratio = limits.ratio(packing, max_side);
+  if (ratio > 1.0)
+    return shrink_to_limits(uv, kAimBelow * scale / std::sqrt(ratio), scale, scale, frame,
+                            max_side, limits, control);
+  // A smaller page keeps within the limits too.
+  keep_smallest_page(packing, kRecipesAtOnce, static_cast<int>(kRecipes.size()), frame, max_side,
+                     control);
+  sweep_widths(packing, frame, max_side, control);
+  return packing;
+}
+
 }  // namespace
 
 PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
@@ -391,26 +449,9 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
   // the two borders together still give a chart its full padding.
   const Frame frame{options.padding, options.padding / 2, options.page_sides, options.square_pages,
                     options.padding_between_charts};
-  if (chart_uv.empty()) {
-    PackResult empty;
-    empty.scale = options.density_scale;
-    const int side = options.fixed_page_size > 0 ? options.fixed_page_size : kSideQuantum;
-    empty.pages.push_back({side, side});
-    empty.chart_translation.resize(0, 2);
-    return empty;
-  }
-
+  if (chart_uv.empty()) return empty_result(options);
   std::vector<RowMatrixX2d> repaired;  // charts that had non-finite corners
-  repaired.reserve(chart_uv.size());   // no reallocation: uv points into it
-  std::vector<const RowMatrixX2d*> uv(chart_uv.size());
-  for (size_t c = 0; c < chart_uv.size(); ++c) {
-    if (chart_uv[c].allFinite()) {
-      uv[c] = &chart_uv[c];
-    } else {
-      repaired.push_back(with_finite_corners(chart_uv[c]));
-      uv[c] = &repaired.back();
-    }
-  }
+  const std::vector<const RowMatrixX2d*> uv = finite_charts(chart_uv, repaired);
 
   if (options.fixed_page_size > 0) {
     // density_scale does not apply: below 1 the charts lost texel density.
@@ -422,33 +463,7 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
   const int max_side = largest_allowed_side(options.max_page_size, options.page_sides);
   const double scale = std::min(
       options.density_scale, largest_fitting_scale(uv, max_side + 2 * frame.margin, frame.padding));
-  const PageLimits limits{options.texel_budget, options.max_pages};
-  // Charts whose own area already breaks the texel limit are not packed at
-  // full scale first: rasterising thousands of them there costs more than
-  // all the packings at the scale that fits.
-  const double area = corner_area(uv) * scale * scale;
-  const long long texel_limit = std::min<long long>(
-      options.texel_budget > 0 ? options.texel_budget : std::numeric_limits<long long>::max(),
-      options.max_pages > 0 ? static_cast<long long>(options.max_pages) * max_side * max_side
-                            : std::numeric_limits<long long>::max());
-  Packing packing;
-  if (area > static_cast<double>(texel_limit)) {
-    packing = shrink_to_limits(uv, scale * std::sqrt(kExpectedFill * texel_limit / area), scale,
-                               scale, frame, max_side, limits, control);
-  } else {
-    // The first pair of orders, then the others only if the charts fit:
-    // a page that broke the limits is shrunk in one order.
-    packing = pack_free(uv, scale, frame, max_side, limits.pages, kRecipesAtOnce, control);
-    const double ratio = limits.ratio(packing, max_side);
-    if (ratio > 1.0) {
-      packing = shrink_to_limits(uv, kAimBelow * scale / std::sqrt(ratio), scale, scale, frame,
-                                 max_side, limits, control);
-    } else {  // a smaller page keeps within the limits too
-      keep_smallest_page(packing, kRecipesAtOnce, static_cast<int>(kRecipes.size()), frame, max_side,
-                         control);
-      sweep_widths(packing, frame, max_side, control);
-    }
-  }
+  Packing packing = pack_within_limits(uv, scale, frame, max_side, options, control);
   lower_single_page(packing.layout, packing.charts, frame, control);
   PackResult result = to_result(uv, packing, frame);
   result.shrunk = result.scale < options.density_scale * (1.0 - 1e-9);

@@ -226,71 +226,132 @@ std::optional<OnePage> pack_one_page(const std::vector<int>& order,
   return result;
 }
 
+namespace {
+
+// What the charts of an order ask of a page: their dilated texels, the
+// narrowest width that holds each of them and their longest side.
+struct OrderNeeds {
+  double dilated_texels = 0.0;
+  int narrowest = 1;  // the page must be at least this wide in virtual texels
+  int longest = 1;    // longest side of a chart, in virtual texels
+};
+
+OrderNeeds needs_of(const std::vector<int>& order, const std::vector<ScaledChart>& charts) {
+  OrderNeeds needs;
+  for (int c : order) {
+    needs.dilated_texels += static_cast<double>(charts[c].footprint);
+    const TexelMask& m = charts[c].turned[0].mask;
+    needs.narrowest = std::max(needs.narrowest, std::min(m.width, m.height));
+    needs.longest = std::max(needs.longest, std::max(m.width, m.height));
+  }
+  return needs;
+}
+
+// The charts of an order on one page of a chosen width, as tall as max_side
+// allows: the tries of pack_smallest_page's width search.
+struct WidthTrials {
+  const std::vector<int>& order;
+  const std::vector<ScaledChart>& charts;
+  const Frame& frame;
+  int max_side;
+  const RunControl& control;
+  double dilated_texels;  // of the order
+  double* placed_share;   // if given: set by a failed try at max_side, see pack_smallest_page
+
+  int to_virtual() const { return 2 * frame.margin; }
+
+  // The allowed page width for `virtual_width` virtual texels, at most max_side.
+  int width_for(double virtual_width) const {
+    return std::min(max_side, allowed_side(virtual_width - to_virtual(), frame.sides));
+  }
+
+  // The charts on a page `width` wide, trimmed; nullopt when they do not fit.
+  std::optional<Layout> pack(int width) const {
+    long long placed = 0;
+    auto page = pack_one_page(order, charts, width + to_virtual(), max_side + to_virtual(), frame,
+                              control, &placed);
+    if (!page) {
+      if (placed_share && width == max_side)
+        *placed_share = static_cast<double>(placed) / dilated_texels;
+      return std::nullopt;
+    }
+    return Layout{std::move(page->placement), {trimmed_page(page->used, frame)}};
+  }
+};
+
+// Replaces best (a layout) by candidate when that fits on a smaller page.
+void keep_smaller(std::optional<Layout>& best, std::optional<Layout> candidate) {
+  if (candidate && area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
+}
+
+// The first page the charts fit: at the width kExpectedDensity predicts, or
+// wider ones while that is too narrow for the height cap. `width` receives its width.
+std::optional<Layout> first_fit(const WidthTrials& trials, int narrowest, int& width) {
+  width = trials.width_for(
+      std::max(narrowest, static_cast<int>(std::sqrt(trials.dilated_texels / kExpectedDensity))));
+  std::optional<Layout> best = trials.pack(width);
+  while (!best && width < trials.max_side) {  // too narrow for the height cap
+    width = trials.width_for((width + trials.to_virtual()) * 1.25);
+    best = trials.pack(width);
+  }
+  return best;
+}
+
 // Page width w gives height h(w); the next width tried is sqrt(w * h), the
-// side of the square of equal area. The first width assumes kExpectedDensity.
+// side of the square of equal area. Starts from best, packed `width` wide.
+void probe_squarer(const WidthTrials& trials, int width, std::optional<Layout>& best) {
+  int height = best->pages[0].height;
+  for (int probe = 0; probe < kSquareProbes; ++probe) {
+    const int next =
+        trials.width_for(std::sqrt(static_cast<double>(width) * height) + trials.to_virtual());
+    // Near enough to square: another probe would change the area by little.
+    if (std::abs(next - width) <= std::max<double>(kSideQuantum, kSquareTolerance * width)) break;
+    width = next;
+    auto candidate = trials.pack(width);
+    if (!candidate) break;
+    height = candidate->pages[0].height;
+    keep_smaller(best, std::move(candidate));
+  }
+}
+
+// Widths the square probes do not look at, tried after them.
+void try_other_widths(const WidthTrials& trials, const OrderNeeds& needs,
+                      std::optional<Layout>& best) {
+  // A chart longer than the page is wide stands in it, and the page is at
+  // least as tall as that chart: a page as wide as it may hold it lying
+  // down, on a smaller page (a large chart with a few smaller ones).
+  if (trials.width_for(needs.longest) > best->pages[0].width)
+    keep_smaller(best, trials.pack(trials.width_for(needs.longest)));
+  // Power-of-two widths step by 2x, past what the square probes look at: the
+  // neighbouring widths may hold the charts on half the page.
+  if (trials.frame.sides == PageSides::PowerOfTwo) {
+    const int chosen = best->pages[0].width;
+    for (int other : {chosen / 2, chosen * 2}) {
+      if (other + trials.to_virtual() < needs.narrowest || other > trials.max_side) continue;
+      keep_smaller(best, trials.pack(other));
+    }
+  }
+}
+
+}  // namespace
+
+// A first width assuming kExpectedDensity, then near-square probes and a few
+// other widths; the smallest page wins.
 std::optional<Layout> pack_smallest_page(const std::vector<int>& order,
                                          const std::vector<ScaledChart>& charts,
                                          const Frame& frame, int max_side,
                                          const RunControl& control, double* placed_share) {
-  const int to_virtual = 2 * frame.margin, max_virtual = max_side + to_virtual;
-  double dilated_texels = 0.0;
-  int narrowest = 1;  // the page must be at least this wide in virtual texels
-  int longest = 1;    // longest side of a chart, in virtual texels
-  for (int c : order) {
-    dilated_texels += static_cast<double>(charts[c].footprint);
-    const TexelMask& m = charts[c].turned[0].mask;
-    narrowest = std::max(narrowest, std::min(m.width, m.height));
-    longest = std::max(longest, std::max(m.width, m.height));
-  }
+  const int max_virtual = max_side + 2 * frame.margin;
+  const OrderNeeds needs = needs_of(order, charts);
   if (placed_share) *placed_share = 0.0;
-  if (dilated_texels > static_cast<double>(max_virtual) * max_virtual) return std::nullopt;
-  auto width_for = [&](double virtual_width) {
-    return std::min(max_side, allowed_side(virtual_width - to_virtual, frame.sides));
-  };
-  auto pack = [&](int width) -> std::optional<Layout> {
-    long long placed = 0;
-    auto page = pack_one_page(order, charts, width + to_virtual, max_virtual, frame, control, &placed);
-    if (!page) {
-      if (placed_share && width == max_side) *placed_share = static_cast<double>(placed) / dilated_texels;
-      return std::nullopt;
-    }
-    return Layout{std::move(page->placement), {trimmed_page(page->used, frame)}};
-  };
-  int width = width_for(std::max(narrowest, static_cast<int>(std::sqrt(dilated_texels / kExpectedDensity))));
-  std::optional<Layout> best = pack(width);
-  while (!best && width < max_side) {  // too narrow for the height cap
-    width = width_for((width + to_virtual) * 1.25);
-    best = pack(width);
-  }
+  if (needs.dilated_texels > static_cast<double>(max_virtual) * max_virtual) return std::nullopt;
+  const WidthTrials trials{order, charts, frame, max_side, control, needs.dilated_texels,
+                           placed_share};
+  int width = 0;
+  std::optional<Layout> best = first_fit(trials, needs.narrowest, width);
   if (!best) return std::nullopt;
-  int height = best->pages[0].height;
-  for (int probe = 0; probe < kSquareProbes; ++probe) {
-    const int next = width_for(std::sqrt(static_cast<double>(width) * height) + to_virtual);
-    // Near enough to square: another probe would change the area by little.
-    if (std::abs(next - width) <= std::max<double>(kSideQuantum, kSquareTolerance * width)) break;
-    width = next;
-    auto candidate = pack(width);
-    if (!candidate) break;
-    height = candidate->pages[0].height;
-    if (area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
-  }
-  // A chart longer than the page is wide stands in it, and the page is at
-  // least as tall as that chart: a page as wide as it may hold it lying
-  // down, on a smaller page (a large chart with a few smaller ones).
-  if (width_for(longest) > best->pages[0].width) {
-    auto candidate = pack(width_for(longest));
-    if (candidate && area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
-  }
-  // Power-of-two widths step by 2x, past what the probes above look at: the
-  // neighbouring widths may hold the charts on half the page.
-  if (frame.sides == PageSides::PowerOfTwo) {
-    const int chosen = best->pages[0].width;
-    for (int other : {chosen / 2, chosen * 2}) {
-      if (other + to_virtual < narrowest || other > max_side) continue;
-      auto candidate = pack(other);
-      if (candidate && area(candidate->pages[0]) < area(best->pages[0])) best = std::move(candidate);
-    }
-  }
+  probe_squarer(trials, width, best);
+  try_other_widths(trials, needs, best);
   return best;
 }
 
