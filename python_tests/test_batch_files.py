@@ -76,3 +76,6 @@ def test_importer_errors_come_without_their_traceback():
     assert batch._importer_error(wrapped) == "RuntimeError: internal error setting the array"
     plain = RuntimeError("Error: Couldn't parse glTF. Check that the file is valid\n\nLocation: ops.py:113")
     assert batch._importer_error(plain) == "Error: Couldn't parse glTF. Check that the file is valid"
+    dotted = RuntimeError("Error: Python: Traceback (most recent call last):\n  File \"x.py\", line 3, in f\n"
+                          "struct.error: unpack_from requires a buffer of at least 4 bytes\n\nLocation: ops.py:113")
+    assert batch._importer_error(dotted) == "struct.error: unpack_from requires a buffer of at least 4 bytes"

@@ -105,6 +105,47 @@ def test_binary_polygons_of_several_sizes_are_fanned():
         ply_io.read(head + vertices + faces[:-1])
 
 
+@pytest.mark.parametrize("body, message", [
+    (b"0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n-1\n", "claims -1.0 values"),
+    (b"0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\ninf 0 2 3\n", "claims inf values"),
+    (b"0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n", "ends inside its 'face' element"),
+])
+def test_lists_of_impossible_length_are_refused(body, message):
+    from atlas_defrag import ply_io
+
+    head = _header("ascii", 4, 2, ["float x", "float y", "float z"], ["list uchar int vertex_indices"], [])
+    with pytest.raises(ValueError, match=message):
+        ply_io.read(head + body)
+
+
+def test_counts_beyond_the_file_end_at_once():
+    """A header claiming billions of rows fails on the file's size, without reading row by row."""
+    import time
+
+    from atlas_defrag import ply_io
+
+    for fmt, body in (("ascii", b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"), ("binary_little_endian", bytes(40))):
+        head = _header(fmt, 4000000000, 1, ["float x", "float y", "float z"], ["list uchar int vertex_indices"], [])
+        start = time.perf_counter()
+        with pytest.raises(ValueError, match="ends inside its 'vertex' element"):
+            ply_io.read(head + body)
+        assert time.perf_counter() - start < 1
+    with pytest.raises(ValueError, match="bad header line 'element vertex -1'"):
+        ply_io.read(_header("ascii", -1, 0, ["float x"], ["list uchar int vertex_indices"], []))
+
+
+def test_faces_without_two_values_per_corner_are_left_untextured():
+    from atlas_defrag import ply_io
+
+    head = _header("ascii", 4, 3, ["float x", "float y", "float z"],
+                   ["list uchar int vertex_indices", "list uchar float texcoord"], ["t.png"])
+    head = head.replace(b"comment TextureFile t.png\n", b"comment TextureFile t.png\ncomment not the end_header\n")
+    mesh = ply_io.read(head + b"0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 6 0 0 1 0 1 1\n3 0 2 3 0\n"
+                       b"4 0 1 2 3 8 0 0 .5 0 .5 .5 0 .5\n")
+    assert mesh.texnumber.tolist() == [0, -1, 0, 0] and mesh.uvs[1].tolist() == [[0, 0]] * 3
+    assert mesh.uvs[0].tolist() == [[0, 0], [1, 0], [1, 1]] and mesh.uvs[3].tolist() == [[0, 0], [.5, .5], [0, .5]]
+
+
 @pytest.mark.parametrize("cut, message", [
     (lambda d: d[:-7], "ends inside its 'face' element"),
     (lambda d: d.replace(b"3 0 1 2", b"3 0 1 9"), "outside 0..3"),

@@ -283,10 +283,35 @@ def _primitive_triangles(gltf: dict, buffers: list, prim: dict, vertex_count: in
     return _accessor(gltf, buffers, prim["indices"]).reshape(-1, 3).astype(np.int64)
 
 
+def _colour_texture(material: dict):
+    """The base colour texture slot of a glTF material, or None. Older exports
+    (Sketchfab among them) give it as the diffuse texture of the
+    specular-glossiness extension only."""
+    return material.get("pbrMetallicRoughness", {}).get("baseColorTexture") or material.get(
+        "extensions", {}).get("KHR_materials_pbrSpecularGlossiness", {}).get("diffuseTexture")
+
+
+def _material_maps(gltf: dict, buffers: list, folder: Path, material: dict) -> dict:
+    """role -> image bytes of a textured material: base colour, then the
+    normal, occlusion, metallic-roughness and emission maps it has. A map
+    only in a format Pillow cannot read is left out: the colour still bakes."""
+    pbr = material.get("pbrMetallicRoughness", {})
+    roles = {"base_color": _image_bytes(gltf, buffers, folder, _colour_texture(material)["index"])}
+    for role, slot in (("normal", material.get("normalTexture")), ("occlusion", material.get("occlusionTexture")),
+                       ("metallic_roughness", pbr.get("metallicRoughnessTexture")),
+                       ("emission", material.get("emissiveTexture"))):
+        if slot is not None:
+            try:
+                roles[role] = _image_bytes(gltf, buffers, folder, slot["index"])
+            except UnreadableTexture:
+                pass
+    return roles
+
+
 def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
     """The scan, or None when no node holds a triangle primitive."""
     positions, tris, uvs, face_page = [], [], [], []
-    pages, page_of, maps = [], {}, []
+    page_of, maps = {}, []
     base = 0
     for mesh_index, world in _node_matrices(gltf):
         for prim in gltf["meshes"][mesh_index]["primitives"]:
@@ -296,39 +321,25 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
             pos = pos @ world[:3, :3].T + world[:3, 3]
             idx = _primitive_triangles(gltf, buffers, prim, len(pos))
             material = gltf["materials"][prim["material"]] if "material" in prim else {}
-            pbr = material.get("pbrMetallicRoughness", {})
-            # Older exports (Sketchfab among them) give the colour as the diffuse
-            # texture of the specular-glossiness extension only.
-            tex = pbr.get("baseColorTexture") or material.get("extensions", {}).get(
-                "KHR_materials_pbrSpecularGlossiness", {}).get("diffuseTexture")
+            page = -1
             if "TEXCOORD_0" in prim["attributes"]:
                 uv = _accessor(gltf, buffers, prim["attributes"]["TEXCOORD_0"]).astype(np.float64)
                 uv[:, 1] = 1.0 - uv[:, 1]  # glTF puts v = 0 at the top
                 uvs.append(uv[idx])
+                if _colour_texture(material) is not None:
+                    if prim.get("material") not in page_of:
+                        page_of[prim.get("material")] = len(maps)
+                        maps.append(_material_maps(gltf, buffers, folder, material))
+                    page = page_of[prim.get("material")]
             else:
                 uvs.append(np.zeros((len(idx), 3, 2)))
-                tex = None
-            page = -1
-            if tex is not None:
-                key = prim.get("material")
-                if key not in page_of:
-                    page_of[key] = len(pages)
-                    pages.append(_image_bytes(gltf, buffers, folder, tex["index"]))
-                    roles = {"base_color": pages[-1]}
-                    for role, slot in (("normal", material.get("normalTexture")),
-                                       ("occlusion", material.get("occlusionTexture")),
-                                       ("metallic_roughness", pbr.get("metallicRoughnessTexture")),
-                                       ("emission", material.get("emissiveTexture"))):
-                        if slot is not None:
-                            roles[role] = _image_bytes(gltf, buffers, folder, slot["index"])
-                    maps.append(roles)
-                page = page_of[key]
             positions.append(pos)
             tris.append(idx + base)
             face_page.append(np.full(len(idx), page, dtype=np.int32))
             base += len(pos)
     if not tris:
         return None
+    pages = [m["base_color"] for m in maps]
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
     return Scan(np.concatenate(positions), np.concatenate(tris).astype(np.int32), np.concatenate(uvs),
                 np.concatenate(face_page), sizes, pages, maps)

@@ -145,7 +145,8 @@ def _importer_error(exc: RuntimeError) -> str:
     """The error an import operator raised, without the traceback and the
     operator's location that Blender wraps it in."""
     lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip() and not ln.startswith("Location:")]
-    errors = [ln for ln in lines if re.match(r"^(\w+(Error|Exception)|Error):", ln)]
+    errors = [ln for ln in lines if re.match(r"^([\w.]+(Error|Exception|error)|Error):", ln)
+              and not ln.startswith("Error: Python: Traceback")]
     return (errors or lines or [repr(exc)])[-1]
 
 
@@ -162,9 +163,12 @@ def _run_importer(path: str) -> None:
         bpy.ops.import_scene.gltf(filepath=path)
     elif ext == ".ply":  # Blender's importers drop per-face UVs (see ply_import)
         try:
-            _package().ply_import.import_ply(path)
-        except (OSError, ValueError) as exc:
-            raise BatchError(f"cannot read {path}: {exc}") from exc
+            _, missing = _package().ply_import.import_ply(path)
+        except (OSError, ValueError, MemoryError) as exc:
+            raise BatchError(f"cannot read {path}: {str(exc) or 'out of memory'}") from exc
+        if missing:
+            print(f"atlas_defrag: warning: texture files the PLY names are missing: {', '.join(missing)}",
+                  file=sys.stderr)
     else:
         raise BatchError(f"unsupported input format '{ext}' (use {', '.join(INPUT_EXTS)})")
 

@@ -55,37 +55,49 @@ def image_material(image_path: str):
     return mat
 
 
-def _assign_materials(me, mesh: ply_io.PlyMesh, folder: str) -> None:
+def _assign_materials(me, mesh: ply_io.PlyMesh, folder: str) -> list:
     """Material k for the k-th texture that exists; faces whose texture is
     missing (or out of range) get an untextured material, and are left as
-    they are by the defragmentation."""
+    they are by the defragmentation. Returns the texture names missing."""
     paths = [os.path.join(folder, name.replace("\\", "/")) for name in mesh.textures]
     index = np.full(len(paths) + 1, -1, dtype=np.int64)  # the last: no such texture
+    missing = []
     for k, path in enumerate(paths):
         if os.path.isfile(path):
             index[k] = len(me.materials)
             me.materials.append(image_material(path))
+        else:
+            missing.append(mesh.textures[k])
     if not len(me.materials):
-        return
+        return missing
     known = (mesh.texnumber >= 0) & (mesh.texnumber < len(paths))
     face_material = index[np.where(known, mesh.texnumber, len(paths))]
     if (face_material < 0).any():
         face_material[face_material < 0] = len(me.materials)
         me.materials.append(bpy.data.materials.new("untextured"))
     me.polygons.foreach_set("material_index", face_material.astype(np.int32))
+    return missing
 
 
 def import_ply(path: str):
-    """The new object, linked to the active collection; ValueError saying
-    what is wrong with the file (nothing is then added)."""
+    """(the new object, linked to the active collection; the texture files
+    the header names that are missing). ValueError saying what is wrong with
+    the file; nothing is then added."""
     with open(path, "rb") as f:
         mesh = ply_io.read(f.read())
     name = os.path.splitext(os.path.basename(path))[0]
     me = _mesh(name, mesh)
-    _assign_materials(me, mesh, os.path.dirname(path))
+    try:
+        missing = _assign_materials(me, mesh, os.path.dirname(path))
+    except BaseException:
+        bpy.data.meshes.remove(me)
+        raise
+    # Faces that name a vertex twice, and repeated faces, go as Blender's
+    # own importers drop them: later steps expect a valid mesh.
+    me.validate(clean_customdata=False)
     obj = bpy.data.objects.new(name, me)
     (bpy.context.collection or bpy.context.scene.collection).objects.link(obj)
     # As an import operator does: without it bpy 4.5's OBJ export, which
     # reads the evaluated scene, finds the object empty.
     bpy.context.view_layer.update()
-    return obj
+    return obj, missing

@@ -51,15 +51,47 @@ def _type(name: str) -> str:
     return _TYPES[name]
 
 
+# Past this many bytes without an end_header line, the file is taken as no PLY.
+_MAX_HEADER_BYTES = 1 << 20
+
+
+def _header_lines(data: bytes):
+    """(the header's lines after 'ply', offset of the body)."""
+    if not data.startswith(b"ply"):
+        raise ValueError("not a PLY file (it does not start with 'ply')")
+    lines, at = [], data.find(b"\n") + 1
+    while 0 < at <= _MAX_HEADER_BYTES:
+        newline = data.find(b"\n", at)
+        end = len(data) if newline < 0 else newline
+        line = data[at:end].decode("latin-1").strip()
+        at = end + 1
+        if line == "end_header":
+            return lines, min(at, len(data))
+        lines.append(line)
+        if newline < 0:
+            break
+    raise ValueError("not a PLY file (no 'end_header' line)")
+
+
+def _element(words: list, line: str) -> Element:
+    if len(words) != 3 or not words[2].isdigit():
+        raise ValueError(f"bad header line '{line}' (element NAME COUNT)")
+    return Element(words[1], int(words[2]))
+
+
+def _property(words: list, line: str) -> Property:
+    if words[1:2] == ["list"] and len(words) == 5:
+        return Property(words[4], _type(words[3]), _type(words[2]))
+    if len(words) == 3 and words[1] != "list":
+        return Property(words[2], _type(words[1]))
+    raise ValueError(f"bad header line '{line}'")
+
+
 def parse_header(data: bytes):
     """(format, [Element], texture names, offset of the body)."""
-    end = data.find(b"end_header")
-    if not data.startswith(b"ply") or end < 0:
-        raise ValueError("not a PLY file (no 'ply' ... 'end_header' header)")
-    newline = data.find(b"\n", end)
-    body = len(data) if newline < 0 else newline + 1
+    lines, body = _header_lines(data)
     fmt, elements, textures = None, [], []
-    for line in data[:end].decode("latin-1").splitlines()[1:]:
+    for line in lines:
         words = line.split()
         if not words:
             continue
@@ -67,17 +99,19 @@ def parse_header(data: bytes):
             fmt = words[1]
         elif words[0] == "comment" and len(words) > 2 and words[1].lower() == "texturefile":
             textures.append(line.split(None, 2)[2].strip())
-        elif words[0] == "element" and len(words) == 3:
-            elements.append(Element(words[1], int(words[2])))
-        elif words[0] == "property" and elements and len(words) >= 3:
-            if words[1] == "list" and len(words) == 5:
-                elements[-1].properties.append(Property(words[4], _type(words[3]), _type(words[2])))
-            elif words[1] != "list":
-                elements[-1].properties.append(Property(words[2], _type(words[1])))
+        elif words[0] == "element":
+            elements.append(_element(words, line))
+        elif words[0] == "property":
+            if not elements:
+                raise ValueError(f"bad header line '{line}' (a property before any element)")
+            elements[-1].properties.append(_property(words, line))
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise ValueError(f"unsupported PLY format '{fmt}'")
     return fmt, elements, textures, body
 
+
+# Longest list a row may hold (a face of this many corners is no scan's).
+_MAX_LIST = 1 << 16
 
 # An element's values: per scalar property an (N,) array; per list property
 # (flat values, counts), the values of all rows one after another.
@@ -85,13 +119,19 @@ def parse_header(data: bytes):
 def _binary_rows(element: Element, data: bytes, at: int, order: str):
     """(values, offset after the element). Lists as long as the first row's
     are read as one block; rows of other lengths, record by record."""
+    least_row = sum(np.dtype(p.count_type or p.type).itemsize for p in element.properties)
+    if element.count * least_row > len(data) - at:
+        raise ValueError("past the end")
     lengths = []
     probe = at
     for p in element.properties:
         if p.count_type is None:
             probe += np.dtype(p.type).itemsize
         else:
-            n = int(np.frombuffer(data, order + p.count_type, 1, probe)[0]) if element.count else 0
+            first = np.frombuffer(data, order + p.count_type, 1, probe)[0] if element.count else 0
+            if not (np.isfinite(first) and 0 <= first <= _MAX_LIST):
+                raise ValueError(f"a list of its '{element.name}' element claims {first} values")
+            n = int(first)
             lengths.append(n)
             probe += np.dtype(p.count_type).itemsize + n * np.dtype(p.type).itemsize
     fields, k = [], iter(lengths)
@@ -124,7 +164,8 @@ def _collected(element: Element, columns: dict, counts: dict) -> dict:
 
 def _rows_one_by_one(element: Element, at, take):
     """(values, position after the element), where take(at, type, n) gives
-    n values of numpy type `type` at position `at` and the position after them."""
+    n values of numpy type `type` at position `at` and the position after
+    them, or raises ValueError past the end of the file."""
     columns = {p.name: [] for p in element.properties}
     counts = {p.name: [] for p in element.properties if p.count_type is not None}
     for _ in range(element.count):
@@ -132,6 +173,8 @@ def _rows_one_by_one(element: Element, at, take):
             n = 1
             if p.count_type is not None:
                 count, at = take(at, p.count_type, 1)
+                if not (np.isfinite(count[0]) and 0 <= count[0] <= _MAX_LIST):
+                    raise ValueError(f"a list of its '{element.name}' element claims {count[0]} values")
                 n = int(count[0])
                 counts[p.name].append(n)
             values, at = take(at, p.type, n)
@@ -142,9 +185,14 @@ def _rows_one_by_one(element: Element, at, take):
 def _ascii_rows(element: Element, numbers: np.ndarray, at: int):
     """(values, index after the element) from the body's numbers. Rows as long
     as the first one are read as one block; other lengths, row by row."""
+    if element.count * len(element.properties) > len(numbers) - at:  # every row holds a value per property
+        raise ValueError("past the end")
     width, lengths, probe = 0, [], at
     for p in element.properties:
-        n = int(numbers[probe]) if p.count_type is not None and element.count else 0
+        first = numbers[probe] if p.count_type is not None and element.count else 0
+        if not (np.isfinite(first) and 0 <= first <= _MAX_LIST):
+            raise ValueError(f"a list of its '{element.name}' element claims {first} values")
+        n = int(first)
         lengths.append(n)
         step = 1 if p.count_type is None else 1 + n
         width, probe = width + step, probe + step
@@ -161,35 +209,45 @@ def _ascii_rows(element: Element, numbers: np.ndarray, at: int):
                 break
         else:
             return values, end
-    return _rows_one_by_one(element, at, lambda i, _, n: (numbers[i:i + n], i + n))
+    def take(i, _, n):
+        if i + n > len(numbers):
+            raise ValueError("past the end")
+        return numbers[i:i + n], i + n
+    return _rows_one_by_one(element, at, take)
 
 
 def read_elements(data: bytes, fmt: str, elements: list, body: int) -> dict:
     """name -> values of the vertex and face elements (later elements are not read)."""
     out, wanted = {}, {"vertex", "face"}
     if fmt == "ascii":
-        numbers = np.array(data[body:].split(), dtype=np.float64)
-        at = 0
-        for element in elements:
-            if wanted <= set(out):
-                break
-            try:
-                out[element.name], at = _ascii_rows(element, numbers, at)
-            except IndexError:
-                at = len(numbers) + 1
-            if at > len(numbers):
-                raise ValueError(f"the file ends inside its '{element.name}' element")
-        return out
-    order = "<" if fmt == "binary_little_endian" else ">"
-    at = body
+        source, at, rows = _ascii_numbers(data[body:]), 0, _ascii_rows
+    else:
+        order = "<" if fmt == "binary_little_endian" else ">"
+        source, at = data, body
+        def rows(element, data, at):
+            return _binary_rows(element, data, at, order)
     for element in elements:
         if wanted <= set(out):
             break
         try:
-            out[element.name], at = _binary_rows(element, data, at, order)
-        except ValueError as exc:  # numpy's "buffer is smaller than requested size"
+            out[element.name], at = rows(element, source, at)
+        except ValueError as exc:  # "past the end", or numpy's "buffer is smaller than requested size"
+            if "claims" in str(exc):
+                raise
             raise ValueError(f"the file ends inside its '{element.name}' element") from exc
     return out
+
+
+def _ascii_numbers(body: bytes) -> np.ndarray:
+    """Every number of an ASCII body, in order (without a Python object per number)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)  # numpy 1.x: a word that is no number
+        try:
+            return np.fromstring(body, dtype=np.float64, sep=" ")
+        except (DeprecationWarning, ValueError) as exc:
+            raise ValueError("a value of its ASCII body is not a number") from exc
 
 
 def fan(flat: np.ndarray, counts: np.ndarray):
@@ -215,12 +273,7 @@ def _vertex_uvs(vertex: dict):
 def read(data: bytes) -> PlyMesh:
     """The mesh of a PLY file's bytes; ValueError saying what is wrong otherwise."""
     fmt, elements, textures, body = parse_header(data)
-    try:
-        values = read_elements(data, fmt, elements, body)
-    except ValueError as exc:
-        if "could not convert" in str(exc):
-            raise ValueError("a value of its ASCII body is not a number") from exc
-        raise
+    values = read_elements(data, fmt, elements, body)
     vertex, face = values.get("vertex", {}), values.get("face", {})
     if not all(c in vertex for c in "xyz"):
         raise ValueError("no vertex positions (x, y, z)")
@@ -232,13 +285,31 @@ def read(data: bytes) -> PlyMesh:
     triangles = indices[0].astype(np.int64)[corners] if len(corners) else np.zeros((0, 3), np.int64)
     if len(triangles) and (triangles.min() < 0 or triangles.max() >= len(positions)):
         raise ValueError(f"a face refers to a vertex outside 0..{len(positions) - 1}")
-    uvs = None
-    texcoord = face.get("texcoord")
-    if isinstance(texcoord, tuple) and np.array_equal(texcoord[1], 2 * indices[1]):
-        uvs = texcoord[0].astype(np.float64).reshape(-1, 2)[corners]
-    elif (per_vertex := _vertex_uvs(vertex)) is not None:
-        uvs = per_vertex[triangles]
     texnumber = face.get("texnumber")
     texnumber = np.zeros(len(triangles), np.int64) if texnumber is None or isinstance(texnumber, tuple) \
         else texnumber.astype(np.int64)[polygon]
+    uvs = None
+    texcoord = face.get("texcoord")
+    if isinstance(texcoord, tuple):
+        uvs, whole = _face_uvs(texcoord, indices[1], corners, polygon)
+        texnumber[~whole] = -1  # a face without two values per corner has no texture
+    elif (per_vertex := _vertex_uvs(vertex)) is not None:
+        uvs = per_vertex[triangles]
     return PlyMesh(positions, triangles, uvs, texnumber, textures)
+
+
+def _face_uvs(texcoord, corner_counts: np.ndarray, corners: np.ndarray, polygon: np.ndarray):
+    """(UVs (T, 3, 2) of the fan triangles from per-face texcoord lists,
+    (T,) whether their face held two values per corner; the others get 0)."""
+    values, counts = texcoord
+    whole = counts == 2 * corner_counts
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    corner_starts = np.concatenate([[0], np.cumsum(corner_counts)[:-1]]).astype(np.int64)
+    local = corners - corner_starts[polygon][:, None]  # corner of each triangle within its face
+    at = np.where(whole[polygon][:, None], starts[polygon][:, None] + 2 * local, 0)
+    values = np.asarray(values, dtype=np.float64)
+    if not len(values):
+        return np.zeros((len(corners), 3, 2)), whole[polygon]
+    uvs = np.stack([values[at], values[np.minimum(at + 1, len(values) - 1)]], axis=-1)
+    uvs[~whole[polygon]] = 0.0
+    return uvs, whole[polygon]

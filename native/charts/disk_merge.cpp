@@ -218,12 +218,17 @@ MergeCheck DiskClusters::weld_longest_arc(int a, int b, const std::vector<int>& 
   // Nor at a vertex where either chart touches itself: welded through it, the
   // arc would close a ring round that vertex, leaving a hole.
   UnionFind arcs(n);
+  int joins = 0;
   for (const auto& [vertex, edges] : edges_at_vertex)
-    if (edges.size() == 2 && fan_count(vertex, a, a) == 1 && fan_count(vertex, b, b) == 1) arcs.unite(edges[0], edges[1]);
+    if (edges.size() == 2 && fan_count(vertex, a, a) == 1 && fan_count(vertex, b, b) == 1)
+      arcs.unite(edges[0], edges[1]), ++joins;
   std::vector<double> edge_lengths(n);
   for (int i = 0; i < n; ++i) edge_lengths[i] = edge_length(mesh_, topology_, shared[i]);
   std::vector<int> arc = arcs.dense_labels();
   if (*std::max_element(arc.begin(), arc.end()) == 0) {
+    // One arc: a closed loop joined at every vertex can be halved; an arc
+    // whose ends meet at a vertex where a chart touches itself cannot.
+    if (joins != n) return refused(MergeRefusal::NotDisk);
     arc = loop_halves(topology_, shared, edges_at_vertex, edge_lengths);
     if (arc.empty()) return refused(MergeRefusal::NotDisk);
   }

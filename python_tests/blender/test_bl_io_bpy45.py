@@ -207,11 +207,29 @@ def test_import_textured_scan_ply(pkg, tmp_path):
     r = pkg.read_bpy.read(obj)
     assert [m.image for m in r.job.pages[0].maps] == ["textured_0_v2.jpg"]
     assert int((r.job.mesh.face_page >= 0).sum()) == textured
-    (tmp_path / "cut.ply").write_bytes((tmp_path / "scan.ply").read_bytes()[:-100])
+    data = (tmp_path / "scan.ply").read_bytes()
+    (tmp_path / "gone.ply").write_bytes(data.replace(b"comment TextureFile ", b"comment TextureFile gone/"))
+    assert bpy.ops.import_mesh.textured_scan_ply(filepath=str(tmp_path / "gone.ply")) == {"FINISHED"}
+    gone = bpy.context.view_layer.objects.active
+    assert gone.name == "gone" and not gone.data.materials and gone.data.uv_layers
+    (tmp_path / "cut.ply").write_bytes(data[:-100])
     count = len(bpy.data.objects)
     with pytest.raises(RuntimeError, match="ends inside its 'face' element"):
         bpy.ops.import_mesh.textured_scan_ply(filepath=str(tmp_path / "cut.ply"))
     assert len(bpy.data.objects) == count
+
+
+def test_import_ply_drops_faces_blender_cannot_hold(pkg, tmp_path):
+    """A face naming a vertex twice and a repeated face go, as Blender's own importers drop them."""
+    H.reset()
+    path = tmp_path / "bad faces.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                    "property float z\nproperty float s\nproperty float t\nelement face 4\n"
+                    "property list uchar int vertex_indices\nend_header\n0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n"
+                    "0 1 0 0 1\n3 0 1 2\n3 0 2 3\n3 0 0 1\n3 0 1 2\n")
+    assert bpy.ops.import_mesh.textured_scan_ply(filepath=str(path)) == {"FINISHED"}
+    me = bpy.context.view_layer.objects.active.data
+    assert len(me.polygons) == 2 and len(me.uv_layers[0].data) == 6
 
 
 def test_read_gltf_wrap_emulation_and_transforms(pkg):
