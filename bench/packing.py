@@ -244,7 +244,9 @@ def dense_scan(scan, side=512):
     for page in scan.maps:
         roles = {}
         for role, source in page.items():
-            im = Image.fromarray(scan_io.load_image(source)[::-1]).resize((side, side), Image.LANCZOS)
+            pixels = scan_io.load_image(source)[::-1]
+            pixels = pixels[:, :, 0] if pixels.shape[2] == 1 else pixels  # grey maps load with one channel
+            im = Image.fromarray(pixels).resize((side, side), Image.LANCZOS)
             buf = io.BytesIO()
             im.save(buf, "PNG")
             roles[role] = buf.getvalue()
