@@ -41,7 +41,8 @@ class PlyMesh:
     positions: np.ndarray     # (V, 3) float64
     triangles: np.ndarray     # (F, 3) int64, fan-triangulated polygons
     uvs: np.ndarray           # (F, 3, 2) float64, v up; None when the file has no UVs
-    texnumber: np.ndarray     # (F,) int64, index into textures (0 when the file gives none)
+    texnumber: np.ndarray     # (F,) int64, index into textures (0 when the file gives none;
+                              # -1 where a face's texcoord list is not two values per corner)
     textures: list            # file names from the header, as written
 
 
