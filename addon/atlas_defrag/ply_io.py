@@ -255,6 +255,8 @@ def fan(flat: np.ndarray, counts: np.ndarray):
     """Corners (T, 3) into flat of the fan triangles of the polygons, and the
     polygon of each triangle; polygons of fewer than 3 corners give none."""
     counts = np.asarray(counts, dtype=np.int64)
+    if (counts == 3).all():  # a triangle mesh, as scans are: nothing to fan
+        return np.arange(3 * len(counts)).reshape(-1, 3), np.arange(len(counts))
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     per_polygon = np.maximum(counts - 2, 0)
     polygon = np.repeat(np.arange(len(counts)), per_polygon)
@@ -304,6 +306,8 @@ def _face_uvs(texcoord, corner_counts: np.ndarray, corners: np.ndarray, polygon:
     (T,) whether their face held two values per corner; the others get 0)."""
     values, counts = texcoord
     whole = counts == 2 * corner_counts
+    if whole.all() and (corner_counts == 3).all():  # triangles only (fan kept them in order), 6 values each
+        return np.asarray(values, dtype=np.float64).reshape(-1, 3, 2), whole
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
     corner_starts = np.concatenate([[0], np.cumsum(corner_counts)[:-1]]).astype(np.int64)
     local = corners - corner_starts[polygon][:, None]  # corner of each triangle within its face
