@@ -125,16 +125,9 @@ def load_ply(path: Path) -> Scan:
     from atlas_defrag import ply_io
 
     mesh = ply_io.read(path.read_bytes())
-    textures = [path.parent / name.replace("\\", "/") for name in mesh.textures]
-    pages, page_of = [], np.full(len(textures) + 1, -1, dtype=np.int32)  # the last: no such texture
-    for k, tex in enumerate(textures):
-        if tex.exists():
-            page_of[k] = len(pages)
-            pages.append(tex)
-    if mesh.uvs is None or not pages:
-        face_page = np.full(len(mesh.triangles), -1, dtype=np.int32)
-    else:
-        face_page = page_of[np.where((mesh.texnumber >= 0) & (mesh.texnumber < len(textures)), mesh.texnumber, -1)]
+    found, face_page, _ = ply_io.face_textures(mesh, str(path.parent))
+    pages = [Path(p) for p in found]
+    face_page = face_page.astype(np.int32) if mesh.uvs is not None else np.full(len(mesh.triangles), -1, np.int32)
     uvs = mesh.uvs if mesh.uvs is not None else np.zeros((len(mesh.triangles), 3, 2))
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
     return Scan(mesh.positions, mesh.triangles.astype(np.int32), uvs, face_page, sizes, pages,
@@ -178,7 +171,7 @@ class UnreadableTexture(ValueError):
 def _texture_source(texture: dict) -> int:
     """The image of a texture: its own source (the PNG or JPEG fallback when
     there is one), else the WebP one of EXT_texture_webp, which Pillow reads.
-    ValueError for images only in formats Pillow cannot read (KTX2)."""
+    UnreadableTexture for images only in formats Pillow cannot read (KTX2)."""
     if "source" in texture:
         return texture["source"]
     extensions = texture.get("extensions", {})

@@ -173,12 +173,6 @@ def _run_importer(path: str) -> None:
         raise BatchError(f"unsupported input format '{ext}' (use {', '.join(INPUT_EXTS)})")
 
 
-def _give_texture(pkg, obj, image_path: str):
-    """A material with the image on Base Color, for meshes that have none."""
-    obj.data.materials.clear()
-    obj.data.materials.append(pkg.ply_import.image_material(image_path))
-
-
 def _has_image_texture(pkg, obj) -> bool:
     try:
         pkg.read_bpy.check_object(obj)
@@ -349,9 +343,11 @@ def _import_input(src: str, dst: str):
 
 
 def _give_missing_textures(pkg, meshes, texture: str) -> None:
+    """A material with the image on Base Color, for meshes with UVs that have none."""
     for o in meshes:
         if not _has_image_texture(pkg, o) and len(o.data.uv_layers):
-            _give_texture(pkg, o, texture)
+            o.data.materials.clear()
+            o.data.materials.append(pkg.ply_import.image_material(texture))
 
 
 def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict, cancel=None) -> None:

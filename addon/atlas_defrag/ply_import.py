@@ -59,21 +59,13 @@ def _assign_materials(me, mesh: ply_io.PlyMesh, folder: str) -> list:
     """Material k for the k-th texture that exists; faces whose texture is
     missing (or out of range) get an untextured material, and are left as
     they are by the defragmentation. Returns the texture names missing."""
-    paths = [os.path.join(folder, name.replace("\\", "/")) for name in mesh.textures]
-    index = np.full(len(paths) + 1, -1, dtype=np.int64)  # the last: no such texture
-    missing = []
-    for k, path in enumerate(paths):
-        if os.path.isfile(path):
-            index[k] = len(me.materials)
-            me.materials.append(image_material(path))
-        else:
-            missing.append(mesh.textures[k])
-    if not len(me.materials):
+    found, face_material, missing = ply_io.face_textures(mesh, folder)
+    for path in found:
+        me.materials.append(image_material(path))
+    if not found:
         return missing
-    known = (mesh.texnumber >= 0) & (mesh.texnumber < len(paths))
-    face_material = index[np.where(known, mesh.texnumber, len(paths))]
     if (face_material < 0).any():
-        face_material[face_material < 0] = len(me.materials)
+        face_material[face_material < 0] = len(found)
         me.materials.append(bpy.data.materials.new("untextured"))
     me.polygons.foreach_set("material_index", face_material.astype(np.int32))
     return missing

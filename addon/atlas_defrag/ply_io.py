@@ -12,6 +12,8 @@ entry through ply_import.
 """
 from __future__ import annotations
 
+import os
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -114,6 +116,22 @@ def parse_header(data: bytes):
 # Longest list a row may hold (a face of this many corners is no scan's).
 _MAX_LIST = 1 << 16
 
+
+class _ImpossibleList(ValueError):
+    """A list length no file can mean: negative, not finite or past _MAX_LIST."""
+
+
+def _list_length(element: Element, value) -> int:
+    """value, a list's length as read from the file, as an int; _ImpossibleList otherwise."""
+    if not (np.isfinite(value) and 0 <= value <= _MAX_LIST):
+        raise _ImpossibleList(f"a list of its '{element.name}' element claims {value} values")
+    return int(value)
+
+
+def _starts(counts: np.ndarray) -> np.ndarray:
+    """Where each of consecutive runs of these lengths starts."""
+    return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+
 # An element's values: per scalar property an (N,) array; per list property
 # (flat values, counts), the values of all rows one after another.
 
@@ -129,10 +147,7 @@ def _binary_rows(element: Element, data: bytes, at: int, order: str):
         if p.count_type is None:
             probe += np.dtype(p.type).itemsize
         else:
-            first = np.frombuffer(data, order + p.count_type, 1, probe)[0] if element.count else 0
-            if not (np.isfinite(first) and 0 <= first <= _MAX_LIST):
-                raise ValueError(f"a list of its '{element.name}' element claims {first} values")
-            n = int(first)
+            n = _list_length(element, np.frombuffer(data, order + p.count_type, 1, probe)[0] if element.count else 0)
             lengths.append(n)
             probe += np.dtype(p.count_type).itemsize + n * np.dtype(p.type).itemsize
     fields, k = [], iter(lengths)
@@ -174,9 +189,7 @@ def _rows_one_by_one(element: Element, at, take):
             n = 1
             if p.count_type is not None:
                 count, at = take(at, p.count_type, 1)
-                if not (np.isfinite(count[0]) and 0 <= count[0] <= _MAX_LIST):
-                    raise ValueError(f"a list of its '{element.name}' element claims {count[0]} values")
-                n = int(count[0])
+                n = _list_length(element, count[0])
                 counts[p.name].append(n)
             values, at = take(at, p.type, n)
             columns[p.name].append(values)
@@ -190,10 +203,7 @@ def _ascii_rows(element: Element, numbers: np.ndarray, at: int):
         raise ValueError("past the end")
     width, lengths, probe = 0, [], at
     for p in element.properties:
-        first = numbers[probe] if p.count_type is not None and element.count else 0
-        if not (np.isfinite(first) and 0 <= first <= _MAX_LIST):
-            raise ValueError(f"a list of its '{element.name}' element claims {first} values")
-        n = int(first)
+        n = _list_length(element, numbers[probe] if p.count_type is not None and element.count else 0)
         lengths.append(n)
         step = 1 if p.count_type is None else 1 + n
         width, probe = width + step, probe + step
@@ -232,17 +242,15 @@ def read_elements(data: bytes, fmt: str, elements: list, body: int) -> dict:
             break
         try:
             out[element.name], at = rows(element, source, at)
+        except _ImpossibleList:
+            raise
         except ValueError as exc:  # "past the end", or numpy's "buffer is smaller than requested size"
-            if "claims" in str(exc):
-                raise
             raise ValueError(f"the file ends inside its '{element.name}' element") from exc
     return out
 
 
 def _ascii_numbers(body: bytes) -> np.ndarray:
     """Every number of an ASCII body, in order (without a Python object per number)."""
-    import warnings
-
     with warnings.catch_warnings():
         warnings.simplefilter("error", DeprecationWarning)  # numpy 1.x: a word that is no number
         try:
@@ -257,10 +265,10 @@ def fan(flat: np.ndarray, counts: np.ndarray):
     counts = np.asarray(counts, dtype=np.int64)
     if (counts == 3).all():  # a triangle mesh, as scans are: nothing to fan
         return np.arange(3 * len(counts)).reshape(-1, 3), np.arange(len(counts))
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    starts = _starts(counts)
     per_polygon = np.maximum(counts - 2, 0)
     polygon = np.repeat(np.arange(len(counts)), per_polygon)
-    first_triangle = np.concatenate([[0], np.cumsum(per_polygon)[:-1]])
+    first_triangle = _starts(per_polygon)
     i = np.arange(len(polygon)) - first_triangle[polygon] + 1
     base = starts[polygon]
     return np.stack([base, base + i, base + i + 1], axis=1), polygon
@@ -308,9 +316,8 @@ def _face_uvs(texcoord, corner_counts: np.ndarray, corners: np.ndarray, polygon:
     whole = counts == 2 * corner_counts
     if whole.all() and (corner_counts == 3).all():  # triangles only (fan kept them in order), 6 values each
         return np.asarray(values, dtype=np.float64).reshape(-1, 3, 2), whole
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-    corner_starts = np.concatenate([[0], np.cumsum(corner_counts)[:-1]]).astype(np.int64)
-    local = corners - corner_starts[polygon][:, None]  # corner of each triangle within its face
+    starts = _starts(counts)
+    local = corners - _starts(corner_counts)[polygon][:, None]  # corner of each triangle within its face
     at = np.where(whole[polygon][:, None], starts[polygon][:, None] + 2 * local, 0)
     values = np.asarray(values, dtype=np.float64)
     if not len(values):
@@ -318,3 +325,20 @@ def _face_uvs(texcoord, corner_counts: np.ndarray, corners: np.ndarray, polygon:
     uvs = np.stack([values[at], values[np.minimum(at + 1, len(values) - 1)]], axis=-1)
     uvs[~whole[polygon]] = 0.0
     return uvs, whole[polygon]
+
+
+def face_textures(mesh: PlyMesh, folder: str):
+    """(paths of the header's textures whose files exist in folder, in order;
+    per face (F,) the index into them, -1 where its texture is missing, out
+    of range or none; the names of the textures missing)."""
+    paths = [os.path.join(folder, name.replace("\\", "/")) for name in mesh.textures]
+    index = np.full(len(paths) + 1, -1, dtype=np.int64)  # the last: no such texture
+    found, missing = [], []
+    for k, path in enumerate(paths):
+        if os.path.isfile(path):
+            index[k] = len(found)
+            found.append(path)
+        else:
+            missing.append(mesh.textures[k])
+    known = (mesh.texnumber >= 0) & (mesh.texnumber < len(paths))
+    return found, index[np.where(known, mesh.texnumber, len(paths))], missing
