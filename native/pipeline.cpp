@@ -240,10 +240,52 @@ PackResult pack_in_source_budget(const std::vector<RowMatrixX2d>& uv, const Pack
   }
 }
 
+// The pack options for one face group: its density, and unless the page is
+// fixed, as many pages as the input used (or as hold its texels) and, with
+// texels_at_most_input, the input's texels as the budget. used[p]: the group
+// has faces on input page p.
+PackOptions group_pack_options(const Mesh& mesh, const std::vector<FlatChart>& charts, const std::vector<int>& members,
+                               const std::vector<char>& used, const PipelineOptions& pipeline) {
+  PackOptions options = pipeline.pack;
+  if (pipeline.texels_per_unit > 0) {
+    const double density = texel_density(mesh, charts, members);
+    if (density > 0) options.density_scale = pipeline.texels_per_unit / density;
+  }
+  if (options.fixed_page_size > 0) return options;
+  // The input's texels at the density asked for.
+  const double wanted =
+      static_cast<double>(page_texels(mesh.pages, used)) * options.density_scale * options.density_scale;
+  // As many pages as the input used, or as many of max_page_size as hold its texels.
+  const double max_page = static_cast<double>(options.max_page_size) * options.max_page_size;
+  if (options.max_pages <= 0)
+    options.max_pages = static_cast<int>(std::min<double>(
+        4096, std::max<double>(static_cast<double>(std::count(used.begin(), used.end(), 1)),
+                               std::ceil(wanted / max_page))));
+  options.max_pages = std::max(1, options.max_pages);
+  // A density far beyond any page makes `wanted` overflow: max_pages limits it then.
+  if (pipeline.texels_at_most_input && options.texel_budget <= 0)
+    options.texel_budget = static_cast<long long>(std::min(wanted, 4e18));
+  return options;
+}
+
+// Writes the placed UVs and pages of one group's charts (members) into result.
+void write_placed(const std::vector<FlatChart>& charts, const std::vector<int>& members, const PackResult& packed,
+                  PipelineResult& result) {
+  const int first_page = static_cast<int>(result.pages.size());
+  for (size_t i = 0; i < members.size(); ++i) {
+    const FlatChart& chart = charts[members[i]];
+    for (size_t j = 0; j < chart.faces.size(); ++j) {
+      const int f = chart.faces[j];
+      result.corner_uv.middleRows(3 * f, 3) = packed.placed_uv[i].middleRows(3 * j, 3);
+      result.face_page[f] = first_page + packed.chart_page[i];
+    }
+  }
+  result.pages.insert(result.pages.end(), packed.pages.begin(), packed.pages.end());
+}
+
 // Packs each face group on pages of its own and writes the placed UVs.
 void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std::vector<FlatChart>& charts,
                  const PipelineOptions& pipeline, const RunControl& control, PipelineResult& result) {
-  const PackOptions& base = pipeline.pack;
   std::map<int, std::vector<int>> by_group;
   for (size_t c = 0; c < charts.size(); ++c)
     by_group[face_group.empty() ? 0 : face_group[charts[c].faces.front()]].push_back(static_cast<int>(c));
@@ -255,39 +297,12 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
       uv.push_back(charts[c].corner_uv);
       for (int f : charts[c].faces) used[mesh.face_page[f]] = 1;
     }
-    PackOptions options = base;
-    if (pipeline.texels_per_unit > 0) {
-      const double density = texel_density(mesh, charts, members);
-      if (density > 0) options.density_scale = pipeline.texels_per_unit / density;
-    }
-    const bool source_budget = pipeline.texels_at_most_input && options.texel_budget <= 0;
-    if (options.fixed_page_size <= 0) {
-      // The input's texels at the density asked for.
-      const double wanted = static_cast<double>(page_texels(mesh.pages, used)) * options.density_scale *
-                            options.density_scale;
-      // As many pages as the input used, or as many of max_page_size as hold its texels.
-      const double max_page = static_cast<double>(options.max_page_size) * options.max_page_size;
-      if (options.max_pages <= 0)
-        options.max_pages = static_cast<int>(std::min<double>(
-            4096, std::max<double>(static_cast<double>(std::count(used.begin(), used.end(), 1)),
-                                   std::ceil(wanted / max_page))));
-      options.max_pages = std::max(1, options.max_pages);
-      // A density far beyond any page makes `wanted` overflow: max_pages limits it then.
-      if (source_budget) options.texel_budget = static_cast<long long>(std::min(wanted, 4e18));
-    }
+    const PackOptions options = group_pack_options(mesh, charts, members, used, pipeline);
+    const bool source_budget = pipeline.texels_at_most_input && pipeline.pack.texel_budget <= 0;
     const PackResult packed = source_budget && options.fixed_page_size <= 0
                                   ? pack_in_source_budget(uv, options, page_texels(mesh.pages, used), control)
                                   : pack_charts(uv, options, control);
-    const int first_page = static_cast<int>(result.pages.size());
-    for (size_t i = 0; i < members.size(); ++i) {
-      const FlatChart& chart = charts[members[i]];
-      for (size_t j = 0; j < chart.faces.size(); ++j) {
-        const int f = chart.faces[j];
-        result.corner_uv.middleRows(3 * f, 3) = packed.placed_uv[i].middleRows(3 * j, 3);
-        result.face_page[f] = first_page + packed.chart_page[i];
-      }
-    }
-    result.pages.insert(result.pages.end(), packed.pages.begin(), packed.pages.end());
+    write_placed(charts, members, packed, result);
     const double texels = static_cast<double>(page_texels(packed.pages, {}));
     covered += packed.efficiency * texels;
     total += texels;
