@@ -466,12 +466,10 @@ def _file_problem(path: str, polygons) -> str:
 def _binary_file_problem(path: str, ext: str) -> str:
     """_file_problem of a PNG, EXR or GLB file, from its first and last bytes."""
     import struct
+    png_files = importlib.import_module(_package().__name__ + ".png_files")
     size = os.path.getsize(path)
-    with open(path, "rb") as f:
-        head = f.read(12)
-        f.seek(max(0, size - 8))
-        tail = f.read(8)
-    if ext == ".png" and not (head.startswith(b"\x89PNG\r\n\x1a\n") and tail[:4] == b"IEND"):
+    head, tail = png_files.file_ends(path, 12, png_files.TAIL_BYTES)
+    if ext == ".png" and not (head.startswith(b"\x89PNG\r\n\x1a\n") and png_files.ends_whole(tail)):
         return "not a complete PNG"
     if ext == ".exr" and not head.startswith(b"\x76\x2f\x31\x01"):
         return "not an OpenEXR file"

@@ -140,6 +140,15 @@ def plain_png_size(head: bytes) -> Optional[Tuple[int, int, int]]:
     return width, height, _CHANNELS[colour]
 
 
+def file_ends(path: str, head: int, tail: int) -> Tuple[bytes, bytes]:
+    """The first `head` and the last `tail` bytes of a file, without reading
+    the rest (a large image or model need not be read to check its ends)."""
+    with open(path, "rb") as f:
+        first = f.read(head)
+        f.seek(max(0, os.fstat(f.fileno()).st_size - tail))
+        return first, f.read(tail)
+
+
 def ends_whole(tail: bytes) -> bool:
     """Whether a file's last TAIL_BYTES bytes are a PNG's IEND chunk: a file
     cut short, the usual damage, ends otherwise."""

@@ -291,10 +291,7 @@ def _file_ends(img, head: int, tail: int) -> Optional[Tuple[bytes, bytes]]:
         data = img.packed_file.data
         return data[:head], data[-tail:]
     try:
-        with open(bpy.path.abspath(img.filepath, library=img.library), "rb") as f:
-            first = f.read(head)
-            f.seek(max(0, os.fstat(f.fileno()).st_size - tail))
-            return first, f.read(tail)
+        return png_files.file_ends(bpy.path.abspath(img.filepath, library=img.library), head, tail)
     except (OSError, ValueError):
         return None
 
