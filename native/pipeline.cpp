@@ -240,6 +240,12 @@ PackResult pack_in_source_budget(const std::vector<RowMatrixX2d>& uv, const Pack
   }
 }
 
+// With texels_at_most_input and no texel_budget of the caller's, each group's
+// budget is its input's texels (pack_in_source_budget names it on refusal).
+bool budget_from_source(const PipelineOptions& pipeline) {
+  return pipeline.texels_at_most_input && pipeline.pack.texel_budget <= 0;
+}
+
 // The pack options for one face group: its density, and unless the page is
 // fixed, as many pages as the input used (or as hold its texels) and, with
 // texels_at_most_input, the input's texels as the budget. used[p]: the group
@@ -263,8 +269,7 @@ PackOptions group_pack_options(const Mesh& mesh, const std::vector<FlatChart>& c
                                std::ceil(wanted / max_page))));
   options.max_pages = std::max(1, options.max_pages);
   // A density far beyond any page makes `wanted` overflow: max_pages limits it then.
-  if (pipeline.texels_at_most_input && options.texel_budget <= 0)
-    options.texel_budget = static_cast<long long>(std::min(wanted, 4e18));
+  if (budget_from_source(pipeline)) options.texel_budget = static_cast<long long>(std::min(wanted, 4e18));
   return options;
 }
 
@@ -298,8 +303,7 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
       for (int f : charts[c].faces) used[mesh.face_page[f]] = 1;
     }
     const PackOptions options = group_pack_options(mesh, charts, members, used, pipeline);
-    const bool source_budget = pipeline.texels_at_most_input && pipeline.pack.texel_budget <= 0;
-    const PackResult packed = source_budget && options.fixed_page_size <= 0
+    const PackResult packed = budget_from_source(pipeline) && options.fixed_page_size <= 0
                                   ? pack_in_source_budget(uv, options, page_texels(mesh.pages, used), control)
                                   : pack_charts(uv, options, control);
     write_placed(charts, members, packed, result);
