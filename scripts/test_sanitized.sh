@@ -19,4 +19,4 @@ ctest --test-dir build-asan --output-on-failure -j"$(nproc)"
 LD_PRELOAD="$(g++ -print-file-name=libasan.so) $(g++ -print-file-name=libstdc++.so)" \
   ATLAS_BUILD_DIR="$PWD/build-asan" PYTHONPATH="$PWD/build-asan/addon" \
   .venv/bin/python -m pytest python_tests/test_native.py python_tests/test_options.py python_tests/test_degenerate_input.py -q -p no:cacheprovider \
-  -k "not ten_thousand_stacked"
+  -n "$(nproc)" --dist load -k "not ten_thousand_stacked"
