@@ -469,7 +469,7 @@ def _binary_file_problem(path: str, ext: str) -> str:
     png_files = importlib.import_module(_package().__name__ + ".png_files")
     size = os.path.getsize(path)
     head, tail = png_files.file_ends(path, 12, png_files.TAIL_BYTES)
-    if ext == ".png" and not (head.startswith(b"\x89PNG\r\n\x1a\n") and png_files.ends_whole(tail)):
+    if ext == ".png" and not (head.startswith(png_files.SIGNATURE) and png_files.ends_whole(tail)):
         return "not a complete PNG"
     if ext == ".exr" and not head.startswith(b"\x76\x2f\x31\x01"):
         return "not an OpenEXR file"

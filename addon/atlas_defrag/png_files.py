@@ -20,7 +20,7 @@ from typing import Iterable, List, Optional, Tuple
 
 import numpy as np
 
-_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _UP_FILTER = 2  # each byte minus the byte above it, modulo 256 (PNG spec 9.2)
 # Scanline bytes compressed as one part: an image larger than this is split
 # into parts that compress on separate threads, joined as one zlib stream
@@ -87,7 +87,7 @@ def _png(pixels: np.ndarray, compressed: List[Tuple[bytes, int]], lengths: List[
         adler = _adler32_combine(adler, part_adler, length)
     idat = b"".join([_ZLIB_HEADER] + [data for data, _ in compressed] + [struct.pack(">I", adler)])
     header = struct.pack(">IIBBBBB", width, height, 8, _COLOUR_TYPE[channels], 0, 0, 0)  # 8-bit, no interlace
-    return _SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", idat) + _chunk(b"IEND", b"")
+    return SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", idat) + _chunk(b"IEND", b"")
 
 
 def encode_png(pixels: np.ndarray) -> bytes:
@@ -128,7 +128,7 @@ def plain_png_size(head: bytes) -> Optional[Tuple[int, int, int]]:
     """(width, height, channels) when ``head`` (a file's first HEADER_BYTES
     bytes or more) starts a PNG that decode_png reads: 8-bit RGB or RGBA,
     not interlaced, with a sound IHDR chunk; None otherwise."""
-    if len(head) < HEADER_BYTES or head[:8] != _SIGNATURE or head[12:16] != b"IHDR":
+    if len(head) < HEADER_BYTES or head[:8] != SIGNATURE or head[12:16] != b"IHDR":
         return None
     if struct.unpack(">I", head[8:12])[0] != 13 or not _crc_holds(head, 8, 13):
         return None

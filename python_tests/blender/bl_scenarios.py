@@ -432,7 +432,7 @@ def filtered_png(pixels, chunks=()) -> bytes:
         scanlines[y, 0] = y % 5
         scanlines[y, 1:] = (rows[y] - predictions[y % 5][y]) & 255
     header = png_files._IHDR.pack(w, h, 8, png_files._COLOUR_TYPE[c], 0, 0, 0)
-    return b"".join([png_files._SIGNATURE, png_files._chunk(b"IHDR", header)]
+    return b"".join([png_files.SIGNATURE, png_files._chunk(b"IHDR", header)]
                     + [png_files._chunk(kind, data) for kind, data in chunks]
                     + [png_files._chunk(b"IDAT", zlib.compress(scanlines.tobytes())),
                        png_files._chunk(b"IEND", b"")])
