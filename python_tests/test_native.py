@@ -406,6 +406,42 @@ def test_real_scans_stay_within_chart_and_seam_bounds_with_the_guarantees(native
     assert fidelity["psnr_db"] >= 40
 
 
+def per_triangle_atlas(face_count):
+    """(F, 3, 2) UVs of one chart per triangle, two right triangles per cell of a
+    square grid with a gutter, as MeshLab's trivial per-triangle
+    parametrization lays them out: the most fragmented atlas there is."""
+    n = int(np.ceil(np.sqrt(face_count / 2)))
+    f = np.arange(face_count)
+    corner = np.stack([(f // 2) % n, (f // 2) // n], axis=1)[:, None, :] / n
+    lower = np.array([[0.1, 0.1], [0.8, 0.1], [0.1, 0.8]])
+    upper = 1 - lower  # the cell's other half, its corners turned the same way round
+    return corner + np.where((f % 2 == 0)[:, None, None], lower, upper) / n
+
+
+def test_a_per_triangle_atlas_merges_into_few_charts_with_the_guarantees(native, scans):
+    """Every triangle its own chart (13,666 on the tetra scan), textured by
+    baking the scan's own texture into that layout first."""
+    import scan_io
+
+    scan = scans("tetra")
+    uvs = per_triangle_atlas(len(scan.triangles))
+    pages = np.zeros(len(scan.triangles), scan.face_page.dtype)
+    sizes = np.array([[4096, 4096]], scan.page_sizes.dtype)
+    old = [np.ascontiguousarray(scan_io.load_image(p)[:, :, :3]) for p in scan.page_images]
+    tiles = native.bake(scan.uvs, scan.face_page, old, uvs, pages, sizes)
+    result = native.defragment(scan.positions, scan.triangles, uvs, pages, sizes)
+    m = native.measure(scan.positions, scan.triangles, uvs, pages, sizes, result["uvs"], result["face_page"],
+                       result["page_sizes"])
+    assert m["old"]["charts"] == len(scan.triangles)
+    assert m["new"]["charts"] <= 50
+    assert m["new"]["seam_ratio"] <= 0.1 * m["old"]["seam_ratio"]
+    assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
+    assert m["map"]["density_loss_area_share"] < 0.01
+    new = native.bake(uvs, pages, tiles, result["uvs"], result["face_page"], result["page_sizes"])
+    fidelity = native.compare_colors(scan.positions, scan.triangles, uvs, pages, tiles, result["uvs"],
+                                     result["face_page"], new, samples=200000)
+    assert fidelity["psnr_db"] >= 40
+
 def test_bytes_from_unit_floats_gives_bytes_back_in_their_shape(native):
     values = (np.arange(256 * 3, dtype=np.float32) % 256 / np.float32(255)).reshape(16, 16, 3)
     out = native.bytes_from_unit_floats(values)
