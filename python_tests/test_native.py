@@ -442,6 +442,7 @@ def test_a_per_triangle_atlas_merges_into_few_charts_with_the_guarantees(native,
                                      result["face_page"], new, samples=200000)
     assert fidelity["psnr_db"] >= 40
 
+
 def test_bytes_from_unit_floats_gives_bytes_back_in_their_shape(native):
     values = (np.arange(256 * 3, dtype=np.float32) % 256 / np.float32(255)).reshape(16, 16, 3)
     out = native.bytes_from_unit_floats(values)
