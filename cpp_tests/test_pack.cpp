@@ -64,9 +64,10 @@ std::vector<RowMatrixX2d> random_blobs(int count, unsigned seed) {
 // Re-rasterises every placed chart from the result alone and checks that its
 // texels lie on its page at least padding / 2 from the border, and that no
 // texel of any page is claimed by two dilated charts (gap: that no dilated
-// chart meets another chart's bare texels, i.e. charts are padding apart).
-void expect_valid_packing(const std::vector<RowMatrixX2d>& charts, const PackResult& result,
-                          int padding, bool gap = false) {
+// chart meets another chart's bare texels, i.e. charts are padding apart),
+// for the padding the result says it kept.
+void expect_valid_packing(const std::vector<RowMatrixX2d>& charts, const PackResult& result, bool gap = false) {
+  const int padding = result.padding;
   ASSERT_EQ(result.placed_uv.size(), charts.size());
   ASSERT_EQ(result.chart_page.size(), charts.size());
   // Per page texel: 0, or 1 + the chart claiming it.
@@ -240,7 +241,7 @@ TEST(PackCharts, RandomRectanglesNeverShareATexel) {
   options.padding = 4;
   const PackResult result = pack_charts(charts, options, RunControl());
   ASSERT_EQ(result.pages.size(), 1u);
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
   expect_reported_transform(charts, result);
   EXPECT_DOUBLE_EQ(result.scale, 1.0);
   EXPECT_GT(result.efficiency, 0.5);
@@ -255,7 +256,7 @@ TEST(PackCharts, BlobsNeverShareATexel) {
   options.padding = 2;
   options.density_scale = 1.5;
   const PackResult result = pack_charts(charts, options, RunControl());
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
   expect_reported_transform(charts, result);
   EXPECT_DOUBLE_EQ(result.scale, 1.5);
   EXPECT_GT(result.efficiency, 0.45);
@@ -289,12 +290,15 @@ TEST(ScaleCharts, HalfTurnedMasksAreTheRastersOfTheTurnedCorners) {
 }
 
 // The share of page texels the charts cover on fixed sets of blobs at the
-// default padding, as reached by the packer: a change that packs worse fails.
+// default padding (4 texels, not scaled to these small pages), as reached by
+// the packer: a change that packs worse fails.
 TEST(PackCharts, EfficiencyOnBlobsAtTheDefaultPadding) {
   double sum = 0.0;
+  PackOptions options;
+  options.full_padding_side = 0;
   for (unsigned seed : {3u, 5u, 11u}) {
     const auto charts = random_blobs(300, seed);
-    const PackResult result = pack_charts(charts, PackOptions(), RunControl());
+    const PackResult result = pack_charts(charts, options, RunControl());
     ASSERT_EQ(result.pages.size(), 1u);
     sum += result.efficiency;
   }
@@ -310,10 +314,37 @@ TEST(PackCharts, PaddingBetweenChartsKeepsTheGapOnly) {
   const PackResult ring = pack_charts(charts, options, RunControl());
   options.padding_between_charts = true;
   const PackResult gap = pack_charts(charts, options, RunControl());
-  expect_valid_packing(charts, gap, options.padding, true);
+  expect_valid_packing(charts, gap, true);
   expect_reported_transform(charts, gap);
   EXPECT_LT(total_page_texels(gap), total_page_texels(ring));
   EXPECT_GT(gap.efficiency, 0.55);
+}
+
+// Pages under full_padding_side texels get padding in proportion to their
+// longer side, at least 2 texels and never more than asked for.
+TEST(PackCharts, SmallPagesGetPaddingInProportionToTheirSide) {
+  const auto charts = random_blobs(300, 5);
+  PackOptions options;
+  options.full_padding_side = 0;
+  const PackResult full = pack_charts(charts, options, RunControl());
+  EXPECT_EQ(full.padding, 4);
+  options.full_padding_side = PackOptions().full_padding_side;
+  const PackResult scaled = pack_charts(charts, options, RunControl());
+  const int side = std::max(full.pages[0].width, full.pages[0].height);
+  ASSERT_LT(side, 896);  // 4 * side / 1024 rounds below 4
+  EXPECT_EQ(scaled.padding, std::max(2L, std::lround(4.0 * side / 1024)));
+  expect_valid_packing(charts, scaled);
+  EXPECT_LT(total_page_texels(scaled), total_page_texels(full));
+
+  for (const auto& [side, padding] : {std::pair{512, 2}, {768, 3}, {1024, 4}, {2048, 4}, {256, 2}}) {
+    options.fixed_page_size = side;
+    const PackResult fixed = pack_charts(charts, options, RunControl());
+    EXPECT_EQ(fixed.padding, padding) << "page side " << side;
+    expect_valid_packing(charts, fixed);
+  }
+  options.fixed_page_size = 0;
+  options.padding = 1;
+  EXPECT_EQ(pack_charts(charts, options, RunControl()).padding, 1);
 }
 
 TEST(PackCharts, DefaultPageIsSmallAndNearSquare) {
@@ -329,7 +360,7 @@ TEST(PackCharts, DefaultPageIsSmallAndNearSquare) {
   EXPECT_EQ(page.width % 4, 0);
   EXPECT_EQ(page.height % 4, 0);
   EXPECT_LE(std::max(page.width, page.height), 2 * std::min(page.width, page.height));
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
 }
 
 TEST(PackCharts, TexelBudgetShrinksCharts) {
@@ -342,7 +373,7 @@ TEST(PackCharts, TexelBudgetShrinksCharts) {
   EXPECT_LT(shrunk.scale, 1.0);
   EXPECT_GT(shrunk.scale, 0.3);  // not needlessly small
   EXPECT_LE(total_page_texels(shrunk), options.texel_budget);
-  expect_valid_packing(charts, shrunk, options.padding);
+  expect_valid_packing(charts, shrunk);
   expect_reported_transform(charts, shrunk);
 }
 
@@ -358,7 +389,7 @@ TEST(PackCharts, MaxPageSizeSpillsOntoMorePages) {
     EXPECT_LE(page.height, 256);
   }
   EXPECT_DOUBLE_EQ(result.scale, 1.0);
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
   // Fewest pages: all but the last are well filled.
   EXPECT_GT(result.efficiency, 0.5);
 }
@@ -378,7 +409,7 @@ TEST(PackCharts, MaxPagesShrinksChartsOnlyWhenTheyDoNotFit) {
   larger.density_scale = 1.02 * shrunk.scale;
   EXPECT_GT(pack_charts(charts, larger, RunControl()).pages.size(), 1u);
   EXPECT_TRUE(shrunk.shrunk);
-  expect_valid_packing(charts, shrunk, options.padding);
+  expect_valid_packing(charts, shrunk);
   expect_reported_transform(charts, shrunk);
 
   options.max_page_size = 2048;  // room enough: full density, no warning
@@ -421,7 +452,7 @@ TEST(PackCharts, EveryPageSideModeGivesPagesOfItsKind) {
       EXPECT_LE(page.height, side_growth * std::max(tight.width, tight.height)) << page.height;
       EXPECT_LE(static_cast<double>(page.width) * page.height,
                 side_growth * side_growth * tight.width * tight.height);
-      expect_valid_packing(charts, result, options.padding);
+      expect_valid_packing(charts, result);
     }
 }
 
@@ -438,7 +469,7 @@ TEST(PackCharts, PowerOfTwoPagesOnManyPagesToo) {
     EXPECT_EQ(page.width & (page.width - 1), 0) << page.width;
     EXPECT_EQ(page.height & (page.height - 1), 0) << page.height;
   }
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
 }
 
 // Thousands of charts on one UV area (duplicated meshes, scan debris) used to
@@ -452,7 +483,7 @@ TEST(PackCharts, TenThousandStackedChartsPackWithinTheLimits) {
   const PackResult result = pack_charts(charts, options, RunControl());
   EXPECT_LE(total_page_texels(result), options.texel_budget);
   EXPECT_TRUE(result.shrunk);
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
 
   options.texel_budget = 0;
   options.max_pages = 1;
@@ -460,7 +491,7 @@ TEST(PackCharts, TenThousandStackedChartsPackWithinTheLimits) {
   const PackResult one_page = pack_charts(charts, options, RunControl());
   ASSERT_EQ(one_page.pages.size(), 1u);
   EXPECT_GT(one_page.efficiency, 0.4);
-  expect_valid_packing(charts, one_page, options.padding);
+  expect_valid_packing(charts, one_page);
 }
 
 TEST(SmallestBoxTurn, TurnsATiltedRectangleUprightWithoutMirroring) {
@@ -494,7 +525,7 @@ TEST(PackCharts, ChartLargerThanMaxPageIsScaledDown) {
   const PackResult result = pack_charts(charts, options, RunControl());
   EXPECT_LT(result.scale, 128.0 / 500.0);
   EXPECT_EQ(result.pages.size(), 1u);
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
 }
 
 TEST(PackCharts, FixedPageSizeFitsOnePageAsLargeAsPossible) {
@@ -508,7 +539,7 @@ TEST(PackCharts, FixedPageSizeFitsOnePageAsLargeAsPossible) {
   EXPECT_EQ(result.pages[0].height, 512);
   EXPECT_GT(result.scale, 0.0);
   EXPECT_GT(result.efficiency, 0.4);  // the page is filled, not just fitted
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
   expect_reported_transform(charts, result);
 
   // Small charts are scaled up to fill the page.
@@ -528,7 +559,7 @@ TEST(PackCharts, LongestChartLiesAcrossTheDefaultPage) {
   EXPECT_EQ(result.chart_turns[0] % 2, 1);
   EXPECT_LT(result.pages[0].height, 600);
   EXPECT_GE(result.pages[0].width, 600);
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
   expect_reported_transform(charts, result);
 }
 
@@ -549,7 +580,7 @@ TEST(PackCharts, SmallChartFillsTheGapOfAConcaveChart) {
   const Eigen::RowVector2d u_hi = result.placed_uv[0].colwise().maxCoeff();
   EXPECT_TRUE((result.placed_uv[1].colwise().minCoeff().array() > u_lo.array()).all());
   EXPECT_TRUE((result.placed_uv[1].colwise().maxCoeff().array() < u_hi.array()).all());
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
   expect_reported_transform(charts, result);
 }
 
@@ -567,7 +598,7 @@ TEST(PackCharts, LongChartIsRotatedToFit) {
       result.placed_uv[1].colwise().maxCoeff() - result.placed_uv[1].colwise().minCoeff();
   EXPECT_GT(extent.x(), 4.0 * extent.y());
   EXPECT_GT(result.scale, 1.0);
-  expect_valid_packing(charts, result, options.padding);
+  expect_valid_packing(charts, result);
   expect_reported_transform(charts, result);
 }
 
@@ -585,7 +616,7 @@ TEST(PackCharts, DegenerateInputs) {
   placed.col(1) *= result.pages[0].height;
   EXPECT_EQ(count_set_texels(rasterize_chart(placed)), 1);
   const std::vector<RowMatrixX2d> finite = {point, rectangle(8, 8), RowMatrixX2d(0, 2), rectangle(12, 3)};
-  expect_valid_packing(finite, result, options.padding);
+  expect_valid_packing(finite, result);
   EXPECT_GT(result.efficiency, 0.0);
 
   const PackResult empty = pack_charts({}, options, RunControl());

@@ -225,6 +225,7 @@ PipelineOptions pipeline_options(const py::object& obj) {
     else if (key == "max_pages") o.pack.max_pages = option_value<int>(value, key, "0 (automatic) or 1..4096");
     else if (key == "square_pages") o.pack.square_pages = bool_option(value, key);
     else if (key == "padding_between_charts") o.pack.padding_between_charts = bool_option(value, key);
+    else if (key == "padding_follows_page") o.pack.full_padding_side = bool_option(value, key) ? PackOptions{}.full_padding_side : 0;
     else if (key == "texels_at_most_input") o.texels_at_most_input = bool_option(value, key);
     else if (key == "texels_per_unit")
       o.texels_per_unit = option_value<double>(value, key, "0 (density_scale applies) or 0.001..1e9");
@@ -362,6 +363,7 @@ py::dict defragment_py(const py::object& positions, const py::object& triangles,
   out["uvs"] = uv_array(r.corner_uv);
   out["face_page"] = int_array(r.face_page);
   out["page_sizes"] = sizes_array(r.pages);
+  out["page_padding"] = py::array_t<int>(r.page_padding.size(), r.page_padding.data());
   out["report"] = report_dict(r.report);
   out["charts"] = chart_arrays(r.charts);
   out["face_chart"] = int_array(r.face_chart);
@@ -751,6 +753,7 @@ py::dict pack_charts_py(const py::list& charts, const py::object& options, const
   out["scale"] = r.scale;
   out["shrunk"] = r.shrunk;
   out["efficiency"] = r.efficiency;
+  out["padding"] = r.padding;
   return out;
 }
 
@@ -783,7 +786,7 @@ and energy_final (symmetric Dirichlet per unit reference area, 4 = isometric).)"
         R"(Packs charts alone: charts is a list of (F_c,3,2) corner arrays in texels (any
 placement); options takes the packing keys of defragment's options. Returns
 dict(uvs: list of (F_c,3,2) in page units, chart_page, page_sizes, scale, shrunk
-(scale below density_scale), efficiency).)");
+(scale below density_scale), efficiency, padding (texels used)).)");
 
   m.def("chart_graph", &chart_graph_py, py::arg("positions"), py::arg("triangles"), py::arg("uvs"),
         py::arg("face_page"), py::arg("page_sizes"), "The input's UV charts: counts and the chart of each face.");

@@ -233,8 +233,8 @@ PackResult pack_in_source_budget(const std::vector<RowMatrixX2d>& uv, const Pack
   try {
     return pack_charts(uv, options, control);
   } catch (const ChartsDoNotFit&) {
-    msg << ", too few for its " << uv.size() << " charts with " << options.padding
-        << " texels of padding around each (charts collapsed to points or slivers need a texel or more "
+    msg << ", too few for its " << uv.size() << " charts with "
+        << padding_for_side(options, budget_page_side(options)) << " texels of padding around each (charts collapsed to points or slivers need a texel or more "
            "each): use a smaller padding, a higher density_scale or a fixed_page_size";
     throw InputError(msg.str());
   }
@@ -286,6 +286,7 @@ void write_placed(const std::vector<FlatChart>& charts, const std::vector<int>& 
     }
   }
   result.pages.insert(result.pages.end(), packed.pages.begin(), packed.pages.end());
+  result.page_padding.resize(result.pages.size(), packed.padding);
 }
 
 // Packs each face group on pages of its own and writes the placed UVs.
@@ -463,6 +464,7 @@ void pack_keeping_windings(const Mesh& mesh, const std::vector<int>& face_group,
     result.corner_uv = mesh.corner_uv;
     result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
     result.pages.clear();
+    result.page_padding.clear();
     pack_groups(mesh, face_group, charts, options, control, result);
     const int detached = detach_turned_faces(mesh, result, charts);
     if (detached == 0) break;

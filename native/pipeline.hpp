@@ -86,6 +86,7 @@ struct PipelineResult {
   Eigen::VectorXi face_page;    // new page per face, -1 kept for untextured faces
   Eigen::VectorXi face_chart;   // output chart per face (index into charts), -1 for untextured faces
   std::vector<PageSize> pages;
+  std::vector<int> page_padding;  // per page: texels of padding its charts got (see PackOptions)
   std::vector<ChartSummary> charts;
   PipelineReport report;
 };

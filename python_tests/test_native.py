@@ -365,15 +365,21 @@ def test_page_side_modes_and_texel_density_target(native, scans, tetra_result):
 
 
 def test_a_dense_atlas_keeps_its_density_by_default(native, scans):
-    # The tetra scan's charts on a page 32x narrower: its atlas is then denser
+    # The tetra scan's charts on a page 64x narrower: its atlas is then denser
     # than the output can be with the default padding.
     scan = scans("tetra")
-    small = np.full_like(np.asarray(scan.page_sizes), 64)
+    small = np.full_like(np.asarray(scan.page_sizes), 32)
     dense = (scan.positions, scan.triangles, scan.uvs, scan.face_page, small)
     result = native.defragment(*dense)
     assert result["report"]["scale"] == 1.0 and not result["report"]["shrunk"]
     m = native.measure(*dense, result["uvs"], result["face_page"], result["page_sizes"])
     assert m["map"]["density_loss_area_share"] < 0.01
+    # Its small page gets padding in proportion (at least 2 texels): fewer
+    # texels than with the full 4 texels on every page.
+    assert result["page_padding"].tolist() == [2] * len(result["page_sizes"])
+    full = native.defragment(*dense, options={"padding_follows_page": False})
+    assert full["page_padding"].tolist() == [4] * len(full["page_sizes"])
+    assert result["report"]["texels_after"] < full["report"]["texels_after"]
     # The input's texel count as a hard limit shrinks the charts, and says so.
     limited = native.defragment(*dense, options={"texels_at_most_input": True})
     assert limited["report"]["shrunk"] and limited["report"]["scale"] < 1.0

@@ -190,7 +190,8 @@ def print_report(result: job.JobResult, m: dict, fidelity: dict, t_load: float) 
           f"{r['faces_detached']} faces made charts of their own (float32 would turn them over)")
     print(f"  texels        {r['texels_before']:,} -> {r['texels_after']:,} "
           f"(packing efficiency {r['packing_efficiency']:.1%}, scale {r['scale']:.3f}"
-          f"{', SHRUNK below the density asked for' if r['shrunk'] else ''}; pages {result.page_sizes.tolist()})")
+          f"{', SHRUNK below the density asked for' if r['shrunk'] else ''}; pages {result.page_sizes.tolist()}, "
+          f"padding {r['padding']})")
     print(f"  copied        {r['copied_share']:.1%} of the covered texels taken unresampled from the old atlas")
     if m is not None:
         print(f"  flipped       {m['old']['flipped_faces']} -> {m['new']['flipped_faces']}; "

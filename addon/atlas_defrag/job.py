@@ -267,6 +267,7 @@ class _Layout:
     uvs: np.ndarray  # (F, 3, 2) float64, the new UVs
     face_page: np.ndarray  # (F,) int32 new page
     page_sizes: np.ndarray  # (Q, 2) int32
+    page_padding: np.ndarray  # (Q,) int32 texels of padding the packer kept on each page
     report: dict
 
 
@@ -295,7 +296,7 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     images: List[OutputImage] = []
     texels = {"covered_texels": 0, "copied_texels": 0}
     for i, (g, roles) in enumerate(bake_calls):
-        baked, stats = _bake_group_roles(layout, g, roles, options.padding, calls,
+        baked, stats = _bake_group_roles(layout, g, roles, calls,
                                          calls.share(layout_share + i * bake_share, bake_share))
         images.extend(baked)
         for key in texels:
@@ -309,6 +310,7 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     seconds["total"] = t_end - t_start
     report.update(seconds=seconds, pages_before=int(len(job.pages)),
                   pages_after=int(len(layout.page_sizes)), images_written=len(images),
+                  padding=int(layout.page_padding.min(initial=options.padding)),
                   copied_share=texels["copied_texels"] / max(1, texels["covered_texels"]))
     if report.get("shrunk"):
         report["warnings"] = [f"charts scaled to {report.get('scale', 0):.3g} of the texel density asked for, "
@@ -367,6 +369,7 @@ def _new_layout(job: JobInput, options: Options, calls: _NativeCalls, progress) 
                    uvs=np.asarray(res["uvs"], dtype=np.float64),
                    face_page=np.asarray(res["face_page"], dtype=np.int32),
                    page_sizes=np.asarray(res["page_sizes"], dtype=np.int32).reshape(-1, 2),
+                   page_padding=np.asarray(res["page_padding"], dtype=np.int32),
                    report=dict(res.get("report", {})))
 
 
@@ -381,8 +384,7 @@ def _new_page_groups(layout: _Layout) -> np.ndarray:
     return new_group
 
 
-def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], padding: int, calls: _NativeCalls,
-                      progress) -> Tuple[List[OutputImage], dict]:
+def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], calls: _NativeCalls, progress) -> Tuple[List[OutputImage], dict]:
     """_native.bake_maps of some roles of one material group onto its new pages
     (one call per pixel dtype), and what it copied texel for texel
     (covered_texels, copied_texels, summed over the roles)."""
@@ -412,7 +414,7 @@ def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], padding
             _local_index(new_pages, len(layout.page_sizes))[layout.face_page[faces]],
             _output_sizes(layout, old_pages, new_pages, batch[0][2]),
             normal_maps=[any(m.normal_map for m in maps) for _, maps, _, _ in batch],
-            padding=padding,
+            padding=int(layout.page_padding[new_pages].max()),
             progress=progress,
             with_stats=True,
         )

@@ -50,6 +50,10 @@ SCHEMA: Tuple[Option, ...] = (
                     Choice("3d", "3D", "Merge by seam length measured on the surface"))),
     Option("padding", int, 4, "Padding", "Empty texels kept around every chart", low=0, high=64,
            unit="texels"),
+    Option("padding_follows_page", bool, True, "Padding Follows Page Size",
+           "Pages under 1024 texels get padding in proportion to their size, at least 2 texels: "
+           "from the same distance a page half as large is read one mip level finer, "
+           "so half the padding keeps the same distances free of bleeding"),
     Option("fixed_page_size", int, 0, "Page Size",
            "Side of one square output page, charts scaled as large as fit (at most Maximum Page Size)",
            low=64, high=16384, automatic="pages sized to keep the source texel budget",

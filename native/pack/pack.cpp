@@ -38,6 +38,11 @@ constexpr double kFullPage = 0.8;
 // tolerance and spend every step without finding a fit.
 constexpr double kLeastOvershoot = 1.1;
 
+// Scaled padding stops here: the bake extends a chart's colour this far, past
+// the 1.5 texels a bilinear read at full resolution reaches beyond the edge,
+// so such reads never meet the pull-push fill.
+constexpr int kLeastScaledPadding = 2;
+
 struct Packing {
   double scale = 1.0;
   std::vector<ScaledChart> charts;
@@ -378,6 +383,7 @@ PackResult to_result(const std::vector<const RowMatrixX2d*>& chart_uv, const Pac
     chart_texels += chart.raster_texels[at.turn];
   }
   result.efficiency = static_cast<double>(chart_texels) / page_texels(layout.pages);
+  result.padding = frame.padding;
   return result;
 }
 
@@ -385,6 +391,7 @@ PackResult to_result(const std::vector<const RowMatrixX2d*>& chart_uv, const Pac
 PackResult empty_result(const PackOptions& options) {
   PackResult empty;
   empty.scale = options.density_scale;
+  empty.padding = options.padding;
   const int side = options.fixed_page_size > 0 ? options.fixed_page_size : kSideQuantum;
   empty.pages.push_back({side, side});
   empty.chart_translation.resize(0, 2);
@@ -439,12 +446,9 @@ Packing pack_within_limits(const std::vector<const RowMatrixX2d*>& uv, double sc
   return packing;
 }
 
-}  // namespace
-
-PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
-                       const RunControl& control) {
-  require_valid(chart_uv, options);
-  control.throw_if_cancelled();
+// The charts packed with options.padding as given.
+PackResult pack_at_padding(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
+                           const RunControl& control) {
   // Half the padding may lie beyond the border: pages wrap when sampled, so
   // the two borders together still give a chart its full padding.
   const Frame frame{options.padding, options.padding / 2, options.page_sides, options.square_pages,
@@ -467,6 +471,48 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
   lower_single_page(packing.layout, packing.charts, frame, control);
   PackResult result = to_result(uv, packing, frame);
   result.shrunk = result.scale < options.density_scale * (1.0 - 1e-9);
+  return result;
+}
+
+int longest_side(const std::vector<PageSize>& pages) {
+  int side = 0;
+  for (const PageSize& page : pages) side = std::max({side, page.width, page.height});
+  return side;
+}
+
+}  // namespace
+
+int padding_for_side(const PackOptions& options, int side) {
+  if (options.full_padding_side <= 0 || side >= options.full_padding_side) return options.padding;
+  const long scaled = std::lround(static_cast<double>(options.padding) * side / options.full_padding_side);
+  return static_cast<int>(std::clamp<long>(scaled, std::min(options.padding, kLeastScaledPadding), options.padding));
+}
+
+int budget_page_side(const PackOptions& options) {
+  if (options.texel_budget <= 0) return options.max_page_size;
+  const double side = std::sqrt(static_cast<double>(options.texel_budget));
+  return static_cast<int>(std::min<double>(options.max_page_size, side));
+}
+
+PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
+                       const RunControl& control) {
+  require_valid(chart_uv, options);
+  control.throw_if_cancelled();
+  PackOptions scaled = options;
+  if (options.fixed_page_size > 0) scaled.padding = padding_for_side(options, options.fixed_page_size);
+  PackResult result;
+  try {
+    result = pack_at_padding(chart_uv, scaled, control);
+  } catch (const ChartsDoNotFit&) {
+    // No scale fits the limits at this padding; pages within them are small
+    // enough to call for less padding, perhaps.
+    scaled.padding = padding_for_side(options, budget_page_side(options));
+    if (options.fixed_page_size > 0 || scaled.padding == options.padding) throw;
+    return pack_at_padding(chart_uv, scaled, control);
+  }
+  // The page size follows the charts: pack again if it calls for less padding.
+  scaled.padding = padding_for_side(options, longest_side(result.pages));
+  if (scaled.padding < result.padding) result = pack_at_padding(chart_uv, scaled, control);
   return result;
 }
 

@@ -28,6 +28,12 @@ constexpr int kMaxPageSide = 1 << 16;
 struct PackOptions {
   double density_scale = 1.0;  // texels per original texel
   int padding = 4;             // empty texels kept around every chart; 0: none (at most kMaxPadding)
+  // Pages whose longer side is under this many texels get the padding scaled
+  // by side / full_padding_side, rounded, but at least min(padding, 2): from
+  // the same viewing distance a page half as large is read one mip level
+  // finer, so half the padding keeps the same distances free of bleeding.
+  // 0: every page gets the full padding.
+  int full_padding_side = 1024;
   int max_page_size = 8192;    // largest page side (at most kMaxPageSide; 0 is refused)
   int fixed_page_size = 0;     // > 0: square pages of this side, charts scaled to fit one page;
                                // 0: the page size follows the charts
@@ -50,6 +56,7 @@ struct PackResult {
   double scale = 1.0;                   // uniform scale finally applied (< density_scale if shrunk)
   bool shrunk = false;                  // scale < density_scale: the charts lost texel density
   double efficiency = 0.0;              // chart texels / page texels
+  int padding = 0;                      // texels of padding used (see full_padding_side)
   // The exact transform, per chart: page texel = scale * R * input texel + translation,
   // R turning chart_turns quarter turns counter-clockwise (one: (x, y) -> (-y, x)).
   // The translation is whole texels, so at scale 1 texels copy 1:1.
@@ -73,11 +80,21 @@ struct PackResult {
 // fixed_page_size: one page of exactly that side (resting by the centroid),
 // charts scaled as large as fit (density_scale is then ignored). Charts keep
 // at least padding / 2 texels from page borders (pages wrap, so both borders
-// together give the full padding).
+// together give the full padding). When the pages come out under
+// full_padding_side, or fit no budget at full padding, the charts are packed
+// again with the padding scaled.
 // Throws InputError on bad options, rows not a multiple of 3, or a budget or
 // fixed page too small for the charts' padding alone; non-finite corners are
 // pulled onto their chart's mean corner.
 PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
                        const RunControl& control);
+
+// The padding pack_charts keeps on pages whose longer side is `side` texels.
+int padding_for_side(const PackOptions& options, int side);
+
+// The longest page side the texel budget leaves for one square page (or
+// max_page_size without a budget): charts that fit no page at full padding
+// are packed again with the padding of this side.
+int budget_page_side(const PackOptions& options);
 
 }  // namespace atlas
