@@ -283,7 +283,7 @@ def tightly_packed_scan(native, scan, side=512):
     Image.fromarray(page[::-1]).save(buf, "PNG")
     dense = scan_io.Scan(scan.positions, scan.triangles, uvs, face_page, size)
     dense.maps = [{"base_color": buf.getvalue()}]
-    return dense
+    return dense, packed["efficiency"]
 
 
 def stacked_charts(count=10000, size=1024.0, seed=0):
@@ -404,13 +404,14 @@ def main() -> int:
 
     print("dense atlases ...", file=sys.stderr)
     dense_atlases = [("smithsonian, maps at 512", dense_scan(results["smithsonian"][0]))]
-    dense_atlases += [(f"{name}, charts packed on 512", tightly_packed_scan(native, results[name][0]))
-                      for name in ("tetra", "meshroom")]
+    tight = {name: tightly_packed_scan(native, results[name][0]) for name in ("tetra", "meshroom")}
+    dense_atlases += [(f"{name}, charts packed on 512", dense) for name, (dense, _) in tight.items()]
     lines += ["## Dense atlases", "",
               "The Smithsonian scan with its maps downsampled to 512 x 512 (a page half full of charts a few "
               "texels wide), and the tetra and Meshroom scans with their own charts packed by `pack_charts` "
-              "with 1 texel of padding onto a 512 x 512 page (64% and 62% of it covered) and their base colour "
-              "baked there. Targets (issue 16): clean PSNR >= 40 dB, density loss 0, texels <= 1.1x the input.", "",
+              "with 1 texel of padding onto a 512 x 512 page ("
+              + " and ".join(f"{efficiency:.0%}" for _, efficiency in tight.values())
+              + " of it covered) and their base colour baked there. Targets (issue 16): clean PSNR >= 40 dB, density loss 0, texels <= 1.1x the input.", "",
               "| atlas | options | texels in | texels out | ratio | padding | scale | density loss | copied | PSNR all | clean | border |",
               "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for atlas, dense in dense_atlases:
