@@ -514,6 +514,6 @@ def summary(report: dict) -> str:
     secs = report.get("seconds", {}).get("total")
     return (f"charts {num('charts_before')} -> {num('charts_after')}, "
             f"seam {num('seam_before', '{:.4g}')} -> {num('seam_after', '{:.4g}')}, "
-            f"pages {num('pages_before')} -> {num('pages_after')}, "
+            f"pages {num('pages_before')} -> {num('pages_after')} ({num('padding')} texels of padding), "
             + (f"charts scaled to {num('scale', '{:.3g}')} of their texel density, " if report.get("shrunk") else "")
             + f"time {'?' if secs is None else f'{secs:.1f}'} s")

@@ -678,6 +678,8 @@ def several_objects(pkg):
     for n in states:
         assert f"Defragmented '{n}'" in message, message
     assert "New images:" in message and "x" in message, message
+    # The scan's page keeps the full padding; the plane's small page gets less.
+    assert "(4 texels of padding)" in message and "(2 texels of padding)" in message, message
     return {"message": message}
 
 
