@@ -225,7 +225,8 @@ PipelineOptions pipeline_options(const py::object& obj) {
     else if (key == "max_pages") o.pack.max_pages = option_value<int>(value, key, "0 (automatic) or 1..4096");
     else if (key == "square_pages") o.pack.square_pages = bool_option(value, key);
     else if (key == "padding_between_charts") o.pack.padding_between_charts = bool_option(value, key);
-    else if (key == "padding_follows_page") o.pack.full_padding_side = bool_option(value, key) ? PackOptions{}.full_padding_side : 0;
+    else if (key == "padding_follows_page")
+      o.pack.full_padding_side = bool_option(value, key) ? PackOptions{}.full_padding_side : 0;
     else if (key == "texels_at_most_input") o.texels_at_most_input = bool_option(value, key);
     else if (key == "texels_per_unit")
       o.texels_per_unit = option_value<double>(value, key, "0 (density_scale applies) or 0.001..1e9");

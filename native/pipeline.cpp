@@ -234,7 +234,8 @@ PackResult pack_in_source_budget(const std::vector<RowMatrixX2d>& uv, const Pack
     return pack_charts(uv, options, control);
   } catch (const ChartsDoNotFit&) {
     msg << ", too few for its " << uv.size() << " charts with "
-        << padding_for_side(options, budget_page_side(options)) << " texels of padding around each (charts collapsed to points or slivers need a texel or more "
+        << padding_for_side(options, budget_page_side(options))
+        << " texels of padding around each (charts collapsed to points or slivers need a texel or more "
            "each): use a smaller padding, a higher density_scale or a fixed_page_size";
     throw InputError(msg.str());
   }

@@ -384,7 +384,8 @@ def _new_page_groups(layout: _Layout) -> np.ndarray:
     return new_group
 
 
-def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], calls: _NativeCalls, progress) -> Tuple[List[OutputImage], dict]:
+def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], calls: _NativeCalls,
+                      progress) -> Tuple[List[OutputImage], dict]:
     """_native.bake_maps of some roles of one material group onto its new pages
     (one call per pixel dtype), and what it copied texel for texel
     (covered_texels, copied_texels, summed over the roles)."""
