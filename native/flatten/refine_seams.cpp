@@ -6,35 +6,12 @@
 
 #include "charts/disk_merge.hpp"
 #include "core/geometry.hpp"
+#include "core/plane_predicates.hpp"
 
 namespace atlas {
 namespace {
 
 using Point = Eigen::Vector2d;
-
-// Twice the signed area of (a, b, c): > 0 when c lies left of a -> b.
-double orient(const Point& a, const Point& b, const Point& c) {
-  return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
-}
-
-bool within_box(const Point& a, const Point& b, const Point& c) {
-  return c.x() >= std::min(a.x(), b.x()) && c.x() <= std::max(a.x(), b.x()) && c.y() >= std::min(a.y(), b.y()) &&
-         c.y() <= std::max(a.y(), b.y());
-}
-
-// Segments pq and rs cross or touch.
-bool segments_meet(const Point& p, const Point& q, const Point& r, const Point& s) {
-  const double d1 = orient(p, q, r), d2 = orient(p, q, s), d3 = orient(r, s, p), d4 = orient(r, s, q);
-  if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) return true;
-  return (d1 == 0 && within_box(p, q, r)) || (d2 == 0 && within_box(p, q, s)) || (d3 == 0 && within_box(r, s, p)) ||
-         (d4 == 0 && within_box(r, s, q));
-}
-
-// p inside triangle abc or on its edges, either winding.
-bool in_triangle(const Point& a, const Point& b, const Point& c, const Point& p) {
-  const double d1 = orient(a, b, p), d2 = orient(b, c, p), d3 = orient(c, a, p);
-  return (d1 >= 0 && d2 >= 0 && d3 >= 0) || (d1 <= 0 && d2 <= 0 && d3 <= 0);
-}
 
 // Corner k of face f starts the edge triangles(f,k) -> triangles(f,(k+1)%3).
 struct Corner {
@@ -168,11 +145,11 @@ class Refiner {
       const bool at_a = p == a || q == a, at_b = p == b || q == b;
       if (at_a || at_b) {
         const Point& far = (p == a || p == b) ? q : p;
-        if (far != a && far != b && in_triangle(a, b, apex, far)) return false;
+        if (far != a && far != b && in_or_on_triangle(a, b, apex, far)) return false;
         if (at_a && at_b) return false;  // the chart already has an edge a-b: the face would close a hole
         continue;
       }
-      if (segments_meet(a, b, p, q) || in_triangle(a, b, apex, p)) return false;
+      if (segments_touch(a, b, p, q) || in_or_on_triangle(a, b, apex, p)) return false;
     }
     return true;
   }
