@@ -12,6 +12,8 @@
 #include "flatten/disk_boundary.hpp"
 #include "flatten/flatten_chart.hpp"
 #include "flatten/refine_seams.hpp"
+#include "flatten/straighten_borders.hpp"
+#include "core/min_cut.hpp"
 #include "test_meshes.hpp"
 
 using namespace atlas;
@@ -53,6 +55,22 @@ std::vector<FlatChart> kept_charts(const Mesh& mesh, const std::vector<int>& cha
       for (int k = 0; k < 3; ++k) c.corner_uv.row(3 * i + k) = mesh.uv_texels(c.faces[i], k).transpose();
   }
   return out;
+}
+
+// The unit grid split down x = 1/2, but the two columns left of it belong to
+// the right chart in rows 2-5: a bump whose faces, one at a time, would each
+// lengthen the border by leaving it.
+Mesh bump_charts(std::vector<int>& chart) {
+  const Mesh grid = atlas::testing::grid_disk(kGrid);
+  chart.assign(grid.face_count(), 0);
+  for (int f = 0; f < grid.face_count(); ++f) {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) centre += grid.positions.row(grid.triangles(f, k)).transpose() / 3;
+    const int row = static_cast<int>(centre.y() * kGrid);
+    const bool bump = centre.x() > 0.25 && row >= 2 && row <= 5;
+    chart[f] = centre.x() > 0.5 || bump ? 1 : 0;
+  }
+  return atlas::testing::with_chart_uvs(grid.positions, grid.triangles, chart);
 }
 
 std::vector<int> labels(const Mesh& mesh, const std::vector<FlatChart>& charts) {
@@ -181,4 +199,44 @@ TEST(RefineSeams, FaceMovedToAnotherChartBakesToTheSameColours) {
     for (int channel = 0; channel < 3; ++channel)
       EXPECT_NEAR(texel(baked[0].texels, new_centre, channel), texel(old_texels, old_centre, channel), 1) << "face " << f;
   }
+}
+
+TEST(StraightenBorders, BumpGoesBackWholeAndChartsStayFlipFreeDisks) {
+  std::vector<int> chart;
+  const Mesh mesh = bump_charts(chart);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
+  for (FlatChart& c : charts) c.kept_original = false;  // solved charts, at their input UVs
+  const double before = seam_length(mesh, topology, chart);
+  ASSERT_NEAR(before, 1.5, 1e-9);  // the straight border and the bump's two sides
+  const std::vector<char> no_seams(topology.edge_count(), 0);
+  const RefineStats stats = straighten_borders(mesh, topology, no_seams, {}, RefineOptions{}, charts);
+  EXPECT_EQ(stats.faces_moved, 2 * 2 * 4);  // two columns, four rows, two triangles a cell
+  EXPECT_NEAR(seam_length(mesh, topology, labels(mesh, charts)), 1.0, 1e-9);
+  EXPECT_NEAR(stats.seam_removed_3d, 0.5, 1e-9);
+  expect_flip_free_disks(mesh, topology, charts);
+  // The moved faces keep their shape: the charts are flat, so nearly exactly.
+  for (int f : charts[0].faces) {
+    const int j = static_cast<int>(std::find(charts[0].faces.begin(), charts[0].faces.end(), f) - charts[0].faces.begin());
+    const double area = signed_area(charts[0].corner_uv.row(3 * j), charts[0].corner_uv.row(3 * j + 1),
+                                    charts[0].corner_uv.row(3 * j + 2));
+    EXPECT_NEAR(std::abs(area), std::abs(mesh.signed_area_uv(f)), 1e-6 * std::abs(mesh.signed_area_uv(f))) << "face " << f;
+  }
+}
+
+TEST(StraightenBorders, ChartsKeepingTheirOriginalUVsTakeNoPart) {
+  std::vector<int> chart;
+  const Mesh mesh = bump_charts(chart);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
+  const std::vector<char> no_seams(topology.edge_count(), 0);
+  EXPECT_EQ(straighten_borders(mesh, topology, no_seams, {}, RefineOptions{}, charts).faces_moved, 0);
+}
+
+// s - a - b - t with capacities 3, 1, 2 and a bypass s - b of 0.5: the cut
+// takes a - b and s - b (1.5), leaving s and a on the source's side.
+TEST(MinCut, TakesTheCheapestEdgesBetweenSourceAndSink) {
+  const int s = 0, a = 1, b = 2, t = 3;
+  const std::vector<char> side = min_cut_source_side(4, {{s, a, 3}, {a, b, 1}, {b, t, 2}, {s, b, 0.5}}, s, t);
+  EXPECT_EQ(side, (std::vector<char>{1, 1, 0, 0}));
 }

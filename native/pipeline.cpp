@@ -441,7 +441,8 @@ void report_input(const Mesh& welded, const MeshTopology& topology, const ChartG
 }
 
 // The flattened charts of mesh (the cut surface of welded) made ready to
-// pack: faces moved between them where that shortens the seams (graph_seams,
+// pack: strips of faces along their borders, then single faces, moved
+// between them where that shortens the seams (graph_seams,
 // per edge, and the cuts of the flattening stay), tiny charts enlarged and
 // solved ones turned to their smallest box. What moved goes into report.
 void refine_charts(const Mesh& welded, const Mesh& mesh, const MeshTopology& topology,
@@ -449,9 +450,10 @@ void refine_charts(const Mesh& welded, const Mesh& mesh, const MeshTopology& top
                    const RefineOptions& options, std::vector<FlatChart>& charts, PipelineReport& report) {
   // Before tiny charts are enlarged: the refinement compares texel areas.
   const std::vector<char> kept_seams = seams_in_flat_charts(mesh, topology, graph_seams, charts);
-  const RefineStats refined = refine_seams(mesh, topology, kept_seams, face_group, options, charts);
-  report.refine_faces_moved = refined.faces_moved;
-  report.refine_seam_removed = per_sqrt_area(refined.seam_removed_3d, welded);
+  const RefineStats strips = straighten_borders(mesh, topology, kept_seams, face_group, options, charts);
+  const RefineStats teeth = refine_seams(mesh, topology, kept_seams, face_group, options, charts);
+  report.refine_faces_moved = strips.faces_moved + teeth.faces_moved;
+  report.refine_seam_removed = per_sqrt_area(strips.seam_removed_3d + teeth.seam_removed_3d, welded);
   enlarge_tiny_charts(charts);
   turn_solved_charts(charts);
 }

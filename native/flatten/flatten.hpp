@@ -4,8 +4,9 @@
 // symmetric Dirichlet energy, SCAF where the boundary would cross), cut
 // where it would lose density (relief_cut) and split back, undoing the last
 // merge, until no piece overlaps or loses density (flatten_without_overlap);
-// then faces move between neighbouring charts where that shortens the seam
-// (refine_seams), and charts are cut where that makes them pack tighter
+// then strips of faces along the borders change sides where a minimum cut
+// shortens the seam (straighten_borders), single faces move between
+// neighbouring charts where that shortens it (refine_seams), and charts are cut where that makes them pack tighter
 // (packing_cuts).
 // slim, pair_cholesky, symmetric_dirichlet, tutte_embedding,
 // reference_triangles, scaffold_triangulation, disk_boundary, cut_to_disk and
@@ -15,3 +16,4 @@
 #include "flatten/packing_cuts.hpp"
 #include "flatten/refine_seams.hpp"
 #include "flatten/slim.hpp"
+#include "flatten/straighten_borders.hpp"
