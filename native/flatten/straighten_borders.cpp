@@ -39,7 +39,8 @@ class Straightener {
   Straightener(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
                const std::vector<int>& face_group, const RefineOptions& options, std::vector<FlatChart>& charts)
       : mesh_(mesh), topology_(topology), seam_(seam), face_group_(face_group), options_(options), charts_(charts),
-        label_(mesh.face_count(), -1), slot_(mesh.face_count(), -1), mark_(mesh.face_count(), 0), node_(mesh.face_count(), -1) {
+        label_(mesh.face_count(), -1), slot_(mesh.face_count(), -1), mark_(mesh.face_count(), 0), node_(mesh.face_count(), -1),
+        triangles_(charts.size()) {
     for (size_t c = 0; c < charts.size(); ++c)
       for (size_t j = 0; j < charts[c].faces.size(); ++j) {
         label_[charts[c].faces[j]] = static_cast<int>(c);
@@ -335,24 +336,32 @@ class Straightener {
     return giver_stays_connected(s) && !overlaps_receiver(s);
   }
 
+  // Every part the strip would cut off the giver touches the strip, so the
+  // giver stays as connected as it was when the faces next to the strip
+  // still reach each other; the search stops once they all do.
   bool giver_stays_connected(const Strip& s) const {
-    const std::vector<int>& faces = charts_[s.from].faces;
-    if (faces.size() == s.faces.size()) return false;
+    if (charts_[s.from].faces.size() == s.faces.size()) return false;
     for (int f : s.faces) mark_[f] = 1;
-    int start = -1;
-    for (int f : faces)
-      if (!mark_[f]) start = f;
-    std::vector<int> reached{start};
-    mark_[start] = 2;
-    for (size_t i = 0; i < reached.size(); ++i)
+    std::vector<int> next_to;  // giver faces next to the strip, marked 2
+    for (int f : s.faces)
+      for (int k = 0; k < 3; ++k) {
+        const int g = across(f, k);
+        if (g >= 0 && label_[g] == s.from && !mark_[g]) mark_[g] = 2, next_to.push_back(g);
+      }
+    size_t found = next_to.empty() ? 0 : 1;
+    std::vector<int> reached;
+    if (!next_to.empty()) reached.push_back(next_to.front()), mark_[next_to.front()] = 3;
+    for (size_t i = 0; i < reached.size() && found < next_to.size(); ++i)
       for (int k = 0; k < 3; ++k) {
         const int g = across(reached[i], k);
-        if (g >= 0 && label_[g] == s.from && !mark_[g]) mark_[g] = 2, reached.push_back(g);
+        if (g < 0 || label_[g] != s.from || mark_[g] == 1 || mark_[g] == 3) continue;
+        found += mark_[g] == 2;
+        mark_[g] = 3, reached.push_back(g);
       }
-    const bool connected = reached.size() + s.faces.size() == faces.size();
     for (int f : s.faces) mark_[f] = 0;
+    for (int f : next_to) mark_[f] = 0;
     for (int f : reached) mark_[f] = 0;
-    return connected;
+    return found == next_to.size();
   }
 
   // A UV triangle with its mesh vertices, to tell shared corners apart.
@@ -384,57 +393,90 @@ class Straightener {
     return false;
   }
 
+  // A chart's UV triangles and their boxes, kept until the chart changes.
+  struct ChartTriangles {
+    std::vector<Triangle> triangles;
+    std::vector<Eigen::AlignedBox2d> boxes;
+    bool current = false;
+  };
+
+  const ChartTriangles& triangles_of(int c) const {
+    ChartTriangles& cache = triangles_[c];
+    if (cache.current) return cache;
+    const FlatChart& chart = charts_[c];
+    cache.triangles.resize(chart.faces.size());
+    cache.boxes.assign(chart.faces.size(), Eigen::AlignedBox2d());
+    for (size_t j = 0; j < chart.faces.size(); ++j)
+      for (int k = 0; k < 3; ++k) {
+        cache.triangles[j].vertex[k] = vertex(chart.faces[j], k);
+        cache.triangles[j].corner[k] = chart.corner_uv.row(3 * j + k).transpose();
+        cache.boxes[j].extend(cache.triangles[j].corner[k]);
+      }
+    cache.current = true;
+    return cache;
+  }
+
   // The strip overlaps the receiver or itself: each strip triangle against
   // the receiver's triangles whose box meets the strip's, and the others of
   // the strip.
   bool overlaps_receiver(const Strip& s) const {
     std::vector<Triangle> strip(s.faces.size());
+    std::vector<Eigen::AlignedBox2d> boxes(s.faces.size());
     Eigen::AlignedBox2d box;
-    for (size_t i = 0; i < s.faces.size(); ++i)
+    for (size_t i = 0; i < s.faces.size(); ++i) {
       for (int k = 0; k < 3; ++k) {
         strip[i].vertex[k] = vertex(s.faces[i], k);
         strip[i].corner[k] = s.uv[3 * i + k];
-        box.extend(s.uv[3 * i + k]);
+        boxes[i].extend(s.uv[3 * i + k]);
       }
-    std::vector<Triangle> near;
-    const FlatChart& chart = charts_[s.to];
-    for (size_t j = 0; j < chart.faces.size(); ++j) {
-      Triangle t;
-      Eigen::AlignedBox2d face_box;
-      for (int k = 0; k < 3; ++k) {
-        t.vertex[k] = vertex(chart.faces[j], k);
-        t.corner[k] = chart.corner_uv.row(3 * j + k).transpose();
-        face_box.extend(t.corner[k]);
-      }
-      if (face_box.intersects(box)) near.push_back(t);
+      box.extend(boxes[i]);
     }
+    const ChartTriangles& receiver = triangles_of(s.to);
+    std::vector<size_t> near;
+    for (size_t j = 0; j < receiver.boxes.size(); ++j)
+      if (receiver.boxes[j].intersects(box)) near.push_back(j);
     for (size_t i = 0; i < strip.size(); ++i) {
-      for (const Triangle& t : near)
-        if (overlap(strip[i], t)) return true;
+      for (size_t j : near)
+        if (receiver.boxes[j].intersects(boxes[i]) && overlap(strip[i], receiver.triangles[j])) return true;
       for (size_t j = i + 1; j < strip.size(); ++j)
-        if (overlap(strip[i], strip[j])) return true;
+        if (boxes[j].intersects(boxes[i]) && overlap(strip[i], strip[j])) return true;
     }
     return false;
   }
 
+  // Moves the strip's faces, each to the end of the receiver, the giver's
+  // last face taking its row; the charts' cached triangles follow.
   void apply(const Strip& s) {
+    FlatChart& from = charts_[s.from];
+    FlatChart& to = charts_[s.to];
+    ChartTriangles& from_cache = triangles_[s.from];
+    ChartTriangles& to_cache = triangles_[s.to];
+    Eigen::Index to_rows = to.corner_uv.rows();
+    to.corner_uv.conservativeResize(to_rows + 3 * static_cast<Eigen::Index>(s.faces.size()), 2);
     for (size_t i = 0; i < s.faces.size(); ++i) {
       const int f = s.faces[i];
-      FlatChart& from = charts_[s.from];
       const int j = slot_[f], last = static_cast<int>(from.faces.size()) - 1;
       from.faces[j] = from.faces[last];
       from.corner_uv.middleRows(3 * j, 3) = from.corner_uv.middleRows(3 * last, 3);
       slot_[from.faces[j]] = j;
       from.faces.pop_back();
-      from.corner_uv.conservativeResize(3 * last, 2);
-      FlatChart& to = charts_[s.to];
-      const Eigen::Index rows = to.corner_uv.rows();
-      to.corner_uv.conservativeResize(rows + 3, 2);
-      for (int k = 0; k < 3; ++k) to.corner_uv.row(rows + k) = s.uv[3 * i + k].transpose();
+      if (from_cache.current) {
+        from_cache.triangles[j] = from_cache.triangles[last], from_cache.triangles.pop_back();
+        from_cache.boxes[j] = from_cache.boxes[last], from_cache.boxes.pop_back();
+      }
+      Triangle t;
+      Eigen::AlignedBox2d box;
+      for (int k = 0; k < 3; ++k) {
+        to.corner_uv.row(to_rows + k) = s.uv[3 * i + k].transpose();
+        t.vertex[k] = vertex(f, k), t.corner[k] = s.uv[3 * i + k], box.extend(t.corner[k]);
+      }
+      to_rows += 3;
+      if (to_cache.current) to_cache.triangles.push_back(t), to_cache.boxes.push_back(box);
       slot_[f] = static_cast<int>(to.faces.size());
       to.faces.push_back(f);
       label_[f] = s.to;
     }
+    from.corner_uv.conservativeResize(3 * static_cast<Eigen::Index>(from.faces.size()), 2);
     stats_.faces_moved += static_cast<int>(s.faces.size());
     stats_.seam_removed_3d += s.gain;
   }
@@ -449,6 +491,7 @@ class Straightener {
   // Work space, reset after each use: marks (0) and band indices (-1) per face.
   mutable std::vector<char> mark_;
   mutable std::vector<int> node_;
+  mutable std::vector<ChartTriangles> triangles_;  // per chart, see triangles_of
   RefineStats stats_;
 };
 
