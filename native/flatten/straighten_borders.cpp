@@ -39,8 +39,8 @@ class Straightener {
   Straightener(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
                const std::vector<int>& face_group, const RefineOptions& options, std::vector<FlatChart>& charts)
       : mesh_(mesh), topology_(topology), seam_(seam), face_group_(face_group), options_(options), charts_(charts),
-        label_(mesh.face_count(), -1), slot_(mesh.face_count(), -1), mark_(mesh.face_count(), 0), node_(mesh.face_count(), -1),
-        triangles_(charts.size()) {
+        label_(mesh.face_count(), -1), slot_(mesh.face_count(), -1), mark_(mesh.face_count(), 0),
+        node_(mesh.face_count(), -1), triangles_(charts.size()) {
     for (size_t c = 0; c < charts.size(); ++c)
       for (size_t j = 0; j < charts[c].faces.size(); ++j) {
         label_[charts[c].faces[j]] = static_cast<int>(c);
@@ -385,7 +385,8 @@ class Straightener {
       if (!shared(a, b.vertex[i], b.corner[i]) && in_or_on_triangle(a.corner[0], a.corner[1], a.corner[2], b.corner[i]))
         return true;
       for (int j = 0; j < 3; ++j) {
-        const bool bi = shared(a, b.vertex[j], b.corner[j]), bj = shared(a, b.vertex[(j + 1) % 3], b.corner[(j + 1) % 3]);
+        const bool bi = shared(a, b.vertex[j], b.corner[j]);
+        const bool bj = shared(a, b.vertex[(j + 1) % 3], b.corner[(j + 1) % 3]);
         if (ai || aj || bi || bj) continue;
         if (segments_touch(a.corner[i], a.corner[(i + 1) % 3], b.corner[j], b.corner[(j + 1) % 3])) return true;
       }
