@@ -7,6 +7,7 @@
 #include "charts/disk_merge.hpp"
 #include "core/geometry.hpp"
 #include "core/plane_predicates.hpp"
+#include "flatten/chart_rows.hpp"
 
 namespace atlas {
 namespace {
@@ -167,21 +168,10 @@ class Refiner {
     remove_boundary(from, f, -1);
     remove_boundary(m.to, m.g1, corner_on(m.g1, edge(f, m.k1)));
     remove_boundary(m.to, m.g2, corner_on(m.g2, edge(f, m.k2)));
-    // Out of the old chart: the last face takes its rows.
-    FlatChart& old_chart = charts_[from];
-    const int j = slot_[f], last = static_cast<int>(old_chart.faces.size()) - 1;
-    old_chart.faces[j] = old_chart.faces[last];
-    old_chart.corner_uv.middleRows(3 * j, 3) = old_chart.corner_uv.middleRows(3 * last, 3);
-    slot_[old_chart.faces[j]] = j;
-    old_chart.faces.pop_back();
-    old_chart.corner_uv.conservativeResize(3 * last, 2);
-    // Into the new one, at the end.
-    FlatChart& new_chart = charts_[m.to];
-    const Eigen::Index rows = new_chart.corner_uv.rows();
-    new_chart.corner_uv.conservativeResize(rows + 3, 2);
-    for (int k = 0; k < 3; ++k) new_chart.corner_uv.row(rows + k) = m.uv[k].transpose();
-    slot_[f] = static_cast<int>(new_chart.faces.size());
-    new_chart.faces.push_back(f);
+    take_out_face(charts_[from], f, slot_);
+    RowMatrixX2d uv(3, 2);
+    for (int k = 0; k < 3; ++k) uv.row(k) = m.uv[k].transpose();
+    append_faces(charts_[m.to], {f}, uv, slot_);
     disks_.move(f, m.to);
     boundary_[m.to].push_back({f, m.k3});
     if (behind_joined) boundary_[from].push_back({behind, corner_on(behind, edge(f, m.k3))});

@@ -13,6 +13,7 @@
 #include "core/geometry.hpp"
 #include "core/min_cut.hpp"
 #include "core/plane_predicates.hpp"
+#include "flatten/chart_rows.hpp"
 
 namespace atlas {
 namespace {
@@ -445,39 +446,29 @@ class Straightener {
     return false;
   }
 
-  // Moves the strip's faces, each to the end of the receiver, the giver's
-  // last face taking its row; the charts' cached triangles follow.
+  // Moves the strip's faces to the end of the receiver, the giver's last
+  // faces taking their rows; the charts' cached triangles follow.
   void apply(const Strip& s) {
-    FlatChart& from = charts_[s.from];
-    FlatChart& to = charts_[s.to];
     ChartTriangles& from_cache = triangles_[s.from];
     ChartTriangles& to_cache = triangles_[s.to];
-    Eigen::Index to_rows = to.corner_uv.rows();
-    to.corner_uv.conservativeResize(to_rows + 3 * static_cast<Eigen::Index>(s.faces.size()), 2);
+    RowMatrixX2d uv(3 * static_cast<Eigen::Index>(s.faces.size()), 2);
     for (size_t i = 0; i < s.faces.size(); ++i) {
       const int f = s.faces[i];
-      const int j = slot_[f], last = static_cast<int>(from.faces.size()) - 1;
-      from.faces[j] = from.faces[last];
-      from.corner_uv.middleRows(3 * j, 3) = from.corner_uv.middleRows(3 * last, 3);
-      slot_[from.faces[j]] = j;
-      from.faces.pop_back();
+      const int j = take_out_face(charts_[s.from], f, slot_);
       if (from_cache.current) {
-        from_cache.triangles[j] = from_cache.triangles[last], from_cache.triangles.pop_back();
-        from_cache.boxes[j] = from_cache.boxes[last], from_cache.boxes.pop_back();
+        from_cache.triangles[j] = from_cache.triangles.back(), from_cache.triangles.pop_back();
+        from_cache.boxes[j] = from_cache.boxes.back(), from_cache.boxes.pop_back();
       }
       Triangle t;
       Eigen::AlignedBox2d box;
       for (int k = 0; k < 3; ++k) {
-        to.corner_uv.row(to_rows + k) = s.uv[3 * i + k].transpose();
+        uv.row(3 * static_cast<Eigen::Index>(i) + k) = s.uv[3 * i + k].transpose();
         t.vertex[k] = vertex(f, k), t.corner[k] = s.uv[3 * i + k], box.extend(t.corner[k]);
       }
-      to_rows += 3;
       if (to_cache.current) to_cache.triangles.push_back(t), to_cache.boxes.push_back(box);
-      slot_[f] = static_cast<int>(to.faces.size());
-      to.faces.push_back(f);
       label_[f] = s.to;
     }
-    from.corner_uv.conservativeResize(3 * static_cast<Eigen::Index>(from.faces.size()), 2);
+    append_faces(charts_[s.to], s.faces, uv, slot_);
     stats_.faces_moved += static_cast<int>(s.faces.size());
     stats_.seam_removed_3d += s.gain;
   }
