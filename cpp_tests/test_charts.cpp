@@ -9,6 +9,7 @@
 #include "charts/aggregate.hpp"
 #include "charts/chart_graph.hpp"
 #include "charts/disk_merge.hpp"
+#include "core/angle_defects.hpp"
 #include "core/corners.hpp"
 #include "test_meshes.hpp"
 
@@ -54,7 +55,61 @@ Mesh checkered_grid(int n, int cells) {
   return atlas::testing::with_chart_uvs(disk.positions, disk.triangles, chart);
 }
 
+// rows x columns quads on a cylinder of radius 1, wrapped `turn` radians
+// round its axis; the first half of the columns is chart 0, the rest chart 1.
+Mesh cylinder_sheet(int rows, int columns, double turn) {
+  RowMatrixX3d positions((rows + 1) * (columns + 1), 3);
+  for (int i = 0; i <= rows; ++i)
+    for (int j = 0; j <= columns; ++j) {
+      const double t = turn * j / columns;
+      positions.row(i * (columns + 1) + j) << std::cos(t), std::sin(t), 3.0 * i / rows;
+    }
+  RowMatrixX3i triangles(2 * rows * columns, 3);
+  std::vector<int> chart;
+  for (int i = 0; i < rows; ++i)
+    for (int j = 0; j < columns; ++j) {
+      const int v = i * (columns + 1) + j, f = 2 * (i * columns + j);
+      triangles.row(f) << v, v + columns + 1, v + 1;
+      triangles.row(f + 1) << v + 1, v + columns + 1, v + columns + 2;
+      chart.insert(chart.end(), 2, j < columns / 2 ? 0 : 1);
+    }
+  return atlas::testing::with_chart_uvs(positions, triangles, chart);
+}
+
+double sum(const std::vector<double>& values) {
+  double total = 0;
+  for (double v : values) total += v;
+  return total;
+}
+
 }  // namespace
+
+// Gauss-Bonnet: a closed surface's defects sum to 2 pi times its Euler
+// characteristic, and a cylinder's interior vertices are flat.
+TEST(AngleDefects, SumToTwoPiTimesTheEulerCharacteristic) {
+  EXPECT_NEAR(sum(angle_defects(atlas::testing::uv_sphere(12, 16, 2))), 4 * M_PI, 1e-9);
+  EXPECT_NEAR(sum(angle_defects(atlas::testing::torus(24, 12, 4))), 0, 1e-9);
+  const Mesh sheet = cylinder_sheet(4, 8, M_PI);
+  const std::vector<double> defect = angle_defects(sheet);
+  EXPECT_NEAR(defect[2 * 9 + 4], 0, 1e-12);  // row 2, column 4: inside
+}
+
+// A sheet wrapped three quarters round a cylinder has a mean normal of 0.3
+// (below min_normal_coherence) but no curvature inside: it unrolls flat, so
+// its two halves merge, unless developable_curvature is 0.
+TEST(Aggregate, ChartsOfACylinderMergePastAHemisphere) {
+  const Mesh sheet = cylinder_sheet(16, 40, 1.5 * M_PI);  // 1,280 faces: above coherence_free_faces
+  ASSERT_GT(sheet.face_count(), AggregateOptions{}.coherence_free_faces);
+  const ChartRun merged = aggregate(sheet);
+  EXPECT_EQ(merged.graph.chart_count(), 2);
+  EXPECT_EQ(merged.aggregation.chart_count(), 1);
+  expect_all_disks(merged);
+  AggregateOptions hemisphere_only;
+  hemisphere_only.developable_curvature = 0;
+  const ChartRun gated = aggregate(sheet, hemisphere_only);
+  EXPECT_EQ(gated.aggregation.chart_count(), 2);
+  EXPECT_EQ(gated.aggregation.stops.normal_coherence, 1);
+}
 
 // corners_by_edge's counting sort gives std::sort's order: on a fan whose
 // centre starts more edges than the insertion sort takes, on scattered
@@ -284,6 +339,8 @@ std::vector<double> normal_coherence(const ChartRun& r) {
 
 }  // namespace
 
+// A sphere is curved everywhere: developable_curvature lets no chart past a
+// hemisphere either.
 TEST(Aggregate, NoChartWiderThanAHemisphere) {
   AggregateOptions gate_all;
   gate_all.coherence_free_faces = 0;

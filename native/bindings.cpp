@@ -211,6 +211,7 @@ PipelineOptions pipeline_options(const py::object& obj) {
     } else if (key == "min_chart_fraction") o.aggregate.min_chart_fraction = option_value<double>(value, key, ">= 0");
     else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = option_value<double>(value, key, "0..1");
     else if (key == "coherence_free_faces") o.aggregate.coherence_free_faces = option_value<int>(value, key, ">= 0");
+    else if (key == "developable_curvature") o.aggregate.developable_curvature = option_value<double>(value, key, ">= 0");
     else if (key == "max_chart_faces") o.aggregate.max_chart_faces = option_value<int>(value, key, "0 (no cap) or >= 1");
     else if (key == "partial_merges") o.aggregate.partial_merges = bool_option(value, key);
     else if (key == "relief_cuts") o.relief_cuts = option_value<int>(value, key, "0 (split at once) .. 8");
@@ -253,6 +254,8 @@ PipelineOptions pipeline_options(const py::object& obj) {
   if (!(o.aggregate.min_chart_fraction >= 0)) throw py::value_error("min_chart_fraction must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
     throw py::value_error("min_normal_coherence must be in [0, 1]");
+  if (!(o.aggregate.developable_curvature >= 0))
+    throw py::value_error("developable_curvature must be >= 0 (radians; 0: no exemption from min_normal_coherence)");
   if (o.aggregate.coherence_free_faces < 0) throw py::value_error("coherence_free_faces must be >= 0 (0: gate every merge but those of charts of at most 100 faces)");
   if (o.aggregate.max_chart_faces < 0) throw py::value_error("max_chart_faces must be >= 0 (0: no cap)");
   if (o.pack.texel_budget < 0) throw py::value_error("texel_budget must be 0 (automatic) or >= 16");

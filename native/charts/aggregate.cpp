@@ -1,12 +1,14 @@
 #include "charts/aggregate.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <Eigen/Geometry>
 #include <queue>
 #include <unordered_map>
 
 #include "charts/disk_merge.hpp"
+#include "core/angle_defects.hpp"
 
 namespace atlas {
 namespace {
@@ -27,6 +29,7 @@ struct Link {
 struct Cluster {
   double area_3d = 0, area_uv = 0, perimeter_3d = 0, perimeter_uv = 0;
   Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();  // sum over faces of A_f n_f
+  double curvature = 0;  // sum of the angle defects at the vertices inside it
   unsigned version = 0;
   std::unordered_map<int, Link> links;
 };
@@ -71,6 +74,11 @@ class Aggregator {
         graph_(graph),
         disks_(mesh, topology, graph.face_chart, graph.chart_count(), graph.self_seam, options.partial_merges),
         clusters_(graph.chart_count()) {
+    if (options.developable_curvature > 0) {
+      defect_ = angle_defects(mesh);
+      for (int v = 0; v < mesh.vertex_count(); ++v)
+        if (const int c = disks_.cluster_inside(v); c >= 0) clusters_[c].curvature += defect_[v];
+    }
     for (int f = 0; f < mesh.face_count(); ++f) {
       if (graph.face_chart[f] < 0) continue;
       const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1)),
@@ -140,7 +148,7 @@ class Aggregator {
  private:
   // The options' limits on merging a and b, first one that refuses it.
   enum class Gate { Open, MinChartFraction, MaxChartFaces, NormalCoherence };
-  Gate gate(int a, int b) const {
+  Gate gate(int a, int b) {
     const Cluster& ca = clusters_[a];
     const Cluster& cb = clusters_[b];
     const bool uv = options_.weighting == Weighting::UV;
@@ -152,9 +160,21 @@ class Aggregator {
     const double area = ca.area_3d + cb.area_3d;
     const size_t fa = disks_.faces(a).size(), fb = disks_.faces(b).size();
     const bool small = fa + fb <= static_cast<size_t>(options_.coherence_free_faces) || std::min(fa, fb) <= kGateFreeFaces;
-    if (!small && area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area)
+    if (!small && area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area &&
+        !developable(a, b))
       return Gate::NormalCoherence;
     return Gate::Open;
+  }
+
+  bool developable(int a, int b) {
+    return !defect_.empty() && std::abs(union_curvature(a, b)) <= options_.developable_curvature;
+  }
+
+  // Sum of the angle defects inside the union of a and b (0 when
+  // developable_curvature is off).
+  double union_curvature(int a, int b) {
+    if (defect_.empty()) return 0;
+    return clusters_[a].curvature + clusters_[b].curvature + disks_.sum_inside_union(a, b, defect_);
   }
 
   AggregationStops stops() {
@@ -212,6 +232,7 @@ class Aggregator {
   }
 
   void collapse(int a, int b, const MergeCheck& check) {
+    const double curvature = union_curvature(a, b);
     const int keep = disks_.merge(a, b, check), gone = keep == a ? b : a;
     merges_.push_back({keep, gone});
     Cluster& k = clusters_[keep];
@@ -220,6 +241,7 @@ class Aggregator {
     k.area_3d += g.area_3d;
     k.area_uv += g.area_uv;
     k.normal_sum += g.normal_sum;
+    k.curvature = curvature;
     k.perimeter_3d += g.perimeter_3d - 2 * shared.length_3d;
     k.perimeter_uv += g.perimeter_uv - shared.uv_self - shared.uv_other;
     k.links.erase(gone);
@@ -245,6 +267,7 @@ class Aggregator {
   const AggregateOptions& options_;
   const ChartGraph& graph_;
   DiskClusters disks_;
+  std::vector<double> defect_;  // per vertex, when developable_curvature > 0
   std::vector<Cluster> clusters_;
   std::priority_queue<Candidate> queue_;
   std::vector<std::pair<int, int>> merges_;

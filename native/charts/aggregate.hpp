@@ -34,6 +34,16 @@ struct AggregateOptions {
   // colour detail (bench/README.md). 0: the gate applies to every merge but
   // those of a chart of at most 100 faces.
   int coherence_free_faces = 1000;
+  // A union that min_normal_coherence refuses merges all the same when the
+  // Gaussian curvature inside it (the sum of the angle defects at its
+  // interior vertices, core/angle_defects.hpp) is at most this many radians
+  // either way: it bends like a cylinder or a cone, which unrolls without
+  // stretch however far it wraps. 0.6 is the curvature of a spherical cap of
+  // about 25 degrees. Curvature of both signs cancels in the sum, and the
+  // vertices of arcs a partial merge leaves open count as inside: the density
+  // rule splits a chart that then loses detail (bench/README.md for the
+  // value). 0 disables.
+  double developable_curvature = 0.6;
   // No merged chart grows beyond this many faces: the cost of flattening a
   // chart grows faster than its size (sparse Cholesky fill), and many
   // mid-sized charts keep both cores busy. 0 disables.

@@ -143,6 +143,35 @@ int DiskClusters::fan_count(int v, int a, int b) const {
   return fans;
 }
 
+bool DiskClusters::inside(int v, int a, int b) const {
+  for (int i = topology_.vertex_offsets[v]; i < topology_.vertex_offsets[v + 1]; ++i) {
+    const int c = topology_.vertex_corners[i];
+    if (!in(c / 3, a, b) || !joins(topology_.corner_edge[c]) || !joins(topology_.corner_edge[previous_corner(c)]))
+      return false;
+  }
+  return topology_.vertex_offsets[v + 1] > topology_.vertex_offsets[v];
+}
+
+int DiskClusters::cluster_inside(int v) const {
+  if (topology_.vertex_offsets[v + 1] == topology_.vertex_offsets[v]) return -1;
+  const int c = face_cluster_[topology_.vertex_corners[topology_.vertex_offsets[v]] / 3];
+  return c >= 0 && inside(v, c, c) ? c : -1;
+}
+
+double DiskClusters::sum_inside_union(int a, int b, const std::vector<double>& per_vertex) {
+  if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
+  ++stamp_;
+  double sum = 0;
+  for (int f : faces_[a])
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh_.triangles(f, k);
+      if (vertex_stamp_[v] == stamp_) continue;
+      vertex_stamp_[v] = stamp_;
+      if (cluster_inside(v) < 0 && inside(v, a, b)) sum += per_vertex[v];
+    }
+  return sum;
+}
+
 MergeCheck DiskClusters::check_merge(int a, int b) {
   if (a == b || !manifold_[a] || !manifold_[b]) return refused(MergeRefusal::NonManifold);
   std::vector<int> shared;

@@ -59,6 +59,15 @@ class DiskClusters {
   bool move_keeps_topology(int f, int to);
   void move(int f, int to);
 
+  // The cluster that holds vertex v inside it: every face at v is in it and
+  // every edge at v joins two of its faces (no mesh border, no kept seam);
+  // -1 when there is none.
+  int cluster_inside(int v) const;
+  // Sum of per_vertex (V) over the vertices that the union of a and b would
+  // hold inside it (as cluster_inside) and neither holds alone. The shared
+  // edges count as welded, those a partial merge would leave open included.
+  double sum_inside_union(int a, int b, const std::vector<double>& per_vertex);
+
   // Connected, manifold, orientable and chi == 1: a topological disk once
   // pinch vertices are split.
   bool is_disk(int c) const { return manifold_[c] && euler_[c] == 1; }
@@ -76,6 +85,8 @@ class DiskClusters {
   int local_euler(int f, int c) const;
   bool manifold_inside(int c);
   int fan_count(int v, int a, int b) const;
+  // Every face at v is in a or b, every edge at v joins two faces.
+  bool inside(int v, int a, int b) const;
   bool in(int f, int a, int b) const { return face_cluster_[f] == a || face_cluster_[f] == b; }
   // Faces of a cluster are joined across e: manifold and not a seam the cluster keeps.
   bool joins(int e) const { return topology_.edge_valence(e) == 2 && !seam_[e]; }
