@@ -41,6 +41,7 @@ struct Candidate {
   int a, b;
   unsigned version_a, version_b;
   bool partial;    // weight counts only the arc a partial merge welds
+  bool curved;     // past a hemisphere: merges only if developable (checked when popped)
   // std::priority_queue pops the largest, so "greater" means "later".
   bool operator<(const Candidate& o) const {
     if (island != o.island) return !island;
@@ -108,6 +109,9 @@ class Aggregator {
       const Candidate top = queue_.top();
       queue_.pop();
       if (clusters_[top.a].version != top.version_a || clusters_[top.b].version != top.version_b) continue;
+      // The curvature costs a pass over the smaller chart: only for the
+      // candidates that come up unchanged, not for every one pushed.
+      if (top.curved && !developable(top.a, top.b)) continue;
       // Infeasible: dropped until one side changes, which pushes it again.
       if (const MergeCheck check = disks_.check_merge(top.a, top.b)) {
         // A partial merge removes less seam than its weight assumed: it
@@ -147,8 +151,9 @@ class Aggregator {
 
  private:
   // The options' limits on merging a and b, first one that refuses it.
-  enum class Gate { Open, MinChartFraction, MaxChartFaces, NormalCoherence };
-  Gate gate(int a, int b) {
+  // Curved: past a hemisphere, so it merges only if developable(a, b).
+  enum class Gate { Open, MinChartFraction, MaxChartFaces, NormalCoherence, Curved };
+  Gate gate(int a, int b) const {
     const Cluster& ca = clusters_[a];
     const Cluster& cb = clusters_[b];
     const bool uv = options_.weighting == Weighting::UV;
@@ -160,15 +165,12 @@ class Aggregator {
     const double area = ca.area_3d + cb.area_3d;
     const size_t fa = disks_.faces(a).size(), fb = disks_.faces(b).size();
     const bool small = fa + fb <= static_cast<size_t>(options_.coherence_free_faces) || std::min(fa, fb) <= kGateFreeFaces;
-    if (!small && area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area &&
-        !developable(a, b))
-      return Gate::NormalCoherence;
+    if (!small && area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area)
+      return defect_.empty() ? Gate::NormalCoherence : Gate::Curved;
     return Gate::Open;
   }
 
-  bool developable(int a, int b) {
-    return !defect_.empty() && std::abs(union_curvature(a, b)) <= options_.developable_curvature;
-  }
+  bool developable(int a, int b) { return std::abs(union_curvature(a, b)) <= options_.developable_curvature; }
 
   // Sum of the angle defects inside the union of a and b (0 when
   // developable_curvature is off).
@@ -190,6 +192,12 @@ class Aggregator {
           case Gate::MinChartFraction: ++s.min_chart_fraction; continue;
           case Gate::MaxChartFaces: ++s.max_chart_faces; continue;
           case Gate::NormalCoherence: ++s.normal_coherence; continue;
+          case Gate::Curved:
+            if (!developable(a, b)) {
+              ++s.normal_coherence;
+              continue;
+            }
+            break;
           case Gate::Open: break;
         }
         switch (disks_.check_merge(a, b).refusal) {
@@ -209,7 +217,8 @@ class Aggregator {
   // open_length < 0: a full merge; else a partial one leaving that much 3D
   // length of the shared border open.
   void push(int a, int b, double open_length = -1) {
-    if (gate(a, b) != Gate::Open) return;
+    const Gate g = gate(a, b);
+    if (g != Gate::Open && g != Gate::Curved) return;
     const Cluster& ca = clusters_[a];
     const Cluster& cb = clusters_[b];
     const bool uv = options_.weighting == Weighting::UV;
@@ -219,7 +228,8 @@ class Aggregator {
     const Link link = welded_part(small.links.at(a_small ? b : a), open_length);
     const bool island = open_length < 0 && link.length_3d >= small.perimeter_3d * (1 - 1e-6);
     const double w = uv ? weight_uv(small, link) : weight_surface(small, link);
-    queue_.push({island, w, uv ? small.area_uv : small.area_3d, a, b, ca.version, cb.version, open_length >= 0});
+    queue_.push({island, w, uv ? small.area_uv : small.area_3d, a, b, ca.version, cb.version, open_length >= 0,
+                 g == Gate::Curved});
   }
 
   // The part of a border that a merge leaving open_length of it open welds;

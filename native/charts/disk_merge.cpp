@@ -158,16 +158,25 @@ int DiskClusters::cluster_inside(int v) const {
   return c >= 0 && inside(v, c, c) ? c : -1;
 }
 
+// A vertex that only the union holds inside has faces of both a and b,
+// edge-connected around it, so it ends an edge they share: only those edges
+// of the smaller cluster's faces are looked at.
 double DiskClusters::sum_inside_union(int a, int b, const std::vector<double>& per_vertex) {
   if (faces_[a].size() > faces_[b].size()) std::swap(a, b);
   ++stamp_;
   double sum = 0;
   for (int f : faces_[a])
     for (int k = 0; k < 3; ++k) {
-      const int v = mesh_.triangles(f, k);
-      if (vertex_stamp_[v] == stamp_) continue;
-      vertex_stamp_[v] = stamp_;
-      if (cluster_inside(v) < 0 && inside(v, a, b)) sum += per_vertex[v];
+      const int e = topology_.corner_edge[3 * f + k];
+      if (!joins(e)) continue;
+      const int first = topology_.edge_corners[topology_.edge_offsets[e]] / 3;
+      if (face_cluster_[first == f ? topology_.edge_corners[topology_.edge_offsets[e] + 1] / 3 : first] != b)
+        continue;
+      for (int v : {topology_.edge_vertices(e, 0), topology_.edge_vertices(e, 1)}) {
+        if (vertex_stamp_[v] == stamp_) continue;
+        vertex_stamp_[v] = stamp_;
+        if (inside(v, a, b)) sum += per_vertex[v];
+      }
     }
   return sum;
 }
