@@ -141,7 +141,8 @@ BAD_OPTIONS = [("target_charts", 2 ** 40), ("target_charts", -3), ("target_chart
                ("padding", 1e9), ("padding", True), ("max_page_size", 2 ** 63), ("density_scale", np.nan),
                ("density_scale", "2"), ("fixed_page_size", 63), ("texel_budget", -1), ("texel_budget", 15),
                ("weighting", 3), ("min_normal_coherence", 2.0), ("max_iterations", -1), ("nope", 1),
-               ("max_chart_faces", np.int64(-2)), ("padding", np.int64(3)), ("density_scale", np.float32(1.5))]
+               ("max_chart_faces", np.int64(-2)), ("developable_curvature", -0.5), ("developable_curvature", np.nan),
+               ("padding", np.int64(3)), ("density_scale", np.float32(1.5))]
 
 
 def _mutate(rng, arrays):
