@@ -88,7 +88,7 @@ double seam_length(const Mesh& mesh, const MeshTopology& topology, const std::ve
     const int f0 = topology.edge_corners[topology.edge_offsets[e]] / 3;
     const int f1 = topology.edge_corners[topology.edge_offsets[e] + 1] / 3;
     if (label[f0] != label[f1])
-      length += (mesh.positions.row(topology.edge_vertices(e, 0)) - mesh.positions.row(topology.edge_vertices(e, 1))).norm();
+      length += edge_length(mesh, topology, e);
   }
   return length;
 }
@@ -103,13 +103,31 @@ void welded(const Mesh& mesh, const FlatChart& chart, RowMatrixX3i& triangles, R
     for (int k = 0; k < 3; ++k) {
       const Eigen::Vector2d p = chart.corner_uv.row(3 * i + k).transpose();
       const auto [it, fresh] =
-          index.emplace(std::make_tuple(mesh.triangles(chart.faces[i], k), p.x(), p.y()), static_cast<int>(points.size()));
+          index.emplace(std::make_tuple(mesh.triangles(chart.faces[i], k), p.x(), p.y()),
+                        static_cast<int>(points.size()));
       if (fresh) points.push_back(p);
       triangles(static_cast<Eigen::Index>(i), k) = it->second;
     }
   uv.resize(static_cast<Eigen::Index>(points.size()), 2);
   for (size_t v = 0; v < points.size(); ++v) uv.row(v) = points[v].transpose();
 }
+
+// Two charts built by `build` (zigzag_charts, bump_charts), kept at their
+// input UVs, as the refinements take them: no seam kept, no face groups.
+struct TwoCharts {
+  std::vector<int> chart;  // per face, as built
+  Mesh mesh;
+  MeshTopology topology;
+  std::vector<FlatChart> charts;
+  std::vector<char> no_seams;
+  std::vector<int> no_groups;
+  RefineOptions options;
+
+  explicit TwoCharts(Mesh (*build)(std::vector<int>&))
+      : mesh(build(chart)), topology(build_topology(mesh.triangles, mesh.vertex_count())),
+        charts(kept_charts(mesh, chart, 2)), no_seams(topology.edge_count(), 0) {}
+  RefineInput input() const { return {mesh, topology, no_seams, no_groups, options}; }
+};
 
 void expect_flip_free_disks(const Mesh& mesh, const MeshTopology& topology, const std::vector<FlatChart>& charts) {
   const std::vector<char> no_seams(topology.edge_count(), 0);
@@ -135,44 +153,37 @@ void expect_flip_free_disks(const Mesh& mesh, const MeshTopology& topology, cons
 }  // namespace
 
 TEST(RefineSeams, ZigZagBorderGetsShorterAndChartsStayFlipFreeDisks) {
-  std::vector<int> chart;
-  const Mesh mesh = zigzag_charts(chart);
-  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
-  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
-  const double before = seam_length(mesh, topology, chart);
+  TwoCharts t(zigzag_charts);
+  const double before = seam_length(t.mesh, t.topology, t.chart);
   ASSERT_GT(before, 1.0 + 1e-9);  // longer than the straight border
-  const RefineStats stats =
-      refine_seams(mesh, topology, std::vector<char>(topology.edge_count(), 0), {}, RefineOptions{}, charts);
-  const double after = seam_length(mesh, topology, labels(mesh, charts));
+  const RefineStats stats = refine_seams(t.input(), t.charts);
+  const double after = seam_length(t.mesh, t.topology, labels(t.mesh, t.charts));
   EXPECT_EQ(stats.faces_moved, kGrid / 2 - 1);
   EXPECT_NEAR(after, 1.0, 1e-9);  // straight: every tooth went back
   EXPECT_NEAR(before - after, stats.seam_removed_3d, 1e-9);
-  expect_flip_free_disks(mesh, topology, charts);
+  expect_flip_free_disks(t.mesh, t.topology, t.charts);
 }
 
 TEST(RefineSeams, DisabledByZeroAreaRatio) {
-  std::vector<int> chart;
-  const Mesh mesh = zigzag_charts(chart);
-  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
-  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
-  RefineOptions off;
-  off.min_area_ratio = 0;
-  EXPECT_EQ(refine_seams(mesh, topology, std::vector<char>(topology.edge_count(), 0), {}, off, charts).faces_moved, 0);
+  TwoCharts t(zigzag_charts);
+  t.options.min_area_ratio = 0;
+  EXPECT_EQ(refine_seams(t.input(), t.charts).faces_moved, 0);
 }
 
 TEST(RefineSeams, FaceMovedToAnotherChartBakesToTheSameColours) {
-  std::vector<int> chart;
-  const Mesh mesh = zigzag_charts(chart);
-  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
-  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
-  refine_seams(mesh, topology, std::vector<char>(topology.edge_count(), 0), {}, RefineOptions{}, charts);
+  TwoCharts t(zigzag_charts);
+  refine_seams(t.input(), t.charts);
+  const Mesh& mesh = t.mesh;
+  const std::vector<int>& chart = t.chart;
+  const std::vector<FlatChart>& charts = t.charts;
   // A smooth old page, so bilinear sampling at the same surface point agrees.
   const int size = mesh.pages[0].width;
   std::vector<std::uint8_t> old_texels(static_cast<size_t>(size) * size * 3);
   for (int y = 0; y < size; ++y)
     for (int x = 0; x < size; ++x) {
       std::uint8_t* t = &old_texels[(static_cast<size_t>(y) * size + x) * 3];
-      t[0] = static_cast<std::uint8_t>(x / 4), t[1] = static_cast<std::uint8_t>(y / 4), t[2] = static_cast<std::uint8_t>((x + y) / 8);
+      t[0] = static_cast<std::uint8_t>(x / 4), t[1] = static_cast<std::uint8_t>(y / 4);
+      t[2] = static_cast<std::uint8_t>((x + y) / 8);
     }
   // The refined charts on the old page (they keep its texel coordinates).
   RowMatrixX2d new_uv(3 * mesh.face_count(), 2);
@@ -197,40 +208,34 @@ TEST(RefineSeams, FaceMovedToAnotherChartBakesToTheSameColours) {
     const Eigen::Vector2d new_centre = (new_uv.middleRows(3 * f, 3).colwise().sum() / 3).transpose();
     EXPECT_GT((old_centre - new_centre).norm() * size, 10.0);  // it really moved on the page
     for (int channel = 0; channel < 3; ++channel)
-      EXPECT_NEAR(texel(baked[0].texels, new_centre, channel), texel(old_texels, old_centre, channel), 1) << "face " << f;
+      EXPECT_NEAR(texel(baked[0].texels, new_centre, channel), texel(old_texels, old_centre, channel), 1)
+          << "face " << f;
   }
 }
 
 TEST(StraightenBorders, BumpGoesBackWholeAndChartsStayFlipFreeDisks) {
-  std::vector<int> chart;
-  const Mesh mesh = bump_charts(chart);
-  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
-  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
-  for (FlatChart& c : charts) c.kept_original = false;  // solved charts, at their input UVs
-  const double before = seam_length(mesh, topology, chart);
+  TwoCharts t(bump_charts);
+  for (FlatChart& c : t.charts) c.kept_original = false;  // solved charts, at their input UVs
+  const double before = seam_length(t.mesh, t.topology, t.chart);
   ASSERT_NEAR(before, 1.5, 1e-9);  // the straight border and the bump's two sides
-  const std::vector<char> no_seams(topology.edge_count(), 0);
-  const RefineStats stats = straighten_borders(mesh, topology, no_seams, {}, RefineOptions{}, charts);
+  const RefineStats stats = straighten_borders(t.input(), t.charts);
   EXPECT_EQ(stats.faces_moved, 2 * 2 * 4);  // two columns, four rows, two triangles a cell
-  EXPECT_NEAR(seam_length(mesh, topology, labels(mesh, charts)), 1.0, 1e-9);
+  EXPECT_NEAR(seam_length(t.mesh, t.topology, labels(t.mesh, t.charts)), 1.0, 1e-9);
   EXPECT_NEAR(stats.seam_removed_3d, 0.5, 1e-9);
-  expect_flip_free_disks(mesh, topology, charts);
+  expect_flip_free_disks(t.mesh, t.topology, t.charts);
   // The moved faces keep their shape: the charts are flat, so nearly exactly.
-  const FlatChart& left = charts[0];
+  const FlatChart& left = t.charts[0];
   for (size_t j = 0; j < left.faces.size(); ++j) {
-    const double area = signed_area(left.corner_uv.row(3 * j), left.corner_uv.row(3 * j + 1), left.corner_uv.row(3 * j + 2));
-    const double input = std::abs(mesh.signed_area_uv(left.faces[j]));
+    const double area =
+        signed_area(left.corner_uv.row(3 * j), left.corner_uv.row(3 * j + 1), left.corner_uv.row(3 * j + 2));
+    const double input = std::abs(t.mesh.signed_area_uv(left.faces[j]));
     EXPECT_NEAR(std::abs(area), input, 1e-6 * input) << "face " << left.faces[j];
   }
 }
 
 TEST(StraightenBorders, ChartsKeepingTheirOriginalUVsTakeNoPart) {
-  std::vector<int> chart;
-  const Mesh mesh = bump_charts(chart);
-  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
-  std::vector<FlatChart> charts = kept_charts(mesh, chart, 2);
-  const std::vector<char> no_seams(topology.edge_count(), 0);
-  EXPECT_EQ(straighten_borders(mesh, topology, no_seams, {}, RefineOptions{}, charts).faces_moved, 0);
+  TwoCharts t(bump_charts);
+  EXPECT_EQ(straighten_borders(t.input(), t.charts).faces_moved, 0);
 }
 
 // s - a - b - t with capacities 3, 1, 2 and a bypass s - b of 0.5: the cut

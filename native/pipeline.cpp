@@ -180,7 +180,8 @@ std::vector<char> seams_in_flat_charts(const Mesh& mesh, const MeshTopology& top
       label[charts[c].faces[j]] = static_cast<int>(c);
       uv.middleRows(3 * charts[c].faces[j], 3) = charts[c].corner_uv.middleRows(3 * j, 3);
     }
-  const std::vector<char> cut = self_seams(topology, mesh.triangles, uv, Eigen::VectorXi::Zero(mesh.face_count()), label);
+  const std::vector<char> cut =
+      self_seams(topology, mesh.triangles, uv, Eigen::VectorXi::Zero(mesh.face_count()), label);
   for (size_t e = 0; e < seams.size(); ++e) seams[e] = seams[e] || cut[e];
   return seams;
 }
@@ -348,7 +349,8 @@ int detach_turned_faces(const Mesh& mesh, const PipelineResult& result, std::vec
   for (FlatChart& chart : charts) {
     double winding = 0;  // of the placed chart, as packed
     for (int f : chart.faces)
-      winding += signed_area(result.corner_uv.row(3 * f), result.corner_uv.row(3 * f + 1), result.corner_uv.row(3 * f + 2));
+      winding +=
+          signed_area(result.corner_uv.row(3 * f), result.corner_uv.row(3 * f + 1), result.corner_uv.row(3 * f + 2));
     if (chart.faces.size() < 2 || winding == 0) continue;
     // The last face stays: a chart is never emptied.
     for (size_t j = 0; j < chart.faces.size() && chart.faces.size() > 1; ++j) {
@@ -450,8 +452,9 @@ void refine_charts(const Mesh& welded, const Mesh& mesh, const MeshTopology& top
                    const RefineOptions& options, std::vector<FlatChart>& charts, PipelineReport& report) {
   // Before tiny charts are enlarged: the refinement compares texel areas.
   const std::vector<char> kept_seams = seams_in_flat_charts(mesh, topology, graph_seams, charts);
-  const RefineStats strips = straighten_borders(mesh, topology, kept_seams, face_group, options, charts);
-  const RefineStats teeth = refine_seams(mesh, topology, kept_seams, face_group, options, charts);
+  const RefineInput input{mesh, topology, kept_seams, face_group, options};
+  const RefineStats strips = straighten_borders(input, charts);
+  const RefineStats teeth = refine_seams(input, charts);
   report.refine_faces_moved = strips.faces_moved + teeth.faces_moved;
   report.refine_seam_removed = per_sqrt_area(strips.seam_removed_3d + teeth.seam_removed_3d, welded);
   enlarge_tiny_charts(charts);
@@ -510,8 +513,8 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   // The flattening keeps the arcs partial merges left open as seams.
   ChartGraph flat_graph = graph;
   flat_graph.self_seam = aggregation.kept_seam;
-  std::vector<FlatChart> charts = flatten_all(mesh, topology, flat_graph, aggregation, options.slim, options.relief_cuts,
-                                            control, report);
+  std::vector<FlatChart> charts =
+      flatten_all(mesh, topology, flat_graph, aggregation, options.slim, options.relief_cuts, control, report);
   clock.lap("flatten");
   refine_charts(welded, mesh, topology, flat_graph.self_seam, face_group, options.refine, charts, report);
   clock.lap("refine");

@@ -36,16 +36,12 @@ std::vector<int> chart_labels(int face_count, const std::vector<FlatChart>& char
 
 class Refiner {
  public:
-  Refiner(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
-          const std::vector<int>& face_group, const RefineOptions& options, std::vector<FlatChart>& charts)
-      : mesh_(mesh),
-        topology_(topology),
-        seam_(seam),
-        face_group_(face_group),
-        options_(options),
+  Refiner(const RefineInput& in, std::vector<FlatChart>& charts)
+      : in_(in),
         charts_(charts),
-        disks_(mesh, topology, chart_labels(mesh.face_count(), charts), static_cast<int>(charts.size()), seam),
-        slot_(mesh.face_count(), -1),
+        disks_(in.mesh, in.topology, chart_labels(in.mesh.face_count(), charts), static_cast<int>(charts.size()),
+               in.seam),
+        slot_(in.mesh.face_count(), -1),
         boundary_(charts.size()) {
     for (const FlatChart& chart : charts)
       for (size_t j = 0; j < chart.faces.size(); ++j) slot_[chart.faces[j]] = static_cast<int>(j);
@@ -57,7 +53,7 @@ class Refiner {
 
   RefineStats run() {
     std::queue<int> pending;
-    for (int f = 0; f < mesh_.face_count(); ++f)
+    for (int f = 0; f < in_.mesh.face_count(); ++f)
       if (disks_.cluster_of(f) >= 0) pending.push(f);
     for (; !pending.empty(); pending.pop()) {
       Move m;
@@ -74,27 +70,27 @@ class Refiner {
 
  private:
   int chart(int f) const { return disks_.cluster_of(f); }
-  int edge(int f, int k) const { return topology_.corner_edge[3 * f + k]; }
-  int vertex(int f, int k) const { return mesh_.triangles(f, k); }
+  int edge(int f, int k) const { return in_.topology.corner_edge[3 * f + k]; }
+  int vertex(int f, int k) const { return in_.mesh.triangles(f, k); }
   int across(int f, int k) const {
     const int e = edge(f, k);
-    if (topology_.edge_valence(e) != 2) return -1;
-    const int g0 = topology_.edge_corners[topology_.edge_offsets[e]] / 3;
-    const int g1 = topology_.edge_corners[topology_.edge_offsets[e] + 1] / 3;
+    if (in_.topology.edge_valence(e) != 2) return -1;
+    const int g0 = in_.topology.edge_corners[in_.topology.edge_offsets[e]] / 3;
+    const int g1 = in_.topology.edge_corners[in_.topology.edge_offsets[e] + 1] / 3;
     return g0 == f ? g1 : g0;
   }
   double length(int f, int k) const {
-    return (mesh_.positions.row(vertex(f, k)) - mesh_.positions.row(vertex(f, (k + 1) % 3))).norm();
+    return (in_.mesh.positions.row(vertex(f, k)) - in_.mesh.positions.row(vertex(f, (k + 1) % 3))).norm();
   }
   // UV of mesh vertex v (a corner of f) in f's chart.
   Point uv(int f, int v) const {
-    return charts_[chart(f)].corner_uv.row(3 * slot_[f] + mesh_.corner_of(f, v)).transpose();
+    return charts_[chart(f)].corner_uv.row(3 * slot_[f] + in_.mesh.corner_of(f, v)).transpose();
   }
   // Edge k of f is on its chart's boundary in UV: a mesh border, a seam, a
   // neighbour in another chart or one that puts the edge elsewhere.
   bool is_boundary(int f, int k) const {
     const int g = across(f, k);
-    if (g < 0 || seam_[edge(f, k)] || chart(g) != chart(f)) return true;
+    if (g < 0 || in_.seam[edge(f, k)] || chart(g) != chart(f)) return true;
     const int a = vertex(f, k), b = vertex(f, (k + 1) % 3);
     return uv(f, a) != uv(g, a) || uv(f, b) != uv(g, b);
   }
@@ -106,7 +102,7 @@ class Refiner {
       const int k1 = (k3 + 1) % 3, k2 = (k3 + 2) % 3;
       const int g1 = across(f, k1), g2 = across(f, k2);
       if (g1 < 0 || g2 < 0 || g1 == g2 || chart(g1) != chart(g2) || chart(g1) == from || chart(g1) < 0) continue;
-      if (!face_group_.empty() && face_group_[g1] != face_group_[f]) continue;
+      if (!in_.face_group.empty() && in_.face_group[g1] != in_.face_group[f]) continue;
       m = {f, chart(g1), k1, k2, k3, g1, g2, 0, {Point::Zero(), Point::Zero(), Point::Zero()}};
       if (place(m) && fits(m) && disks_.move_keeps_topology(f, m.to)) return true;
     }
@@ -128,7 +124,7 @@ class Refiner {
     const double chart_winding = signed_area(uv(g1, vertex(g1, 0)), uv(g1, vertex(g1, 1)), uv(g1, vertex(g1, 2)));
     const double area = signed_area(m.uv[0], m.uv[1], m.uv[2]);
     // A hundredth of a texel at least, so float32 storage keeps the winding.
-    const double needed = std::max(0.01, options_.min_area_ratio * std::abs(mesh_.signed_area_uv(f)));
+    const double needed = std::max(0.01, in_.options.min_area_ratio * std::abs(in_.mesh.signed_area_uv(f)));
     return area * chart_winding > 0 && std::abs(area) >= needed;
   }
 
@@ -184,11 +180,7 @@ class Refiner {
     return -1;
   }
 
-  const Mesh& mesh_;
-  const MeshTopology& topology_;
-  const std::vector<char>& seam_;
-  const std::vector<int>& face_group_;
-  const RefineOptions& options_;
+  const RefineInput in_;
   std::vector<FlatChart>& charts_;
   mutable DiskClusters disks_;  // its move check marks faces for a moment
   std::vector<int> slot_;  // row of each face in its chart
@@ -198,12 +190,9 @@ class Refiner {
 
 }  // namespace
 
-RefineStats refine_seams(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
-                         const std::vector<int>& face_group, const RefineOptions& options,
-                         std::vector<FlatChart>& charts) {
-  if (options.min_area_ratio <= 0) return {};
-  Refiner refiner(mesh, topology, seam, face_group, options, charts);
-  return refiner.run();
+RefineStats refine_seams(const RefineInput& input, std::vector<FlatChart>& charts) {
+  if (input.options.min_area_ratio <= 0) return {};
+  return Refiner(input, charts).run();
 }
 
 }  // namespace atlas

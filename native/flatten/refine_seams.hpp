@@ -21,21 +21,28 @@ struct RefineOptions {
   double min_area_ratio = 0.5;
 };
 
+// What both border refinements read. seam (per edge): edges that stay
+// boundary on both sides (the seams kept inside charts: the aggregation's and
+// the cuts of the flattening); faces on them do not move. face_group (F) as
+// for defragment (may be empty).
+struct RefineInput {
+  const Mesh& mesh;
+  const MeshTopology& topology;
+  const std::vector<char>& seam;
+  const std::vector<int>& face_group;
+  const RefineOptions& options;
+};
+
 struct RefineStats {
   int faces_moved = 0;
   double seam_removed_3d = 0;  // total 3D length of seam the moves removed
 };
 
 // charts: the flattened charts (faces and texel corner UVs, see FlatChart),
-// changed in place. seam (per edge): edges that stay boundary on both sides
-// (the seams kept inside charts: the aggregation's and the cuts of the
-// flattening); faces on them do not move. face_group (F) as for defragment
-// (may be empty). Moves are made greedily until none shortens the seam:
+// changed in place. Moves are made greedily until none shortens the seam:
 // each removes |e1| + |e2| - |e3| of seam, e1 and e2 the edges towards the
 // new chart and e3 the one towards the old (|e3| counting 0 when e3 was a
 // seam already), so this ends.
-RefineStats refine_seams(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
-                         const std::vector<int>& face_group, const RefineOptions& options,
-                         std::vector<FlatChart>& charts);
+RefineStats refine_seams(const RefineInput& input, std::vector<FlatChart>& charts);
 
 }  // namespace atlas

@@ -37,11 +37,9 @@ struct Strip {
 
 class Straightener {
  public:
-  Straightener(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
-               const std::vector<int>& face_group, const RefineOptions& options, std::vector<FlatChart>& charts)
-      : mesh_(mesh), topology_(topology), seam_(seam), face_group_(face_group), options_(options), charts_(charts),
-        label_(mesh.face_count(), -1), slot_(mesh.face_count(), -1), mark_(mesh.face_count(), 0),
-        node_(mesh.face_count(), -1), triangles_(charts.size()) {
+  Straightener(const RefineInput& in, std::vector<FlatChart>& charts)
+      : in_(in), charts_(charts), label_(in.mesh.face_count(), -1), slot_(in.mesh.face_count(), -1),
+        mark_(in.mesh.face_count(), 0), node_(in.mesh.face_count(), -1), triangles_(charts.size()) {
     for (size_t c = 0; c < charts.size(); ++c)
       for (size_t j = 0; j < charts[c].faces.size(); ++j) {
         label_[charts[c].faces[j]] = static_cast<int>(c);
@@ -55,27 +53,27 @@ class Straightener {
   }
 
  private:
-  int edge(int f, int k) const { return topology_.corner_edge[3 * f + k]; }
-  int vertex(int f, int k) const { return mesh_.triangles(f, k); }
+  int edge(int f, int k) const { return in_.topology.corner_edge[3 * f + k]; }
+  int vertex(int f, int k) const { return in_.mesh.triangles(f, k); }
   double length(int f, int k) const {
-    return (mesh_.positions.row(vertex(f, k)) - mesh_.positions.row(vertex(f, (k + 1) % 3))).norm();
+    return (in_.mesh.positions.row(vertex(f, k)) - in_.mesh.positions.row(vertex(f, (k + 1) % 3))).norm();
   }
   // The face across edge k of f, if the edge is manifold and no kept seam.
   int across(int f, int k) const {
     const int e = edge(f, k);
-    if (topology_.edge_valence(e) != 2 || seam_[e]) return -1;
-    const int g0 = topology_.edge_corners[topology_.edge_offsets[e]] / 3;
-    const int g1 = topology_.edge_corners[topology_.edge_offsets[e] + 1] / 3;
+    if (in_.topology.edge_valence(e) != 2 || in_.seam[e]) return -1;
+    const int g0 = in_.topology.edge_corners[in_.topology.edge_offsets[e]] / 3;
+    const int g1 = in_.topology.edge_corners[in_.topology.edge_offsets[e] + 1] / 3;
     return g0 == f ? g1 : g0;
   }
   Point uv(int f, int v) const {
-    return charts_[label_[f]].corner_uv.row(3 * slot_[f] + mesh_.corner_of(f, v)).transpose();
+    return charts_[label_[f]].corner_uv.row(3 * slot_[f] + in_.mesh.corner_of(f, v)).transpose();
   }
   bool solved(int c) const { return c >= 0 && !charts_[c].kept_original && !charts_[c].faces.empty(); }
-  int group(int f) const { return face_group_.empty() ? 0 : face_group_[f]; }
+  int group(int f) const { return in_.face_group.empty() ? 0 : in_.face_group[f]; }
   bool touches_seam(int f) const {
     for (int k = 0; k < 3; ++k)
-      if (seam_[edge(f, k)]) return true;
+      if (in_.seam[edge(f, k)]) return true;
     return false;
   }
   // Sign of chart c's winding in UV.
@@ -87,7 +85,7 @@ class Straightener {
   // Solved charts of one face group that share an edge, longest border first.
   std::vector<std::pair<int, int>> adjacent_pairs() const {
     std::map<std::pair<int, int>, double> border;
-    for (int f = 0; f < mesh_.face_count(); ++f)
+    for (int f = 0; f < in_.mesh.face_count(); ++f)
       for (int k = 0; k < 3; ++k) {
         const int g = across(f, k);
         if (g > f && label_[g] != label_[f] && solved(label_[f]) && solved(label_[g]) && group(f) == group(g))
@@ -201,7 +199,7 @@ class Straightener {
         const int after = moving.count(g) ? s.to : label_[g];
         s.gain += (label_[g] != label_[f] ? length(f, k) : 0.0) - (after != s.to ? length(f, k) : 0.0);
       }
-    return s.gain > 1e-9 * mesh_.positions.cwiseAbs().maxCoeff();
+    return s.gain > 1e-9 * in_.mesh.positions.cwiseAbs().maxCoeff();
   }
 
   static std::set<int> keys(const std::map<int, Point>& m) {
@@ -331,7 +329,7 @@ class Straightener {
     const double w = winding(s.to);
     for (size_t i = 0; i < s.faces.size(); ++i) {
       const double area = signed_area(s.uv[3 * i], s.uv[3 * i + 1], s.uv[3 * i + 2]);
-      const double needed = std::max(0.01, options_.min_area_ratio * std::abs(mesh_.signed_area_uv(s.faces[i])));
+      const double needed = std::max(0.01, in_.options.min_area_ratio * std::abs(in_.mesh.signed_area_uv(s.faces[i])));
       if (!(area * w > 0) || std::abs(area) < needed) return false;
     }
     return giver_stays_connected(s) && !overlaps_receiver(s);
@@ -473,11 +471,7 @@ class Straightener {
     stats_.seam_removed_3d += s.gain;
   }
 
-  const Mesh& mesh_;
-  const MeshTopology& topology_;
-  const std::vector<char>& seam_;
-  const std::vector<int>& face_group_;
-  const RefineOptions& options_;
+  const RefineInput in_;
   std::vector<FlatChart>& charts_;
   std::vector<int> label_, slot_;  // chart of each face, and its row there
   // Work space, reset after each use: marks (0) and band indices (-1) per face.
@@ -489,11 +483,9 @@ class Straightener {
 
 }  // namespace
 
-RefineStats straighten_borders(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
-                               const std::vector<int>& face_group, const RefineOptions& options,
-                               std::vector<FlatChart>& charts) {
-  if (options.min_area_ratio <= 0) return {};
-  return Straightener(mesh, topology, seam, face_group, options, charts).run();
+RefineStats straighten_borders(const RefineInput& input, std::vector<FlatChart>& charts) {
+  if (input.options.min_area_ratio <= 0) return {};
+  return Straightener(input, charts).run();
 }
 
 }  // namespace atlas

@@ -26,11 +26,9 @@
 
 namespace atlas {
 
-// Arguments as for refine_seams (seam: edges that stay seams; charts changed
-// in place). Kept charts (original UVs) take no part. Returns the faces
-// moved and the 3D seam length removed.
-RefineStats straighten_borders(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& seam,
-                               const std::vector<int>& face_group, const RefineOptions& options,
-                               std::vector<FlatChart>& charts);
+// Arguments as for refine_seams (charts changed in place). Kept charts
+// (original UVs) take no part. Returns the faces moved and the 3D seam
+// length removed.
+RefineStats straighten_borders(const RefineInput& input, std::vector<FlatChart>& charts);
 
 }  // namespace atlas
