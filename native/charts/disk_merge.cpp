@@ -169,9 +169,7 @@ double DiskClusters::sum_inside_union(int a, int b, const std::vector<double>& p
     for (int k = 0; k < 3; ++k) {
       const int e = topology_.corner_edge[3 * f + k];
       if (!joins(e)) continue;
-      const int first = topology_.edge_corners[topology_.edge_offsets[e]] / 3;
-      if (face_cluster_[first == f ? topology_.edge_corners[topology_.edge_offsets[e] + 1] / 3 : first] != b)
-        continue;
+      if (face_cluster_[face_across(topology_, e, f)] != b) continue;
       for (int v : {topology_.edge_vertices(e, 0), topology_.edge_vertices(e, 1)}) {
         if (vertex_stamp_[v] == stamp_) continue;
         vertex_stamp_[v] = stamp_;

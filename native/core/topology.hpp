@@ -26,6 +26,12 @@ struct MeshTopology {
 // once, with the corners on it and each corner's edge.
 MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count);
 
+// The other face at edge e from face f; e has two faces (edge_valence 2).
+inline int face_across(const MeshTopology& topology, int e, int f) {
+  const int g0 = topology.edge_corners[topology.edge_offsets[e]] / 3;
+  return g0 == f ? topology.edge_corners[topology.edge_offsets[e] + 1] / 3 : g0;
+}
+
 // 3D length of edge e.
 inline double edge_length(const Mesh& mesh, const MeshTopology& topology, int e) {
   return (mesh.positions.row(topology.edge_vertices(e, 0)) - mesh.positions.row(topology.edge_vertices(e, 1))).norm();

@@ -74,14 +74,9 @@ class Refiner {
   int vertex(int f, int k) const { return in_.mesh.triangles(f, k); }
   int across(int f, int k) const {
     const int e = edge(f, k);
-    if (in_.topology.edge_valence(e) != 2) return -1;
-    const int g0 = in_.topology.edge_corners[in_.topology.edge_offsets[e]] / 3;
-    const int g1 = in_.topology.edge_corners[in_.topology.edge_offsets[e] + 1] / 3;
-    return g0 == f ? g1 : g0;
+    return in_.topology.edge_valence(e) == 2 ? face_across(in_.topology, e, f) : -1;
   }
-  double length(int f, int k) const {
-    return (in_.mesh.positions.row(vertex(f, k)) - in_.mesh.positions.row(vertex(f, (k + 1) % 3))).norm();
-  }
+  double length(int f, int k) const { return edge_length(in_.mesh, in_.topology, edge(f, k)); }
   // UV of mesh vertex v (a corner of f) in f's chart.
   Point uv(int f, int v) const {
     return charts_[chart(f)].corner_uv.row(3 * slot_[f] + in_.mesh.corner_of(f, v)).transpose();
@@ -123,9 +118,7 @@ class Refiner {
     const int g1 = m.g1;
     const double chart_winding = signed_area(uv(g1, vertex(g1, 0)), uv(g1, vertex(g1, 1)), uv(g1, vertex(g1, 2)));
     const double area = signed_area(m.uv[0], m.uv[1], m.uv[2]);
-    // A hundredth of a texel at least, so float32 storage keeps the winding.
-    const double needed = std::max(0.01, in_.options.min_area_ratio * std::abs(in_.mesh.signed_area_uv(f)));
-    return area * chart_winding > 0 && std::abs(area) >= needed;
+    return area * chart_winding > 0 && std::abs(area) >= in_.needed_area(f);
   }
 
   // The face lies outside the chart next to the two boundary edges it

@@ -7,6 +7,8 @@
 // output guarantees hold as they did. Each face is still baked from its own
 // original UV triangle, wherever it goes.
 #pragma once
+#include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "core/mesh.hpp"
@@ -31,6 +33,11 @@ struct RefineInput {
   const std::vector<char>& seam;
   const std::vector<int>& face_group;
   const RefineOptions& options;
+
+  // The texel area a face moved to another chart must keep: min_area_ratio of
+  // its original, and a hundredth of a texel at least, so that float32
+  // storage keeps its winding.
+  double needed_area(int f) const { return std::max(0.01, options.min_area_ratio * std::abs(mesh.signed_area_uv(f))); }
 };
 
 struct RefineStats {

@@ -55,16 +55,11 @@ class Straightener {
  private:
   int edge(int f, int k) const { return in_.topology.corner_edge[3 * f + k]; }
   int vertex(int f, int k) const { return in_.mesh.triangles(f, k); }
-  double length(int f, int k) const {
-    return (in_.mesh.positions.row(vertex(f, k)) - in_.mesh.positions.row(vertex(f, (k + 1) % 3))).norm();
-  }
+  double length(int f, int k) const { return edge_length(in_.mesh, in_.topology, edge(f, k)); }
   // The face across edge k of f, if the edge is manifold and no kept seam.
   int across(int f, int k) const {
     const int e = edge(f, k);
-    if (in_.topology.edge_valence(e) != 2 || in_.seam[e]) return -1;
-    const int g0 = in_.topology.edge_corners[in_.topology.edge_offsets[e]] / 3;
-    const int g1 = in_.topology.edge_corners[in_.topology.edge_offsets[e] + 1] / 3;
-    return g0 == f ? g1 : g0;
+    return in_.topology.edge_valence(e) == 2 && !in_.seam[e] ? face_across(in_.topology, e, f) : -1;
   }
   Point uv(int f, int v) const {
     return charts_[label_[f]].corner_uv.row(3 * slot_[f] + in_.mesh.corner_of(f, v)).transpose();
@@ -329,8 +324,7 @@ class Straightener {
     const double w = winding(s.to);
     for (size_t i = 0; i < s.faces.size(); ++i) {
       const double area = signed_area(s.uv[3 * i], s.uv[3 * i + 1], s.uv[3 * i + 2]);
-      const double needed = std::max(0.01, in_.options.min_area_ratio * std::abs(in_.mesh.signed_area_uv(s.faces[i])));
-      if (!(area * w > 0) || std::abs(area) < needed) return false;
+      if (!(area * w > 0) || std::abs(area) < in_.needed_area(s.faces[i])) return false;
     }
     return giver_stays_connected(s) && !overlaps_receiver(s);
   }
