@@ -317,6 +317,47 @@ TEST(Bake, ChartsMovedByWholeTexelsAreCopiedExactly) {
             << x << "," << y;
 }
 
+// Bilinear read of channel k of a page at (x, y) texels, centres at +0.5, clamped to the page.
+double bilinear_at(const Image<float>& img, double x, double y, int k) {
+  const double gx = x - 0.5, gy = y - 0.5;
+  const int x0 = static_cast<int>(std::floor(gx)), y0 = static_cast<int>(std::floor(gy));
+  auto at = [&](int i, int j) {
+    i = std::clamp(i, 0, img.width - 1), j = std::clamp(j, 0, img.height - 1);
+    return double(img.texels[(static_cast<std::size_t>(j) * img.width + i) * img.channels + k]);
+  };
+  const double fx = gx - x0, fy = gy - y0;
+  return (1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x0 + 1, y0)) +
+         fy * ((1 - fx) * at(x0, y0 + 1) + fx * at(x0 + 1, y0 + 1));
+}
+
+TEST(Bake, FittedTexelsReadBilinearlyCloserToTheOldPage) {
+  // Fine waves (periods of 3 to 4 texels) moved by a fraction of a texel: read
+  // bilinearly at the same surface points, the fitted page must match the old
+  // one better than centre samples.
+  auto none = [](int, const Eigen::Vector2d&) { return Colour{}; };
+  const Eigen::Matrix2d scale = 0.5 * Eigen::Matrix2d::Identity();  // 32 texels on a 64 page
+  const Eigen::Vector2d shift(12.37, 5.61);                           // new texel - old texel
+  Scene<float> sc = scene<float>({{scale, Eigen::Vector2d(8, 8) / 64, 0}},
+                                 {{scale, (Eigen::Vector2d(8, 8) + shift) / 64, 0}}, 64, {{64, 64}}, 1, 0.0, none,
+                                 Colour{}, 1, 4);
+  Image<float>& old_page = sc.old_images[0];
+  for (int y = 0; y < old_page.height; ++y)
+    for (int x = 0; x < old_page.width; ++x)
+      old_page.texels[y * old_page.width + x] =
+          static_cast<float>(0.5 + 0.2 * std::sin(2 * M_PI * x / 3.3) + 0.2 * std::sin(2 * M_PI * y / 4.1));
+  BakeOptions fit;
+  fit.fit_texels = true;
+  const Image<float> fitted = sc.bake(fit)[0], centres = sc.bake()[0];
+  double fitted_error = 0, centre_error = 0;
+  for (double y = 8 + shift.y() + 2; y < 8 + shift.y() + 30; y += 0.1)
+    for (double x = 8 + shift.x() + 2; x < 8 + shift.x() + 30; x += 0.1) {
+      const double want = bilinear_at(sc.old_images[0], x - shift.x(), y - shift.y(), 0);
+      fitted_error += std::pow(bilinear_at(fitted, x, y, 0) - want, 2);
+      centre_error += std::pow(bilinear_at(centres, x, y, 0) - want, 2);
+    }
+  EXPECT_LT(fitted_error, 0.9 * centre_error);
+}
+
 TEST(SampleTexture, CubicNearOneToOneIsSharperThanBilinearAndNeverRings) {
   // A sine of period 5 texels along x, sampled between texel centres.
   constexpr double kTau = 6.283185307179586;

@@ -532,7 +532,7 @@ py::array_t<T> image_array(Image<T>&& image) {
 // names[m] in errors.
 template <class T>
 py::list bake_typed(LayoutArrays& old_l, const py::list& maps, const std::vector<std::string>& names,
-                    const std::vector<bool>& normal_maps, const LayoutArrays& new_l, int padding,
+                    const std::vector<bool>& normal_maps, const LayoutArrays& new_l, int padding, bool fit_texels,
                     const RunControl& control, BakeStats& stats) {
   std::vector<py::array> keep;
   std::vector<BakeSource<T>> sources;
@@ -542,7 +542,7 @@ py::list bake_typed(LayoutArrays& old_l, const py::list& maps, const std::vector
   std::vector<std::vector<Image<T>>> baked;
   {
     py::gil_scoped_release release;
-    baked = bake_maps<T>(old_l.view(), sources, new_l.view(), padding, control, &stats);
+    baked = bake_maps<T>(old_l.view(), sources, new_l.view(), padding, control, &stats, fit_texels);
   }
   py::list result;
   for (auto& images : baked) {
@@ -582,7 +582,7 @@ py::object bake_named_maps(const py::object& old_uvs, const py::object& old_face
                            const std::vector<std::string>& names, const py::object& new_uvs,
                            const py::object& new_face_page, const py::object& out_sizes,
                            const py::object& normal_maps, int padding, const py::object& progress,
-                           const py::object& cancel, bool with_stats) {
+                           const py::object& cancel, bool with_stats, bool fit_texels) {
   const Eigen::Index faces = checked<double>(old_uvs, "old_uvs", {3, 2}, "(F, 3, 2)").shape(0);
   LayoutArrays old_l = layout_arrays(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
   LayoutArrays new_l =
@@ -600,8 +600,10 @@ py::object bake_named_maps(const py::object& old_uvs, const py::object& old_face
   const RunControl control = control_from(progress, cancel);
   BakeStats stats;
   const py::list baked = is_uint8_maps(maps, names)
-                             ? bake_typed<std::uint8_t>(old_l, maps, names, normal, new_l, padding, control, stats)
-                             : bake_typed<float>(old_l, maps, names, normal, new_l, padding, control, stats);
+                             ? bake_typed<std::uint8_t>(old_l, maps, names, normal, new_l, padding, fit_texels, control,
+                                                        stats)
+                             : bake_typed<float>(old_l, maps, names, normal, new_l, padding, fit_texels, control,
+                                                 stats);
   if (!with_stats) return baked;
   py::dict d;
   d["covered_texels"] = stats.covered_texels;
@@ -613,22 +615,22 @@ py::object bake_named_maps(const py::object& old_uvs, const py::object& old_face
 py::object bake_maps_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& maps,
                         const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
                         const py::object& normal_maps, int padding, const py::object& progress,
-                        const py::object& cancel, bool with_stats) {
+                        const py::object& cancel, bool with_stats, bool fit_texels) {
   std::vector<std::string> names;
   for (size_t m = 0; m < maps.size(); ++m) names.push_back("maps[" + std::to_string(m) + "]");
   return bake_named_maps(old_uvs, old_face_page, maps, names, new_uvs, new_face_page, out_sizes, normal_maps,
-                         padding, progress, cancel, with_stats);
+                         padding, progress, cancel, with_stats, fit_texels);
 }
 
 py::object bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
                    const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
                    bool normal_map, int padding, const py::object& progress, const py::object& cancel,
-                   bool with_stats) {
+                   bool with_stats, bool fit_texels) {
   py::list maps;
   maps.append(images);
   const py::object baked = bake_named_maps(old_uvs, old_face_page, maps, {"images"}, new_uvs, new_face_page,
                                            out_sizes, py::cast(std::vector<bool>{normal_map}), padding, progress,
-                                           cancel, with_stats);
+                                           cancel, with_stats, fit_texels);
   if (!with_stats) return baked.cast<py::list>()[0];
   const py::tuple pair = baked.cast<py::tuple>();
   return py::make_tuple(pair[0].cast<py::list>()[0], pair[1]);
@@ -798,7 +800,7 @@ dict(uvs: list of (F_c,3,2) in page units, chart_page, page_sizes, scale, shrunk
   m.def("bake", &bake_py, py::arg("old_uvs"), py::arg("old_face_page"), py::arg("images"), py::arg("new_uvs"),
         py::arg("new_face_page"), py::arg("out_sizes"), py::kw_only(), py::arg("normal_map") = false,
         py::arg("padding") = 4, py::arg("progress") = py::none(), py::arg("cancel") = py::none(),
-        py::arg("with_stats") = false,
+        py::arg("with_stats") = false, py::arg("fit_texels") = false,
         R"(Bakes one map through the new layout.
 
 images: one (H,W,C) uint8 or float32 array per old page, row 0 at v = 0 (Blender's
@@ -806,18 +808,22 @@ order). Returns one array per entry of out_sizes (width, height), same dtype.
 normal_map re-orients tangent-space XY per face. with_stats: returns (images,
 dict(covered_texels, copied_texels, copied_share)), copied texels being taken
 unresampled from the old texel they land on (faces moved by whole texels and
-quarter turns only).)");
+quarter turns only). fit_texels: texels fitted by least squares so that the new
+page read bilinearly matches the old one read bilinearly, where faces are resampled
+near 1:1, for about twice the time (normal maps, copied texels and minified faces keep
+their sampled values); False: each texel samples the old page at its centre.)");
 
   m.def("bake_maps", &bake_maps_py, py::arg("old_uvs"), py::arg("old_face_page"), py::arg("maps"),
         py::arg("new_uvs"), py::arg("new_face_page"), py::arg("out_sizes"), py::kw_only(),
         py::arg("normal_maps") = py::none(), py::arg("padding") = 4, py::arg("progress") = py::none(),
-        py::arg("cancel") = py::none(), py::arg("with_stats") = false,
+        py::arg("cancel") = py::none(), py::arg("with_stats") = false, py::arg("fit_texels") = false,
         R"(Bakes several maps of the same pages through the new layout in one pass.
 
 maps: per map, one (H,W,C) uint8 or float32 array per old page (every map one
 dtype; each map's images the same sizes as every other map's; channels may
 differ). normal_maps: one flag per map (default all False). Returns per map one
-array per entry of out_sizes; with_stats as bake, summed over the maps.)");
+array per entry of out_sizes; with_stats as bake, summed over the maps; fit_texels
+as bake.)");
 
   m.def("read_obj", &read_obj_py, py::arg("path"),
         R"(Reads a Wavefront OBJ file: dict(positions (V,3) float64, texcoords (T,2) float64,

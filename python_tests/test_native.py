@@ -145,6 +145,23 @@ def test_bake_keeps_colours(native, scans, tetra_result):
     assert fidelity["psnr_db"] > 30
 
 
+def test_fitted_texels_read_closer_to_the_old_atlas(native, scans, tetra_result):
+    """fit_texels: the same layout baked with least-squares texels reads back
+    closer to the old atlas, on clean and on border points alike."""
+    import scan_io
+
+    scan, result = tetra_result
+    old = [scan_io.load_image(p) for p in scan.page_images]
+    figures = {}
+    for fit in (False, True):
+        new = native.bake(scan.uvs, scan.face_page, old, result["uvs"], result["face_page"], result["page_sizes"],
+                          fit_texels=fit)
+        figures[fit] = native.compare_colors(scan.positions, scan.triangles, scan.uvs, scan.face_page, old,
+                                             result["uvs"], result["face_page"], new, samples=100000)
+    for key in ("psnr_db", "psnr_clean_db", "psnr_border_db"):
+        assert figures[True][key] > figures[False][key] + 0.2, (key, figures)
+
+
 def test_clean_samples_of_a_tiled_atlas_are_told_apart(native, scans, tetra_result):
     """UVs one or more pages off (UDIM tiles, as Meshroom writes them) read
     the texture wrapped: the split into clean and border samples is that of

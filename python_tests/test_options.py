@@ -37,6 +37,8 @@ def with_room(name, value):
 
 
 def native_accepts(native, values) -> bool:
+    if options.BY_NAME[next(iter(values))].bake:
+        return bake_accepts(native, values)
     # A cancelled token stops the run right after the options are read.
     token = native.CancelToken()
     token.cancel()
@@ -48,6 +50,17 @@ def native_accepts(native, values) -> bool:
         assert next(iter(values)) in str(exc), exc  # the message names the option
         return False
     raise AssertionError("a cancelled run returned")
+
+
+def bake_accepts(native, values) -> bool:
+    """The bake's options are keywords of bake_maps: a wrong type is a TypeError."""
+    positions, triangles, uvs, face_page, page_sizes = tiny()
+    image = np.zeros((64, 64, 3), np.uint8)
+    try:
+        native.bake_maps(uvs, face_page, [[image]], uvs, face_page, [(64, 64)], **values)
+    except TypeError:
+        return False
+    return True
 
 
 def python_accepts(values) -> bool:
@@ -80,14 +93,18 @@ def test_a_fixed_page_larger_than_the_largest_page_is_refused_on_both_sides(nati
 
 
 def test_every_option_reaches_the_native_module(native):
-    """The native module knows every name (it refuses unknown ones)."""
-    assert native_accepts(native, job.Options().native())
+    """The native module knows every name (it refuses unknown ones): the
+    layout's in defragment, the bake's in bake_maps."""
+    chosen = job.Options()
+    assert native_accepts(native, chosen.native())
+    assert set(chosen.native()) | set(chosen.bake()) == set(options.BY_NAME)
+    assert bake_accepts(native, chosen.bake())
 
 
 def test_batch_arguments_follow_the_schema(capsys):
     parser = batch.single_parser()
     args = parser.parse_args(["in.obj", "out.glb"])
-    assert {o.name: getattr(args, o.name) for o in options.SCHEMA} == job.Options().native()
+    assert {o.name: getattr(args, o.name) for o in options.SCHEMA} == job.Options().values()
     args = parser.parse_args(["in.obj", "out.glb", "--fixed-page-size", "1024", "--weighting", "uv"])
     assert (args.fixed_page_size, args.weighting) == (1024, "uv")
     with pytest.raises(SystemExit) as exc:

@@ -113,13 +113,21 @@ class Options:
 
     def validate(self) -> None:
         try:
-            self.__dict__.update(schema.validate(self.native()))
+            self.__dict__.update(schema.validate(self.values()))
         except ValueError as exc:
             raise DefragError(str(exc)) from exc
 
+    def values(self) -> dict:
+        """Every option by name."""
+        return {o.name: getattr(self, o.name) for o in schema.SCHEMA}
+
     def native(self) -> dict:
         """The keyword options of _native.defragment (the same names)."""
-        return {o.name: getattr(self, o.name) for o in schema.SCHEMA}
+        return {o.name: getattr(self, o.name) for o in schema.SCHEMA if not o.bake}
+
+    def bake(self) -> dict:
+        """The keyword options of _native.bake_maps (the same names)."""
+        return {o.name: getattr(self, o.name) for o in schema.SCHEMA if o.bake}
 
 
 @dataclass
@@ -296,7 +304,7 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     images: List[OutputImage] = []
     texels = {"covered_texels": 0, "copied_texels": 0}
     for i, (g, roles) in enumerate(bake_calls):
-        baked, stats = _bake_group_roles(layout, g, roles, calls,
+        baked, stats = _bake_group_roles(layout, g, roles, options, calls,
                                          calls.share(layout_share + i * bake_share, bake_share))
         images.extend(baked)
         for key in texels:
@@ -384,7 +392,7 @@ def _new_page_groups(layout: _Layout) -> np.ndarray:
     return new_group
 
 
-def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], calls: _NativeCalls,
+def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], options: Options, calls: _NativeCalls,
                       progress) -> Tuple[List[OutputImage], dict]:
     """_native.bake_maps of some roles of one material group onto its new pages
     (one call per pixel dtype), and what it copied texel for texel
@@ -418,6 +426,7 @@ def _bake_group_roles(layout: _Layout, group: int, roles: Sequence[str], calls: 
             padding=int(layout.page_padding[new_pages].max()),
             progress=progress,
             with_stats=True,
+            **options.bake(),
         )
         for key in stats:
             stats[key] += counted[key]

@@ -39,6 +39,7 @@ class Option(NamedTuple):
     automatic: str = ""
     manual_default: object = None  # the dialog's value when Automatic is off
     unit: str = ""  # 'texels' or ''
+    bake: bool = False  # an option of _native.bake_maps, not of _native.defragment
 
 
 SCHEMA: Tuple[Option, ...] = (
@@ -86,6 +87,11 @@ SCHEMA: Tuple[Option, ...] = (
     Option("padding_between_charts", bool, False, "Padding Between Charts",
            "Padding is the gap between two charts (as in xatlas) rather than a ring around each chart "
            "(charts twice the padding apart); packs tighter, keeps one mip level fewer clean"),
+    Option("fit_texels", bool, False, "Fit Texels",
+           "Texels chosen by least squares so that the new texture, read bilinearly as renderers read it, "
+           "matches the old one read the same way: a little sharper, for a bake about twice as long "
+           "(off: each texel samples the old texture at its centre). Normal maps are sampled either way",
+           bake=True),
 )
 
 BY_NAME = {o.name: o for o in SCHEMA}

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "bake/bilinear_fit.hpp"
 #include "bake/pull_push_fill.hpp"
 #include "bake/sample_texture.hpp"
 #include "bake/texel_encoding.hpp"
@@ -33,6 +34,20 @@ constexpr double kMinDoubledArea = 1e-9;
 // far below what bilinear weights could show in 8 or 32 bits, far above the
 // rounding of UVs stored in page units.
 constexpr double kCopyTolerance = 1e-5;
+// The least-squares fit (bilinear_fit.hpp) reads kFitSamples x kFitSamples
+// points per texel: denser grids fit a little closer for proportionally more
+// time (bench/README.md).
+constexpr int kFitSamples = 2;
+// mu of the fit per sample of a texel: texels that few samples read stay near
+// their baked value.
+constexpr double kFitPull = 1e-2;
+// Conjugate-gradient steps of the fit: it starts from the baked texels, and
+// the system is as well conditioned as a mass matrix away from chart borders,
+// so a few steps take nearly all of the gain.
+constexpr int kFitIterations = 4;
+// is_set values: 0 empty (pull-push fills it), kResampled a texel the fit may
+// change, kKept one it keeps (copied unresampled, or a box-filtered average).
+constexpr std::uint8_t kResampled = 1, kKept = 2;
 
 // ---- validation ------------------------------------------------------------
 
@@ -411,6 +426,12 @@ void copy_texels(const BakeJob<T>& job, const FaceMap& face, const Eigen::Vector
   for (std::size_t m = 0; m < job.maps.size(); ++m) copy_texel(job.maps[m], face, x, y, band.texel(m, i));
 }
 
+// Whether the fit reads the face: not when it copies texels (already exact)
+// or minifies (its texels average a footprint; point samples would alias).
+bool fitted(const FaceMap& face) {
+  return !face.copies && face.footprint.samples_x == 1 && face.footprint.samples_y == 1;
+}
+
 // Bakes the texels of the band whose centres the face claims and no earlier face took.
 // TexelTriangle decides coverage exactly, so faces sharing an edge tile it without gaps.
 template <class T>
@@ -422,7 +443,7 @@ void cover_band(const BakeJob<T>& job, const FaceMap& face, const BandTarget<T>&
     for (int x = std::max(x0, 0); x < std::min(x1, band.width); ++x) {
       const std::size_t i = band.index(x, y);
       if (band.is_set[i]) continue;
-      band.is_set[i] = 1;
+      band.is_set[i] = fitted(face) ? kResampled : kKept;
       ++stats.covered_texels;
       const Eigen::Vector2d centre(x + 0.5, y + 0.5);
       if (face.copies) {
@@ -507,7 +528,7 @@ void pad_band(const BakeJob<T>& job, const int* band_faces, int count, const Ban
       collect_padding(job.faces[band_faces[j]], edges, band_faces[j], job.padding, band, candidates);
   for (std::size_t local : candidates.touched) {
     const std::size_t i = band.index(0, band.row0) + local;
-    band.is_set[i] = 1;
+    band.is_set[i] = kResampled;
     bake_texels(job, job.faces[candidates.face[local]], candidates.point[local], band, i);
   }
   candidates.clear();
@@ -546,12 +567,112 @@ void rasterize(const BakeJob<T>& job, const BandFaces& bins, const std::vector<P
   stats.copied_texels += copied;
 }
 
+
+// ---- least-squares fit -------------------------------------------------------
+
+// Per map, its channels in the fit (0: a normal map, whose per-face turns the
+// fit would blur across chart borders).
+template <class T>
+std::vector<int> fitted_channels(const std::vector<BakeSource<T>>& maps) {
+  std::vector<int> channels;
+  for (const BakeSource<T>& map : maps) channels.push_back(map.normal_map ? 0 : map.old_pages[0].channels);
+  return channels;
+}
+
+// Rows the fit solves at once (a multiple of kBandRows), and rows solved
+// beside them on either side but not written: a conjugate-gradient step
+// reaches one texel further, so after kFitIterations steps the written rows
+// barely depend on where the solved ones stop.
+constexpr int kFitStripRows = 16 * kBandRows;
+constexpr int kFitHaloRows = kBandRows;
+static_assert(kFitHaloRows >= kFitIterations + 2, "the halo must outreach the fit's steps");
+
+// The fit's samples of one band of a page: kFitSamples^2 points per texel in
+// the band's faces, at rows y within [y_min, y_max], the first face to claim a
+// point keeping it; each map's target is the old page read bilinearly there,
+// as a renderer reads it.
+template <class T>
+void sample_band(const BakeJob<T>& job, const int* band_faces, int count, int band_row0, int width, double y_min,
+                 double y_max, std::vector<std::uint8_t>& claimed, BilinearFit& fit) {
+  const int sub_width = width * kFitSamples, sub_row0 = band_row0 * kFitSamples;
+  const int first = std::max(sub_row0, static_cast<int>(std::ceil(y_min * kFitSamples - 0.5)));
+  const int last =
+      std::min(sub_row0 + kBandRows * kFitSamples - 1, static_cast<int>(std::floor(y_max * kFitSamples - 0.5)));
+  if (first > last) return;
+  std::fill(claimed.begin(), claimed.begin() + static_cast<std::size_t>(last - sub_row0 + 1) * sub_width, 0);
+  std::vector<std::array<double, kMaxTexelChannels>> values(job.maps.size());
+  std::vector<const double*> targets;
+  for (const auto& value : values) targets.push_back(value.data());
+  const Footprint bilinear;
+  for (int j = 0; j < count; ++j) {
+    const FaceMap& face = job.faces[band_faces[j]];
+    TexelTriangle fine;
+    if (!fine.setup(kFitSamples * face.corner[0], kFitSamples * face.corner[1], kFitSamples * face.corner[2]))
+      continue;
+    for (int y = std::max(fine.row_begin, first); y <= std::min(fine.row_end - 1, last); ++y) {
+      int x0, x1;
+      fine.row_span(y, x0, x1);
+      for (int x = std::max(x0, 0); x < std::min(x1, sub_width); ++x) {
+        std::uint8_t& taken = claimed[static_cast<std::size_t>(y - sub_row0) * sub_width + x];
+        if (taken) continue;
+        taken = 1;
+        if (!fitted(face)) continue;
+        const Eigen::Vector2d p((x + 0.5) / kFitSamples, (y + 0.5) / kFitSamples);
+        const Eigen::Vector2d at = face.old_position(p);
+        for (std::size_t m = 0; m < job.maps.size(); ++m)
+          if (!job.maps[m].normal_map)
+            sample_texture(job.maps[m].old_pages[face.old_page], at, bilinear, values[m].data());
+        fit.add_sample(p.x(), p.y(), targets.data());
+      }
+    }
+  }
+}
+
+// The fitted maps of one page (filled already): strips of kFitStripRows rows,
+// each solved with kFitHaloRows more on either side, one strip per thread,
+// reading `baked` and writing the copies returned (normal maps stay as baked).
+template <class T>
+std::vector<Image<T>> fit_page(const BakeJob<T>& job, const BandFaces& bins, int p, const PageSize& page,
+                               const std::vector<std::vector<Image<T>>>& baked, const std::vector<std::uint8_t>& is_set,
+                               const RunControl& control) {
+  std::vector<Image<T>> fitted;
+  for (std::size_t m = 0; m < job.maps.size(); ++m) fitted.push_back(baked[m][p]);
+  std::vector<std::uint8_t> kept(is_set.size());
+  for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = is_set[i] == kKept;
+  const std::vector<int> channels = fitted_channels(job.maps);
+  const int first_band = bins.page_first_band[p], bands = bins.page_first_band[p + 1] - first_band;
+  const int strips = (page.height + kFitStripRows - 1) / kFitStripRows;
+  const double mu = kFitPull * kFitSamples * kFitSamples;
+  std::vector<BilinearFit> fits(omp_get_max_threads(), BilinearFit(channels));
+  std::vector<std::vector<std::uint8_t>> scratch(fits.size());
+#pragma omp parallel for schedule(dynamic)
+  for (int s = 0; s < strips; ++s) {
+    if (control.cancelled()) continue;
+    const int write0 = s * kFitStripRows, write1 = std::min(write0 + kFitStripRows, page.height);
+    const int row0 = std::max(write0 - kFitHaloRows, 0), row1 = std::min(write1 + kFitHaloRows, page.height);
+    BilinearFit& fit = fits[omp_get_thread_num()];
+    fit.reset(page.width, row0, row1);
+    std::vector<std::uint8_t>& claimed = scratch[omp_get_thread_num()];
+    claimed.resize(static_cast<std::size_t>(kBandRows) * kFitSamples * page.width * kFitSamples);
+    for (int b = row0 / kBandRows; b < std::min(bands, (row1 + kBandRows - 1) / kBandRows); ++b) {
+      const int start = bins.start[first_band + b], count = bins.start[first_band + b + 1] - start;
+      sample_band(job, bins.face.data() + start, count, b * kBandRows, page.width, row0 + 0.5, row1 - 0.5, claimed,
+                  fit);
+    }
+    for (std::size_t m = 0; m < job.maps.size(); ++m)
+      if (channels[m] > 0)
+        fit.solve(static_cast<int>(m), baked[m][p], kept, mu, kFitIterations, write0, write1, fitted[m]);
+  }
+  control.throw_if_cancelled();
+  return fitted;
+}
+
 }  // namespace
 
 template <class T>
 std::vector<std::vector<Image<T>>> bake_maps(const UvLayout& old_layout, const std::vector<BakeSource<T>>& maps,
                                              const UvLayout& new_layout, int padding, const RunControl& control,
-                                             BakeStats* stats) {
+                                             BakeStats* stats, bool fit_texels) {
   if (maps.empty()) throw InputError("bake: no map given");
   const Eigen::Index face_count = old_layout.face_page ? old_layout.face_page->size() : 0;
   require_layout(old_layout, face_count, "bake: old layout", Untextured::refused);
@@ -585,7 +706,8 @@ std::vector<std::vector<Image<T>>> bake_maps(const UvLayout& old_layout, const s
   }
   // Sampling is most of the work; the fill of each image takes the rest.
   BakeStats counted;
-  rasterize(BakeJob<T>{faces, border, maps, padding}, bins, new_pages, baked, is_set, control, counted);
+  const BakeJob<T> job{faces, border, maps, padding};
+  rasterize(job, bins, new_pages, baked, is_set, control, counted);
   if (stats) {
     stats->covered_texels = counted.covered_texels * static_cast<long long>(maps.size());
     stats->copied_texels = counted.copied_texels * static_cast<long long>(maps.size());
@@ -594,7 +716,12 @@ std::vector<std::vector<Image<T>>> bake_maps(const UvLayout& old_layout, const s
   const std::size_t images = maps.size() * new_pages.size();
   for (std::size_t i = 0; i < images; ++i) {
     pull_push_fill(baked[i / new_pages.size()][i % new_pages.size()], is_set[i % new_pages.size()], control);
-    control.progress("bake", 0.8 + 0.2 * double(i + 1) / images);
+    control.progress("bake", 0.8 + (fit_texels ? 0.1 : 0.2) * double(i + 1) / images);
+  }
+  for (std::size_t p = 0; fit_texels && p < new_pages.size(); ++p) {
+    std::vector<Image<T>> fitted = fit_page(job, bins, static_cast<int>(p), new_pages[p], baked, is_set[p], control);
+    for (std::size_t m = 0; m < maps.size(); ++m) baked[m][p] = std::move(fitted[m]);
+    control.progress("bake", 0.9 + 0.1 * double(p + 1) / new_pages.size());
   }
   return baked;
 }
@@ -604,7 +731,7 @@ std::vector<Image<T>> bake_map(const UvLayout& old_layout, const std::vector<Ima
                                const UvLayout& new_layout, const BakeOptions& options, const RunControl& control,
                                BakeStats* stats) {
   return std::move(bake_maps<T>(old_layout, {{old_pages, options.normal_map}}, new_layout, options.padding, control,
-                                stats)
+                                stats, options.fit_texels)
                        .front());
 }
 
@@ -616,8 +743,10 @@ template std::vector<Image<float>> bake_map<float>(const UvLayout&, const std::v
                                                    const UvLayout&, const BakeOptions&, const RunControl&,
                                                    BakeStats*);
 template std::vector<std::vector<Image<std::uint8_t>>> bake_maps<std::uint8_t>(
-    const UvLayout&, const std::vector<BakeSource<std::uint8_t>>&, const UvLayout&, int, const RunControl&, BakeStats*);
+    const UvLayout&, const std::vector<BakeSource<std::uint8_t>>&, const UvLayout&, int, const RunControl&, BakeStats*,
+    bool);
 template std::vector<std::vector<Image<float>>> bake_maps<float>(const UvLayout&, const std::vector<BakeSource<float>>&,
-                                                                 const UvLayout&, int, const RunControl&, BakeStats*);
+                                                                 const UvLayout&, int, const RunControl&, BakeStats*,
+                                                                 bool);
 
 }  // namespace atlas

@@ -33,6 +33,12 @@ struct ImageView {
 struct BakeOptions {
   bool normal_map = false;  // tangent-space normal map: XY re-oriented per face
   int padding = 4;          // texels around charts filled with edge colour before pull-push; 0: none
+  // Texels fitted by least squares so that the page read bilinearly matches
+  // the old one read bilinearly (bilinear_fit.hpp), where faces are resampled
+  // near 1:1, for about twice the bake's time; false: each texel is the old
+  // page at its centre (Catmull-Rom). Normal maps, copied texels and minified
+  // faces keep their sampled values either way.
+  bool fit_texels = false;
 };
 
 // What the bake did with the texels its faces cover (padding and fill not
@@ -57,11 +63,11 @@ struct BakeSource {
 // them. Every map's images have the sizes old_layout gives its pages (maps of
 // other sizes need a call of their own); channel counts may differ. Every face
 // must be textured in both layouts. Returns out[map][new page]; stats, when
-// given, receives what was copied and what resampled.
+// given, receives what was copied and what resampled; fit_texels as in BakeOptions.
 template <class T>
 std::vector<std::vector<Image<T>>> bake_maps(const UvLayout& old_layout, const std::vector<BakeSource<T>>& maps,
                                              const UvLayout& new_layout, int padding, const RunControl& control,
-                                             BakeStats* stats = nullptr);
+                                             BakeStats* stats = nullptr, bool fit_texels = false);
 
 // bake_maps of one map.
 template <class T>
