@@ -510,10 +510,13 @@ PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOpti
     if (options.fixed_page_size > 0 || scaled.padding == options.padding) throw;
     return pack_at_padding(chart_uv, scaled, control);
   }
-  // The page size follows the charts: pack again if it calls for less padding.
-  scaled.padding = padding_for_side(options, longest_side(result.pages));
-  if (scaled.padding < result.padding) result = pack_at_padding(chart_uv, scaled, control);
-  return result;
+  // The page size follows the charts: pack again while it calls for less
+  // padding (the padding only falls, so this ends).
+  for (;;) {
+    scaled.padding = padding_for_side(options, longest_side(result.pages));
+    if (scaled.padding >= result.padding) return result;
+    result = pack_at_padding(chart_uv, scaled, control);
+  }
 }
 
 }  // namespace atlas

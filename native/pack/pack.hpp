@@ -82,7 +82,7 @@ struct PackResult {
 // at least padding / 2 texels from page borders (pages wrap, so both borders
 // together give the full padding). When the pages come out under
 // full_padding_side, or fit no budget at full padding, the charts are packed
-// again with the padding scaled.
+// again with the padding scaled, as long as the smaller pages call for less.
 // Throws InputError on bad options, rows not a multiple of 3, or a budget or
 // fixed page too small for the charts' padding alone; non-finite corners are
 // pulled onto their chart's mean corner.
