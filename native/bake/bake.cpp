@@ -44,7 +44,7 @@ constexpr double kFitPull = 1e-2;
 // Conjugate-gradient steps of the fit: it starts from the baked texels, and
 // the system is as well conditioned as a mass matrix away from chart borders,
 // so a few steps take nearly all of the gain.
-constexpr int kFitIterations = 4;
+constexpr int kFitIterations = 1;
 // is_set values: 0 empty (pull-push fills it), kResampled a texel the fit may
 // change, kKept one it keeps (copied unresampled, or a box-filtered average).
 constexpr std::uint8_t kResampled = 1, kKept = 2;
