@@ -587,22 +587,37 @@ constexpr int kFitStripRows = 16 * kBandRows;
 constexpr int kFitHaloRows = kBandRows;
 static_assert(kFitHaloRows >= kFitIterations + 2, "the halo must outreach the fit's steps");
 
+// One thread's memory for the fit, set aside before the parallel loop.
+struct FitScratch {
+  BilinearFit fit;
+  std::vector<std::uint8_t> claimed;  // the points of one band already claimed by a face
+  std::vector<std::array<double, kMaxTexelChannels>> values;  // per map: the target at one point
+  std::vector<const double*> targets;                          // per map: its values (set by sample_band)
+
+  FitScratch(const std::vector<int>& channels, int width)
+      : fit(channels),
+        claimed(static_cast<std::size_t>(kBandRows) * kFitSamples * width * kFitSamples),
+        values(channels.size()),
+        targets(channels.size()) {
+    fit.reserve(width, kFitStripRows + 2 * kFitHaloRows);
+  }
+};
+
 // The fit's samples of one band of a page: kFitSamples^2 points per texel in
 // the band's faces, at rows y within [y_min, y_max], the first face to claim a
 // point keeping it; each map's target is the old page read bilinearly there,
 // as a renderer reads it.
 template <class T>
 void sample_band(const BakeJob<T>& job, const int* band_faces, int count, int band_row0, int width, double y_min,
-                 double y_max, std::vector<std::uint8_t>& claimed, BilinearFit& fit) {
+                 double y_max, FitScratch& scratch) {
   const int sub_width = width * kFitSamples, sub_row0 = band_row0 * kFitSamples;
   const int first = std::max(sub_row0, static_cast<int>(std::ceil(y_min * kFitSamples - 0.5)));
   const int last =
       std::min(sub_row0 + kBandRows * kFitSamples - 1, static_cast<int>(std::floor(y_max * kFitSamples - 0.5)));
   if (first > last) return;
+  std::vector<std::uint8_t>& claimed = scratch.claimed;
   std::fill(claimed.begin(), claimed.begin() + static_cast<std::size_t>(last - sub_row0 + 1) * sub_width, 0);
-  std::vector<std::array<double, kMaxTexelChannels>> values(job.maps.size());
-  std::vector<const double*> targets;
-  for (const auto& value : values) targets.push_back(value.data());
+  for (std::size_t m = 0; m < scratch.values.size(); ++m) scratch.targets[m] = scratch.values[m].data();
   const Footprint bilinear;
   for (int j = 0; j < count; ++j) {
     const FaceMap& face = job.faces[band_faces[j]];
@@ -621,8 +636,8 @@ void sample_band(const BakeJob<T>& job, const int* band_faces, int count, int ba
         const Eigen::Vector2d at = face.old_position(p);
         for (std::size_t m = 0; m < job.maps.size(); ++m)
           if (!job.maps[m].normal_map)
-            sample_texture(job.maps[m].old_pages[face.old_page], at, bilinear, values[m].data());
-        fit.add_sample(p.x(), p.y(), targets.data());
+            sample_texture(job.maps[m].old_pages[face.old_page], at, bilinear, scratch.values[m].data());
+        scratch.fit.add_sample(p.x(), p.y(), scratch.targets.data());
       }
     }
   }
@@ -643,21 +658,21 @@ std::vector<Image<T>> fit_page(const BakeJob<T>& job, const BandFaces& bins, int
   const int first_band = bins.page_first_band[p], bands = bins.page_first_band[p + 1] - first_band;
   const int strips = (page.height + kFitStripRows - 1) / kFitStripRows;
   const double mu = kFitPull * kFitSamples * kFitSamples;
-  std::vector<BilinearFit> fits(omp_get_max_threads(), BilinearFit(channels));
-  std::vector<std::vector<std::uint8_t>> scratch(fits.size());
+  // Built in place: a copy would not keep the memory reserve() set aside.
+  std::vector<FitScratch> scratch;
+  scratch.reserve(omp_get_max_threads());
+  for (int t = 0; t < omp_get_max_threads(); ++t) scratch.emplace_back(channels, page.width);
 #pragma omp parallel for schedule(dynamic)
   for (int s = 0; s < strips; ++s) {
     if (control.cancelled()) continue;
     const int write0 = s * kFitStripRows, write1 = std::min(write0 + kFitStripRows, page.height);
     const int row0 = std::max(write0 - kFitHaloRows, 0), row1 = std::min(write1 + kFitHaloRows, page.height);
-    BilinearFit& fit = fits[omp_get_thread_num()];
+    FitScratch& mine = scratch[omp_get_thread_num()];
+    BilinearFit& fit = mine.fit;
     fit.reset(page.width, row0, row1);
-    std::vector<std::uint8_t>& claimed = scratch[omp_get_thread_num()];
-    claimed.resize(static_cast<std::size_t>(kBandRows) * kFitSamples * page.width * kFitSamples);
     for (int b = row0 / kBandRows; b < std::min(bands, (row1 + kBandRows - 1) / kBandRows); ++b) {
       const int start = bins.start[first_band + b], count = bins.start[first_band + b + 1] - start;
-      sample_band(job, bins.face.data() + start, count, b * kBandRows, page.width, row0 + 0.5, row1 - 0.5, claimed,
-                  fit);
+      sample_band(job, bins.face.data() + start, count, b * kBandRows, page.width, row0 + 0.5, row1 - 0.5, mine);
     }
     for (std::size_t m = 0; m < job.maps.size(); ++m)
       if (channels[m] > 0)

@@ -79,6 +79,18 @@ void conjugate_gradients(const std::vector<float>* a, std::ptrdiff_t stride, flo
 
 }  // namespace
 
+void BilinearFit::reserve(int width, int rows) {
+  const std::size_t n = (static_cast<std::size_t>(width) + 2) * (rows + 2);
+  for (std::vector<float>& plane : matrix_) plane.reserve(n);
+  int widest = 1;
+  for (std::size_t m = 0; m < channels_.size(); ++m) {
+    rhs_[m].reserve(channels_[m] * n);
+    widest = std::max(widest, channels_[m]);
+  }
+  free_.reserve(n);
+  for (std::vector<float>* v : {&x_, &r_, &p_, &q_}) v->reserve(widest * n);
+}
+
 void BilinearFit::reset(int width, int row0, int row1) {
   width_ = width, row0_ = row0, row1_ = row1, stride_ = static_cast<std::size_t>(width) + 2;
   for (std::vector<float>& plane : matrix_) plane.assign(size(), 0.0f);

@@ -24,6 +24,11 @@ class BilinearFit {
   // channels[m]: channels of map m (0: map m is not fitted and takes no targets).
   explicit BilinearFit(const std::vector<int>& channels) : channels_(channels), rhs_(channels.size()) {}
 
+  // Sets memory aside for up to `rows` rows of `width` texels: reset and
+  // solve then allocate nothing within it (they run on OpenMP threads, where
+  // nothing may throw).
+  void reserve(int width, int rows);
+
   // Empties the equations and sets the rows they cover, of a page `width` texels wide.
   void reset(int width, int row0, int row1);
 
