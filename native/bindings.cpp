@@ -810,8 +810,8 @@ dict(covered_texels, copied_texels, copied_share)), copied texels being taken
 unresampled from the old texel they land on (faces moved by whole texels and
 quarter turns only). fit_texels: texels fitted by least squares so that the new
 page read bilinearly matches the old one read bilinearly, where faces are resampled
-near 1:1, for about twice the time (normal maps, copied texels and minified faces keep
-their sampled values); False: each texel samples the old page at its centre.)");
+near 1:1, for two to three times the time (normal maps, copied texels and minified
+faces keep their sampled values); False: each texel samples the old page at its centre.)");
 
   m.def("bake_maps", &bake_maps_py, py::arg("old_uvs"), py::arg("old_face_page"), py::arg("maps"),
         py::arg("new_uvs"), py::arg("new_face_page"), py::arg("out_sizes"), py::kw_only(),

@@ -89,7 +89,7 @@ SCHEMA: Tuple[Option, ...] = (
            "(charts twice the padding apart); packs tighter, keeps one mip level fewer clean"),
     Option("fit_texels", bool, False, "Fit Texels",
            "Texels chosen by least squares so that the new texture, read bilinearly as renderers read it, "
-           "matches the old one read the same way: a little sharper, for a bake about twice as long "
+           "matches the old one read the same way: a little sharper, for a bake two to three times as long "
            "(off: each texel samples the old texture at its centre). Normal maps are sampled either way",
            bake=True),
 )

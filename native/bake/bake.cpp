@@ -43,7 +43,7 @@ constexpr int kFitSamples = 2;
 constexpr double kFitPull = 1e-2;
 // Conjugate-gradient steps of the fit: it starts from the baked texels, and
 // the system is as well conditioned as a mass matrix away from chart borders,
-// so a few steps take nearly all of the gain.
+// so its first step takes nearly all of the gain (bench/README.md).
 constexpr int kFitIterations = 1;
 // is_set values: 0 empty (pull-push fills it), kResampled a texel the fit may
 // change, kKept one it keeps (copied unresampled, or a box-filtered average).
@@ -567,7 +567,6 @@ void rasterize(const BakeJob<T>& job, const BandFaces& bins, const std::vector<P
   stats.copied_texels += copied;
 }
 
-
 // ---- least-squares fit -------------------------------------------------------
 
 // Per map, its channels in the fit (0: a normal map, whose per-face turns the
@@ -643,18 +642,20 @@ void sample_band(const BakeJob<T>& job, const int* band_faces, int count, int ba
   }
 }
 
-// The fitted maps of one page (filled already): strips of kFitStripRows rows,
-// each solved with kFitHaloRows more on either side, one strip per thread,
-// reading `baked` and writing the copies returned (normal maps stay as baked).
+// Fits the maps of page p (filled already; normal maps stay as baked) in
+// strips of kFitStripRows rows, each solved with kFitHaloRows more on either
+// side, one strip per thread.
 template <class T>
-std::vector<Image<T>> fit_page(const BakeJob<T>& job, const BandFaces& bins, int p, const PageSize& page,
-                               const std::vector<std::vector<Image<T>>>& baked, const std::vector<std::uint8_t>& is_set,
-                               const RunControl& control) {
-  std::vector<Image<T>> fitted;
-  for (std::size_t m = 0; m < job.maps.size(); ++m) fitted.push_back(baked[m][p]);
+void fit_page(const BakeJob<T>& job, const BandFaces& bins, int p, const PageSize& page,
+              std::vector<std::vector<Image<T>>>& baked, const std::vector<std::uint8_t>& is_set,
+              const RunControl& control) {
+  const std::vector<int> channels = fitted_channels(job.maps);
+  // What the strips start from: their halos reach rows that other strips write.
+  std::vector<Image<T>> sampled(job.maps.size());
+  for (std::size_t m = 0; m < job.maps.size(); ++m)
+    if (channels[m] > 0) sampled[m] = baked[m][p];
   std::vector<std::uint8_t> kept(is_set.size());
   for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = is_set[i] == kKept;
-  const std::vector<int> channels = fitted_channels(job.maps);
   const int first_band = bins.page_first_band[p], bands = bins.page_first_band[p + 1] - first_band;
   const int strips = (page.height + kFitStripRows - 1) / kFitStripRows;
   const double mu = kFitPull * kFitSamples * kFitSamples;
@@ -674,12 +675,11 @@ std::vector<Image<T>> fit_page(const BakeJob<T>& job, const BandFaces& bins, int
       const int start = bins.start[first_band + b], count = bins.start[first_band + b + 1] - start;
       sample_band(job, bins.face.data() + start, count, b * kBandRows, page.width, row0 + 0.5, row1 - 0.5, mine);
     }
+    fit.mark_free(kept);
     for (std::size_t m = 0; m < job.maps.size(); ++m)
-      if (channels[m] > 0)
-        fit.solve(static_cast<int>(m), baked[m][p], kept, mu, kFitIterations, write0, write1, fitted[m]);
+      if (channels[m] > 0) fit.solve(static_cast<int>(m), sampled[m], mu, kFitIterations, write0, write1, baked[m][p]);
   }
   control.throw_if_cancelled();
-  return fitted;
 }
 
 }  // namespace
@@ -734,8 +734,7 @@ std::vector<std::vector<Image<T>>> bake_maps(const UvLayout& old_layout, const s
     control.progress("bake", 0.8 + (fit_texels ? 0.1 : 0.2) * double(i + 1) / images);
   }
   for (std::size_t p = 0; fit_texels && p < new_pages.size(); ++p) {
-    std::vector<Image<T>> fitted = fit_page(job, bins, static_cast<int>(p), new_pages[p], baked, is_set[p], control);
-    for (std::size_t m = 0; m < maps.size(); ++m) baked[m][p] = std::move(fitted[m]);
+    fit_page(job, bins, static_cast<int>(p), new_pages[p], baked, is_set[p], control);
     control.progress("bake", 0.9 + 0.1 * double(p + 1) / new_pages.size());
   }
   return baked;

@@ -35,9 +35,9 @@ struct BakeOptions {
   int padding = 4;          // texels around charts filled with edge colour before pull-push; 0: none
   // Texels fitted by least squares so that the page read bilinearly matches
   // the old one read bilinearly (bilinear_fit.hpp), where faces are resampled
-  // near 1:1, for about twice the bake's time; false: each texel is the old
-  // page at its centre (Catmull-Rom). Normal maps, copied texels and minified
-  // faces keep their sampled values either way.
+  // near 1:1, for two to three times the bake's time; false: each texel is
+  // the old page at its centre (Catmull-Rom). Normal maps, copied texels and
+  // minified faces keep their sampled values either way.
   bool fit_texels = false;
 };
 

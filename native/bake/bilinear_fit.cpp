@@ -141,14 +141,17 @@ void BilinearFit::add_clamped(int x0, int y0, const double* w, std::size_t* at) 
     }
 }
 
-template <class T>
-void BilinearFit::solve(int m, const Image<T>& from, const std::vector<std::uint8_t>& kept, double mu,
-                        int iterations, int write0, int write1, Image<T>& to) {
-  const int channels = channels_[m];
+void BilinearFit::mark_free(const std::vector<std::uint8_t>& kept) {
   free_.assign(size(), 0.0f);
   for (int y = row0_; y < row1_; ++y)
     for (int x = 0; x < width_; ++x)
       free_[index(x, y)] = !kept[std::size_t(y) * width_ + x] && matrix_[0][index(x, y)] > 0;
+}
+
+template <class T>
+void BilinearFit::solve(int m, const Image<T>& from, double mu, int iterations, int write0, int write1,
+                        Image<T>& to) {
+  const int channels = channels_[m];
   for (std::vector<float>* v : {&x_, &r_, &p_, &q_}) v->assign(size() * channels, 0.0f);
   float lo[kMaxTexelChannels], hi[kMaxTexelChannels];
   std::fill(lo, lo + channels, std::numeric_limits<float>::infinity());
@@ -182,9 +185,8 @@ void BilinearFit::solve(int m, const Image<T>& from, const std::vector<std::uint
               encode_texel<T>(std::clamp(x_[index(i, y) * channels + c], lo[c], hi[c]));
 }
 
-template void BilinearFit::solve<std::uint8_t>(int, const Image<std::uint8_t>&, const std::vector<std::uint8_t>&,
-                                               double, int, int, int, Image<std::uint8_t>&);
-template void BilinearFit::solve<float>(int, const Image<float>&, const std::vector<std::uint8_t>&, double, int, int,
-                                        int, Image<float>&);
+template void BilinearFit::solve<std::uint8_t>(int, const Image<std::uint8_t>&, double, int, int, int,
+                                               Image<std::uint8_t>&);
+template void BilinearFit::solve<float>(int, const Image<float>&, double, int, int, int, Image<float>&);
 
 }  // namespace atlas

@@ -37,15 +37,16 @@ class BilinearFit {
   // each fitted map.
   void add_sample(double x, double y, const double* const* target);
 
-  // Writes map m's texels in rows [write0, write1) of `to`, fitted from
+  // Once the samples are in: the texels solve may change are those some
+  // sample reads and `kept` (per page texel) does not mark.
+  void mark_free(const std::vector<std::uint8_t>& kept);
+
+  // Writes map m's free texels in rows [write0, write1) of `to`, fitted from
   // those of `from` (the same size) after `iterations` conjugate-gradient
-  // steps over all the rows;
-  // texels marked in `kept` (per page texel) or read by no sample keep their
-  // values. Values are clamped to the channel's range in the rows and rounded
-  // as T encodes.
+  // steps over all the rows; the other texels keep their values. Values are
+  // clamped to the channel's range in the rows and rounded as T encodes.
   template <class T>
-  void solve(int m, const Image<T>& from, const std::vector<std::uint8_t>& kept, double mu, int iterations,
-             int write0, int write1, Image<T>& to);
+  void solve(int m, const Image<T>& from, double mu, int iterations, int write0, int write1, Image<T>& to);
 
  private:
   int width_ = 0, row0_ = 0, row1_ = 0;
