@@ -4,7 +4,12 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <limits>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace atlas {
 
@@ -74,28 +79,78 @@ inline void catmull_rom_weights(double t, double w[4]) {
 // i modulo n in [0, n); the division only where i leaves the page.
 inline int wrapped(int i, int n) { return i >= 0 && i < n ? i : (i % n + n) % n; }
 
+// Four floats in one vector register (GCC and Clang vector extensions: SSE
+// on x86, NEON on ARM).
+typedef float Float4 __attribute__((vector_size(16)));
+
+// Four consecutive values of a page as floats. On x86 the bytes are widened
+// in registers: GCC converts a byte vector one lane at a time.
+inline Float4 load4(const std::uint8_t* p) {
+#if defined(__SSE2__)
+  int bytes;
+  std::memcpy(&bytes, p, sizeof bytes);
+  const __m128i zero = _mm_setzero_si128();
+  const __m128i words = _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(bytes), zero), zero);
+  return reinterpret_cast<Float4>(_mm_cvtepi32_ps(words));
+#else
+  typedef std::uint8_t Byte4 __attribute__((vector_size(4)));
+  Byte4 bytes;
+  std::memcpy(&bytes, p, sizeof bytes);
+  return __builtin_convertvector(bytes, Float4);
+#endif
+}
+inline Float4 load4(const float* p) {
+  Float4 f;
+  std::memcpy(&f, p, sizeof f);
+  return f;
+}
+
 // Catmull-Rom over the 4 x 4 texels around the taps, each channel clamped to
 // the range of the four bilinear texels: no ringing past the values it blends.
-// Separable: each row is filtered along x, then the four rows along y.
+// A row's 4 texels are 4 C values side by side, that is C vectors of four:
+// the rows are summed with their weights vector by vector, and the 4 texels'
+// weights and the channel sums come last:
+//   out_k = sum_i wx_i sum_j wy_j v(i, j, k).
 template <int C, class T>
 void cubic_blend(const ImageView<T>& page, const Tap& x, const Tap& y, double* out) {
   double wx[4], wy[4];
   catmull_rom_weights(x.t, wx);
   catmull_rom_weights(y.t, wy);
+  // Inside the page the row's 4 texels are contiguous; at its edges they wrap.
+  const bool contiguous = x.lo >= 1 && x.lo + 2 < page.width;
   int column[4];
   for (int i = 0; i < 4; ++i) column[i] = C * wrapped(x.lo - 1 + i, page.width);
   const std::size_t stride = static_cast<std::size_t>(page.width) * C;
-  double sum[C] = {}, lo[C], hi[C];
-  for (int k = 0; k < C; ++k) lo[k] = std::numeric_limits<double>::infinity(), hi[k] = -lo[k];
+  Float4 sum[C] = {}, row[2][C];
   for (int j = 0; j < 4; ++j) {
     const T* r = page.texels + stride * wrapped(y.lo - 1 + j, page.height);
-    for (int k = 0; k < C; ++k) {
-      const double v0 = r[column[0] + k], v1 = r[column[1] + k], v2 = r[column[2] + k], v3 = r[column[3] + k];
-      sum[k] += wy[j] * (wx[0] * v0 + wx[1] * v1 + wx[2] * v2 + wx[3] * v3);
-      if (j == 1 || j == 2) lo[k] = std::min({lo[k], v1, v2}), hi[k] = std::max({hi[k], v1, v2});
+    T gathered[4 * C];
+    if (!contiguous)
+      for (int i = 0; i < 4 * C; ++i) gathered[i] = r[column[i / C] + i % C];
+    const T* values = contiguous ? r + column[0] : gathered;
+    const float w = static_cast<float>(wy[j]);
+    for (int v = 0; v < C; ++v) {
+      const Float4 texels = load4(values + 4 * v);
+      sum[v] += w * texels;
+      if (j == 1 || j == 2) row[j - 1][v] = texels;
     }
   }
-  for (int k = 0; k < C; ++k) out[k] = std::clamp(sum[k], lo[k], hi[k]);
+  float total[4 * C], low[4 * C], high[4 * C];
+  for (int v = 0; v < C; ++v) {
+    const Float4 weight = {static_cast<float>(wx[(4 * v) / C]), static_cast<float>(wx[(4 * v + 1) / C]),
+                           static_cast<float>(wx[(4 * v + 2) / C]), static_cast<float>(wx[(4 * v + 3) / C])};
+    const Float4 weighted = sum[v] * weight;
+    std::memcpy(total + 4 * v, &weighted, sizeof weighted);
+    const Float4 lo = row[0][v] < row[1][v] ? row[0][v] : row[1][v];
+    const Float4 hi = row[0][v] > row[1][v] ? row[0][v] : row[1][v];
+    std::memcpy(low + 4 * v, &lo, sizeof lo);
+    std::memcpy(high + 4 * v, &hi, sizeof hi);
+  }
+  // Texel i's channel k is value i C + k; the bilinear texels are i = 1, 2.
+  for (int k = 0; k < C; ++k) {
+    const float value = (total[k] + total[C + k]) + (total[2 * C + k] + total[3 * C + k]);
+    out[k] = std::clamp(value, std::min(low[C + k], low[2 * C + k]), std::max(high[C + k], high[2 * C + k]));
+  }
 }
 
 // Channel count as a template argument: the per-tap loops fully unroll.
