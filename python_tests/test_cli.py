@@ -200,3 +200,27 @@ def test_grey_images_load_as_one_channel(mode):
     pixels = scan_io.load_image(buf.getvalue())
     assert pixels.shape == (48, 64, 1) and pixels.dtype == np.uint8
     assert np.array_equal(pixels[::-1, :, 0], grey >> 8)
+
+
+@pytest.mark.parametrize("mode, transparency", [("RGB", None), ("RGBA", None), ("RGB", (1, 2, 3))])
+def test_png_images_load_as_pillow_reads_them(mode, transparency):
+    """RGB and RGBA PNGs go through the add-on's decoder, a PNG with a tRNS
+    chunk (which it refuses) through Pillow: the same pixels either way, row 0
+    at the bottom."""
+    import io
+
+    import scan_io
+    from atlas_defrag import png_files
+    from PIL import Image
+
+    rng = np.random.default_rng(7)
+    pixels = rng.integers(0, 256, size=(37, 53, len(mode)), dtype=np.uint8)
+    buf = io.BytesIO()
+    Image.fromarray(pixels).save(buf, "PNG", **({"transparency": transparency} if transparency else {}))
+    data = buf.getvalue()
+    assert (b"tRNS" in data) == bool(transparency)
+    if transparency:
+        with pytest.raises(ValueError):
+            png_files.decode_png(data)
+    loaded = scan_io.load_image(data)
+    assert loaded.shape == pixels.shape and np.array_equal(loaded[::-1], pixels)
