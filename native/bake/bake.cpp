@@ -118,7 +118,6 @@ struct FaceMap {
   // Zero until map_face sets them (a degenerate face keeps the zeros).
   std::array<Eigen::Vector2d, 3> corner = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(),
                                            Eigen::Vector2d::Zero()};  // new-page texels
-  TexelTriangle raster{};                                             // which texel centres the face claims (exact)
   Eigen::Vector2d old_origin = Eigen::Vector2d::Zero();               // corner 0 in old-page texels
   Eigen::Matrix2d new_to_old = Eigen::Matrix2d::Zero();               // Jacobian: old texels per new texel
   Footprint footprint;                                                // new texel's extent in the old page
@@ -181,7 +180,6 @@ FaceMap map_face(int f, const UvLayout& old_layout, const PageSize& old_size, co
   // not texels: renderers derive tangent frames from UVs, whatever the page aspect.
   const Eigen::Matrix2d old_per_new_uv = edge_matrix(old_uv) * edge_matrix(new_uv).inverse();
   face.frame_turn = orthogonal_factor(old_per_new_uv).transpose();
-  face.raster.setup(face.corner[0], face.corner[1], face.corner[2]);
   return face;
 }
 
@@ -436,10 +434,14 @@ bool fitted(const FaceMap& face) {
 // TexelTriangle decides coverage exactly, so faces sharing an edge tile it without gaps.
 template <class T>
 void cover_band(const BakeJob<T>& job, const FaceMap& face, const BandTarget<T>& band, BakeStats& stats) {
-  const int last_row = std::min(face.raster.row_end - 1, band.row1);
-  for (int y = std::max(face.raster.row_begin, band.row0); y <= last_row; ++y) {
+  // Set up per band rather than kept per face: faces span a band or two, and
+  // a kept raster would more than double the memory of every face's map.
+  TexelTriangle raster;
+  if (!raster.setup(face.corner[0], face.corner[1], face.corner[2])) return;
+  const int last_row = std::min(raster.row_end - 1, band.row1);
+  for (int y = std::max(raster.row_begin, band.row0); y <= last_row; ++y) {
     int x0, x1;
-    face.raster.row_span(y, x0, x1);
+    raster.row_span(y, x0, x1);
     for (int x = std::max(x0, 0); x < std::min(x1, band.width); ++x) {
       const std::size_t i = band.index(x, y);
       if (band.is_set[i]) continue;
