@@ -50,11 +50,19 @@ class Settings:
             raise DefragError("Save the .blend file first, or set Images to 'Pack in .blend'")
 
 
-def prepare(obj, settings: Settings) -> read_bpy.ReadResult:
-    """Validates and reads; raises DefragError. Changes nothing."""
+def prepare(obj, settings: Settings, pixels_later: bool = False) -> read_bpy.ReadResult:
+    """Validates and reads; raises DefragError. Changes nothing.
+    pixels_later: the images' pixels are not read yet (read_bpy.PendingImage):
+    the caller hands the job to a worker thread, then calls
+    read_bpy.fetch_pixels on this thread, so that Blender reads them while
+    the layout runs."""
     settings.validate()
     try:
-        return read_bpy.read(obj, settings.uv_map)
+        read = read_bpy.read(obj, settings.uv_map)
+        if not pixels_later:
+            for image in read.job.images.values():
+                _ = image.pixels  # read here, on this thread; raises what failed
+        return read
     except MemoryError as exc:
         raise DefragError("Out of memory while reading the mesh and images") from exc
 
@@ -69,10 +77,10 @@ class SharedRead:
     faces: list
 
 
-def prepare_shared(objects, settings: list) -> SharedRead:
+def prepare_shared(objects, settings: list, pixels_later: bool = False) -> SharedRead:
     """prepare() for every object (settings[k] for objects[k]), and the one
     job over all of them. Changes nothing."""
-    reads = [prepare(obj, s) for obj, s in zip(objects, settings)]
+    reads = [prepare(obj, s, pixels_later) for obj, s in zip(objects, settings)]
     joined, faces = job.concatenate([r.job for r in reads])
     return SharedRead(reads=reads, job=joined, faces=faces)
 
@@ -159,27 +167,35 @@ def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **opt
     fit max_page_size, max_pages or the input's texel count. Raises DefragError
     (a subclass of Exception) with the reason; on any error nothing is changed.
     wait_in_main_thread: the native work runs on a thread of its own while
-    this thread waits in short steps, free to run signal handlers (the batch
-    entry's SIGINT cancels the token).
+    this thread reads the images' pixels (the layout needs only their sizes;
+    seconds 'read_pixels' in the report), then waits in short steps, free to
+    run signal handlers (the batch entry's SIGINT cancels the token).
     """
     with as_defrag_error():
         settings = Settings.from_kwargs(**options)
         t0 = time.perf_counter()
-        read = prepare(obj, settings)
+        read = prepare(obj, settings, pixels_later=wait_in_main_thread)
         t_read = time.perf_counter() - t0
+        fetched = {}
         if wait_in_main_thread:
-            result = on_worker_thread(compute, read, settings, progress=progress, cancel=cancel)
+            def fetch_pixels():  # here, while the layout runs on the worker
+                t = time.perf_counter()
+                read_bpy.fetch_pixels(read.job)
+                fetched["read_pixels"] = time.perf_counter() - t
+            result = on_worker_thread(compute, read, settings, progress=progress, cancel=cancel,
+                                      meanwhile=fetch_pixels)
         else:
             result = compute(read, settings, progress=progress, cancel=cancel)
         report = finish(obj, read, result, settings)
-    report["seconds"]["read"] = t_read
+    report["seconds"].update(read=t_read, **fetched)
     return report
 
 
-def on_worker_thread(fn, *args, each_step=None, **kwargs):
+def on_worker_thread(fn, *args, each_step=None, meanwhile=None, **kwargs):
     """fn(*args, **kwargs) on another thread, joined in 50 ms steps, after
     each of which this thread calls each_step() (if given: bpy work such as
-    showing progress belongs here, not in fn); fn's exception is raised here."""
+    showing progress belongs here, not in fn); meanwhile() (if given) runs
+    on this thread once the worker has started; fn's exception is raised here."""
     outcome = {}
 
     def work():
@@ -190,6 +206,8 @@ def on_worker_thread(fn, *args, each_step=None, **kwargs):
 
     worker = threading.Thread(target=work, name="atlas_defrag", daemon=True)
     worker.start()
+    if meanwhile is not None:
+        meanwhile()
     while worker.is_alive():
         worker.join(0.05)
         if each_step is not None:

@@ -10,7 +10,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from . import api, compat, job, native_check, ply_import, write_bpy
+from . import api, compat, job, native_check, ply_import, read_bpy, write_bpy
 from .job import DefragCancelled, DefragError
 from .options import SCHEMA
 
@@ -47,12 +47,20 @@ class _Run:
         except BaseException as exc:  # reported on the main thread
             self.error = exc
 
+    def start(self):
+        """work() on a thread of its own, while this (the main) thread reads
+        the images' pixels, which the worker needs only once the layout is done."""
+        self.thread = threading.Thread(target=self.work, name="atlas_defrag", daemon=True)
+        self.thread.start()
+        read_bpy.fetch_pixels(self.read.job)
+
     def wait(self, each_step):
         """The result of the native work, run on a thread of its own while
-        this thread calls each_step() every 0.05 s: the native progress comes
-        from worker threads, where bpy must not be touched."""
+        this thread reads the pixels, then calls each_step() every 0.05 s: the
+        native progress comes from worker threads, where bpy must not be touched."""
         return api.on_worker_thread(api.compute, self.read, self.settings, progress=self.progress,
-                                    cancel=self.token, each_step=each_step)
+                                    cancel=self.token, each_step=each_step,
+                                    meanwhile=lambda: read_bpy.fetch_pixels(self.read.job))
 
 
 # The outcome of the last run, for scripts and tests: status is 'finished',
@@ -363,8 +371,7 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
             return str(exc)
         self._unit = named
         self._run = _Run(read, unit[0][1], _native_token())
-        self._run.thread = threading.Thread(target=self._run.work, name="atlas_defrag", daemon=True)
-        self._run.thread.start()
+        self._run.start()
         return ""
 
     def _end_modal(self, context):
@@ -452,11 +459,12 @@ def _resolve(named, when: str):
 
 
 def _prepare(unit):
-    """The read of one run: one object's, or the shared read of several."""
+    """The read of one run: one object's, or the shared read of several; the
+    pixels come later (_Run reads them while its worker runs the layout)."""
     with api.as_defrag_error():
         if len(unit) == 1:
-            return api.prepare(*unit[0])
-        return api.prepare_shared([obj for obj, _ in unit], [s for _, s in unit])
+            return api.prepare(*unit[0], pixels_later=True)
+        return api.prepare_shared([obj for obj, _ in unit], [s for _, s in unit], pixels_later=True)
 
 
 def _finish(unit, read, result):

@@ -4,14 +4,15 @@
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
 from . import compat, png_files
-from .job import DefragError, ImageData, ImageMap, JobInput, MeshData, SourcePage, role_sort_key
+from .job import DefragError, ImageMap, JobInput, MeshData, SourcePage, role_sort_key
 
 # Image sources whose pixels are one plain 2D image.
 SUPPORTED_SOURCES = {"FILE", "GENERATED"}
@@ -577,26 +578,84 @@ def _face_pages(materials: Dict[str, MaterialInfo], tri_material: np.ndarray, n_
     return slot_of_face, slot_page[slot_of_face]
 
 
-def _read_images(pages: List[SourcePage]) -> Dict[str, ImageData]:
-    """Plain PNGs are decoded from their files side by side (zlib and the
-    native row filters release the GIL); Blender reads the others, meanwhile,
-    and any PNG the decoder turned down."""
+class PendingImage:
+    """A job.ImageData whose pixels come later, so that the layout (which
+    needs only sizes) can run on a worker thread meanwhile: a plain PNG is
+    decoded on a thread of its own from the start; Blender reads the others
+    when the main thread calls fetch(). The main thread asking for the pixels
+    fetches them itself; another thread waits for fetch(), so whoever hands
+    the job to a worker calls fetch_pixels on the main thread (api.prepare
+    does unless told not to)."""
+
+    def __init__(self, img, decoding: Optional[Future] = None):
+        self.name = img.name
+        self.colorspace = img.colorspace_settings.name
+        self.is_float = _is_float(img)
+        self.alpha_mode = img.alpha_mode
+        self.size = _size(img)
+        self._decoding = decoding
+        self._done = threading.Event()
+        self._pixels: Optional[np.ndarray] = None
+        self._error: Optional[BaseException] = None
+
+    def fetch(self) -> None:
+        """Reads the pixels (main thread only). An error is kept for whoever
+        asks for them."""
+        import bpy
+
+        if self._done.is_set():
+            return
+        try:
+            decoded = self._decoded()
+            self._pixels = decoded if decoded is not None else read_pixels(bpy.data.images[self.name])
+        except BaseException as exc:  # handed to the thread that asks for the pixels
+            self._error = exc
+        finally:
+            self._done.set()
+
+    def _decoded(self) -> Optional[np.ndarray]:
+        try:
+            return self._decoding.result() if self._decoding is not None else None
+        except MemoryError as exc:
+            raise DefragError(f"Out of memory reading image '{self.name}'") from exc
+
+    @property
+    def pixels(self) -> np.ndarray:
+        if threading.current_thread() is threading.main_thread():
+            self.fetch()
+        self._done.wait()
+        if self._error is not None:
+            raise self._error
+        return self._pixels
+
+
+def _size(img) -> Tuple[int, int]:
+    """(width, height) without loading a plain PNG (from its header)."""
+    if _plain_png(img):
+        width, height, _ = png_files.plain_png_size(_file_ends(img, png_files.HEADER_BYTES, png_files.TAIL_BYTES)[0])
+        return width, height
+    return int(img.size[0]), int(img.size[1])
+
+
+def _read_images(pages: List[SourcePage]) -> Dict[str, PendingImage]:
+    """Every image of the pages, its pixels pending (PendingImage): plain
+    PNGs start decoding from their files at once, side by side (zlib and the
+    native row filters release the GIL)."""
     import bpy
 
     names = list(dict.fromkeys(m.image for page in pages for m in page.maps))
     plain = [n for n in names if _plain_png(bpy.data.images[n])]
-    with ThreadPoolExecutor(max_workers=max(1, min(len(plain), os.cpu_count() or 1))) as pool:
-        decoding = {n: pool.submit(_decoded_png, _file_bytes(bpy.data.images[n])) for n in plain}
-        pixels = {n: read_pixels(bpy.data.images[n]) for n in names if n not in decoding}
-        for n, future in decoding.items():
-            try:
-                decoded = future.result()
-            except MemoryError as exc:
-                raise DefragError(f"Out of memory reading image '{n}'") from exc
-            pixels[n] = decoded if decoded is not None else read_pixels(bpy.data.images[n])
-    images: Dict[str, ImageData] = {}
-    for n in names:
-        img = bpy.data.images[n]
-        images[n] = ImageData(name=img.name, pixels=pixels[n], colorspace=img.colorspace_settings.name,
-                              is_float=pixels[n].dtype != np.uint8, alpha_mode=img.alpha_mode)
-    return images
+    pool = ThreadPoolExecutor(max_workers=max(1, min(len(plain), os.cpu_count() or 1)))
+    try:
+        return {n: PendingImage(bpy.data.images[n], pool.submit(_decoded_png, _file_bytes(bpy.data.images[n]))
+                                if n in plain else None) for n in names}
+    finally:
+        pool.shutdown(wait=False)  # the decoding goes on; the threads end with it
+
+
+def fetch_pixels(job: JobInput) -> None:
+    """The pixels of every pending image of job, read on this (the main)
+    thread; errors wait in the images for whoever asks for their pixels."""
+    for image in job.images.values():
+        if isinstance(image, PendingImage):
+            image.fetch()

@@ -348,7 +348,9 @@ def prepared(pkg, model):
 
 
 def worker_thread_run(pkg):
-    """The modal operator's worker: computes off the main thread, then writes."""
+    """The modal operator's worker: computes off the main thread, then writes.
+    Its images' pixels read on the main thread while the worker runs the
+    layout (_Run.start) give the same result as pixels read first."""
     obj, name, before, settings, read = prepared(pkg, "tetra")
     run = pkg.operators._Run(read, settings, pkg.operators._native_token())
     t = threading.Thread(target=run.work)
@@ -356,6 +358,14 @@ def worker_thread_run(pkg):
     t.join(600)
     assert run.error is None, repr(run.error)
     assert run.fraction == 1.0, run.fraction
+    later = pkg.api.prepare(obj, settings, pixels_later=True)
+    assert all(isinstance(i, pkg.read_bpy.PendingImage) for i in later.job.images.values())
+    overlapped = pkg.operators._Run(later, settings, pkg.operators._native_token())
+    overlapped.start()
+    overlapped.thread.join(600)
+    assert overlapped.error is None, repr(overlapped.error)
+    assert np.array_equal(overlapped.result.uvs, run.result.uvs)
+    assert [i.pixels.tobytes() for i in overlapped.result.images] == [i.pixels.tobytes() for i in run.result.images]
     report = pkg.api.finish(bpy.data.objects[name], read, run.result, settings)
     check_result(name, before, report)
 
@@ -506,9 +516,11 @@ def _read_images_mixes_routes(pkg, folder, rng):
     page = job.SourcePage([job.ImageMap("base_color", files["plain"].name),
                            job.ImageMap("roughness", files["keyed"].name)], 0)
     read = rb._read_images([page])
-    assert not files["plain"].has_data and files["keyed"].has_data
-    for img in files.values():
+    assert not files["plain"].has_data and not files["keyed"].has_data  # pixels pending, sizes known
+    assert read[files["plain"].name].size == read[files["keyed"].name].size == (8, 8)
+    for img in files.values():  # asked for on the main thread: read there
         assert read[img.name].pixels.dtype == np.uint8 and not read[img.name].is_float
+    assert not files["plain"].has_data and files["keyed"].has_data
     assert np.array_equal(read[files["keyed"].name].pixels, rb.read_pixels(files["keyed"]))
     cut = os.path.join(folder, "cut.png")
     with open(files["plain"].filepath, "rb") as f:
