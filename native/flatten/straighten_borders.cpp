@@ -38,8 +38,9 @@ struct Strip {
 class Straightener {
  public:
   Straightener(const RefineInput& in, std::vector<FlatChart>& charts)
-      : in_(in), charts_(charts), label_(in.mesh.face_count(), -1), slot_(in.mesh.face_count(), -1),
-        mark_(in.mesh.face_count(), 0), node_(in.mesh.face_count(), -1), triangles_(charts.size()) {
+      : in_(in), charts_(charts), least_gain_(1e-9 * in.mesh.positions.cwiseAbs().maxCoeff()),
+        label_(in.mesh.face_count(), -1), slot_(in.mesh.face_count(), -1), mark_(in.mesh.face_count(), 0),
+        node_(in.mesh.face_count(), -1), triangles_(charts.size()) {
     for (size_t c = 0; c < charts.size(); ++c)
       for (size_t j = 0; j < charts[c].faces.size(); ++j) {
         label_[charts[c].faces[j]] = static_cast<int>(c);
@@ -194,7 +195,7 @@ class Straightener {
         const int after = moving.count(g) ? s.to : label_[g];
         s.gain += (label_[g] != label_[f] ? length(f, k) : 0.0) - (after != s.to ? length(f, k) : 0.0);
       }
-    return s.gain > 1e-9 * in_.mesh.positions.cwiseAbs().maxCoeff();
+    return s.gain > least_gain_;
   }
 
   static std::set<int> keys(const std::map<int, Point>& m) {
@@ -467,6 +468,8 @@ class Straightener {
 
   const RefineInput in_;
   std::vector<FlatChart>& charts_;
+  // A move must remove more 3D seam than this: round-off at the mesh's scale.
+  const double least_gain_;
   std::vector<int> label_, slot_;  // chart of each face, and its row there
   // Work space, reset after each use: marks (0) and band indices (-1) per face.
   mutable std::vector<char> mark_;
