@@ -147,7 +147,8 @@ def main(argv=None) -> int:
         print(f"defrag_scan: error: cannot read {args.input}: {exc}", file=sys.stderr)
         return 1
     chosen = job.Options(**{o.name: getattr(args, o.name) for o in options.SCHEMA})
-    # Pillow decodes without the GIL, beside the layout, and the input's own
+    # The images decode without the GIL (zlib and native row filters for PNGs,
+    # Pillow for the others), beside the layout, and the input's own
     # atlas is measured after that, where the layout leaves a core idle.
     with ThreadPoolExecutor(max_workers=1) as decoder:
         inp = job_input(scan, decoder)
