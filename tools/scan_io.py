@@ -39,11 +39,9 @@ def load_image(source) -> np.ndarray:
     from atlas_defrag import png_files
 
     data = bytes(source) if isinstance(source, (bytes, bytearray)) else Path(source).read_bytes()
-    if png_files.plain_png_size(data[:png_files.HEADER_BYTES]) is not None:
-        try:
-            return png_files.decode_png(data)
-        except ValueError:  # a tRNS chunk, say: Pillow reads what it can
-            pass
+    pixels = png_files.decode_png_or_none(data)
+    if pixels is not None:
+        return pixels
     Image.MAX_IMAGE_PIXELS = None  # scans routinely exceed Pillow's bomb guard
     img = Image.open(io.BytesIO(data))
     if img.mode.startswith("I;16") or img.mode == "I":  # 16-bit grey: Pillow's convert would clip it

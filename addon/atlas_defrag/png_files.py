@@ -206,3 +206,14 @@ def decode_png(data: bytes) -> np.ndarray:
     except zlib.error as exc:
         raise ValueError(f"PNG pixel data is broken: {exc}") from exc
     return _native.png_rows(scanlines, width, height, channels)
+
+
+def decode_png_or_none(data: Optional[bytes]) -> Optional[np.ndarray]:
+    """decode_png's pixels, or None when there are no bytes or they are no PNG
+    it decodes (another format, a tRNS chunk, a broken file): the caller's
+    other reader then reads them, or says why not. MemoryError passes: the
+    other reader would need more."""
+    try:
+        return None if data is None else decode_png(data)
+    except ValueError:
+        return None

@@ -302,20 +302,27 @@ def _file_ends(img, head: int, tail: int) -> Optional[Tuple[bytes, bytes]]:
 _FILE_ALPHA_MODES = {"STRAIGHT", "CHANNEL_PACKED"}
 
 
-def _plain_png(img) -> bool:
-    """Whether img is a whole 8-bit RGB or RGBA PNG file that Blender has not
-    loaded, and whose bytes png_files.decode_png turns into the pixels
-    Blender would give (checked in 3.4, 4.5 and 5.0). A loaded image may have
-    been edited, or its file changed since: Blender's pixels are then the
-    truth. A file cut short is left to Blender, which skips it with a
-    warning. Loads nothing: asking Blender for an image's size or buffer type
-    decodes the whole file."""
+def _plain_png_size(img) -> Optional[Tuple[int, int, int]]:
+    """(width, height, channels) from the header when img is a whole 8-bit
+    RGB or RGBA PNG file that Blender has not loaded, and whose bytes
+    png_files.decode_png turns into the pixels Blender would give (checked in
+    3.4, 4.5 and 5.0); None otherwise. A loaded image may have been edited,
+    or its file changed since: Blender's pixels are then the truth. A file
+    cut short is left to Blender, which skips it with a warning. Loads
+    nothing: asking Blender for an image's size or buffer type decodes the
+    whole file."""
     if img.source != "FILE" or img.has_data:
-        return False
+        return None
     ends = _file_ends(img, png_files.HEADER_BYTES, png_files.TAIL_BYTES)
     size = png_files.plain_png_size(ends[0]) if ends is not None else None
-    return (size is not None and png_files.ends_whole(ends[1])
-            and (size[2] == 3 or img.alpha_mode in _FILE_ALPHA_MODES))
+    plain = (size is not None and png_files.ends_whole(ends[1])
+             and (size[2] == 3 or img.alpha_mode in _FILE_ALPHA_MODES))
+    return size if plain else None
+
+
+def _plain_png(img) -> bool:
+    """Whether img is a plain PNG (see _plain_png_size)."""
+    return _plain_png_size(img) is not None
 
 
 def _is_float(img) -> bool:
@@ -396,17 +403,6 @@ def read_pixels(img) -> np.ndarray:
         return _native.bytes_from_unit_floats(buf, kept={8: 1, 24: 3}.get(img.depth, c))
     except MemoryError as exc:
         raise DefragError(f"Out of memory reading image '{img.name}' ({w}x{h})") from exc
-
-
-def _decoded_png(data: Optional[bytes]) -> Optional[np.ndarray]:
-    """The pixels of a PNG file's bytes, or None when they turn out not to be
-    plain (a tRNS chunk) or broken: Blender then reads them, or says why not.
-    MemoryError passes: Blender's route would need more. No bpy: it runs on
-    worker threads."""
-    try:
-        return None if data is None else png_files.decode_png(data)
-    except ValueError:
-        return None
 
 
 def read(obj, uv_map: Optional[str] = None) -> ReadResult:
@@ -587,12 +583,15 @@ class PendingImage:
     the job to a worker calls fetch_pixels on the main thread (api.prepare
     does unless told not to)."""
 
-    def __init__(self, img, decoding: Optional[Future] = None):
+    def __init__(self, img, plain_size: Optional[Tuple[int, int, int]] = None, decoding: Optional[Future] = None):
+        """plain_size: _plain_png_size(img), known already; decoding: the
+        pixels of a plain PNG being decoded."""
         self.name = img.name
         self.colorspace = img.colorspace_settings.name
-        self.is_float = _is_float(img)
+        # Asked of Blender only when it holds the image anyway.
+        self.is_float = False if plain_size else bool(img.is_float)
         self.alpha_mode = img.alpha_mode
-        self.size = _size(img)
+        self.size = plain_size[:2] if plain_size else (int(img.size[0]), int(img.size[1]))
         self._decoding = decoding
         self._done = threading.Event()
         self._pixels: Optional[np.ndarray] = None
@@ -629,14 +628,6 @@ class PendingImage:
         return self._pixels
 
 
-def _size(img) -> Tuple[int, int]:
-    """(width, height) without loading a plain PNG (from its header)."""
-    if _plain_png(img):
-        width, height, _ = png_files.plain_png_size(_file_ends(img, png_files.HEADER_BYTES, png_files.TAIL_BYTES)[0])
-        return width, height
-    return int(img.size[0]), int(img.size[1])
-
-
 def _read_images(pages: List[SourcePage]) -> Dict[str, PendingImage]:
     """Every image of the pages, its pixels pending (PendingImage): plain
     PNGs start decoding from their files at once, side by side (zlib and the
@@ -644,11 +635,12 @@ def _read_images(pages: List[SourcePage]) -> Dict[str, PendingImage]:
     import bpy
 
     names = list(dict.fromkeys(m.image for page in pages for m in page.maps))
-    plain = [n for n in names if _plain_png(bpy.data.images[n])]
+    sizes = {n: _plain_png_size(bpy.data.images[n]) for n in names}
+    plain = {n: size for n, size in sizes.items() if size}
     pool = ThreadPoolExecutor(max_workers=max(1, min(len(plain), os.cpu_count() or 1)))
     try:
-        return {n: PendingImage(bpy.data.images[n], pool.submit(_decoded_png, _file_bytes(bpy.data.images[n]))
-                                if n in plain else None) for n in names}
+        decoding = {n: pool.submit(png_files.decode_png_or_none, _file_bytes(bpy.data.images[n])) for n in plain}
+        return {n: PendingImage(bpy.data.images[n], plain.get(n), decoding.get(n)) for n in names}
     finally:
         pool.shutdown(wait=False)  # the decoding goes on; the threads end with it
 

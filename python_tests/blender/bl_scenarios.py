@@ -474,9 +474,9 @@ def png_read_from_file(pkg):
                     continue
                 decoded.add((channels, mode))
                 assert rb._check_image(img, "m") is None and not img.has_data
-                ours = rb._decoded_png(rb._file_bytes(img))
+                ours = pkg.png_files.decode_png_or_none(rb._file_bytes(img))
                 img.pack()
-                assert rb._plain_png(img) and np.array_equal(rb._decoded_png(rb._file_bytes(img)), ours)
+                assert rb._plain_png(img) and np.array_equal(pkg.png_files.decode_png_or_none(rb._file_bytes(img)), ours)
                 blenders = rb.read_pixels(img)
                 assert ours.shape == blenders.shape == (29, 41, channels), (channels, mode)
                 assert np.array_equal(ours, blenders), (channels, mode)
@@ -512,7 +512,7 @@ def _read_images_mixes_routes(pkg, folder, rng):
             f.write(filtered_png(rng.integers(0, 256, (8, 8, 3)).astype(np.uint8), chunks))
         files[name] = bpy.data.images.load(path, check_existing=False)
     assert rb._plain_png(files["plain"]) and rb._plain_png(files["keyed"])  # the header cannot tell
-    assert rb._decoded_png(rb._file_bytes(files["keyed"])) is None
+    assert pkg.png_files.decode_png_or_none(rb._file_bytes(files["keyed"])) is None
     page = job.SourcePage([job.ImageMap("base_color", files["plain"].name),
                            job.ImageMap("roughness", files["keyed"].name)], 0)
     read = rb._read_images([page])
