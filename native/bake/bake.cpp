@@ -438,6 +438,7 @@ void cover_band(const BakeJob<T>& job, const FaceMap& face, const BandTarget<T>&
   // a kept raster would more than double the memory of every face's map.
   TexelTriangle raster;
   if (!raster.setup(face.corner[0], face.corner[1], face.corner[2])) return;
+  const std::uint8_t claimed = fitted(face) ? kResampled : kKept;
   const int last_row = std::min(raster.row_end - 1, band.row1);
   for (int y = std::max(raster.row_begin, band.row0); y <= last_row; ++y) {
     int x0, x1;
@@ -445,7 +446,7 @@ void cover_band(const BakeJob<T>& job, const FaceMap& face, const BandTarget<T>&
     for (int x = std::max(x0, 0); x < std::min(x1, band.width); ++x) {
       const std::size_t i = band.index(x, y);
       if (band.is_set[i]) continue;
-      band.is_set[i] = fitted(face) ? kResampled : kKept;
+      band.is_set[i] = claimed;
       ++stats.covered_texels;
       const Eigen::Vector2d centre(x + 0.5, y + 0.5);
       if (face.copies) {
