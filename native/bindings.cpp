@@ -594,7 +594,7 @@ py::object bake_named_maps(const py::object& old_uvs, const py::object& old_face
     if (normal.size() != maps.size()) throw py::value_error("normal_maps must hold one flag per map");
   }
   {
-    py::gil_scoped_release release;  // sorts every face
+    py::gil_scoped_release release;  // a pass over every face
     drop_repeated_faces(old_l, new_l);
   }
   const RunControl control = control_from(progress, cancel);

@@ -17,6 +17,7 @@
 #include "bake/sample_texture.hpp"
 #include "bake/texel_encoding.hpp"
 #include "core/geometry.hpp"
+#include "core/hash_words.hpp"
 #include "core/rasterize_triangle.hpp"
 
 namespace atlas {
@@ -213,14 +214,9 @@ struct EdgePlace {
   std::array<double, 4> ends{};
   bool operator==(const EdgePlace& o) const { return page == o.page && ends == o.ends; }
   std::uint64_t hash() const {
-    std::uint64_t h = static_cast<std::uint64_t>(page) * 0x9e3779b97f4a7c15ull;
-    for (const double d : ends) {
-      std::uint64_t bits;
-      std::memcpy(&bits, &d, sizeof bits);
-      h = (h ^ bits) * 0xbf58476d1ce4e5b9ull;
-      h ^= h >> 31;
-    }
-    return h;
+    std::array<std::uint64_t, 5> words{static_cast<std::uint64_t>(page)};
+    std::memcpy(&words[1], ends.data(), sizeof ends);
+    return hash_words(words.data(), words.size());
   }
 };
 
@@ -237,33 +233,47 @@ EdgePlace place_of(const FaceMap& face, int k) {
 // theirs), so the point of the union nearest to a texel outside it lies on
 // one of them. Degenerate faces are never rasterised and count for none.
 std::vector<std::uint8_t> border_edges(const std::vector<FaceMap>& faces) {
-  // Open addressing: each place keeps the first edge (3 f + k) found there,
-  // how many lie there and the second one.
-  std::size_t slots = 16;
-  while (slots < 6 * faces.size()) slots *= 2;
-  std::vector<int> table(slots, -1);
-  std::vector<int> first(3 * faces.size(), -1), count(3 * faces.size(), 0), second(3 * faces.size(), -1);
-  for (std::size_t f = 0; f < faces.size(); ++f) {
-    if (faces[f].new_page < 0) continue;
-    for (int k = 0; k < 3; ++k) {
-      const int edge = static_cast<int>(3 * f + k);
-      const EdgePlace place = place_of(faces[f], k);
-      std::size_t slot = place.hash() & (slots - 1);
-      while (table[slot] >= 0 && !(place_of(faces[table[slot] / 3], table[slot] % 3) == place))
-        slot = (slot + 1) & (slots - 1);
-      if (table[slot] < 0) table[slot] = edge;
-      const int head = table[slot];
-      first[edge] = head;
-      if (++count[head] == 2) second[head] = edge;
+  // Each edge's place and hash, computed once in parallel: the probes below
+  // then read these compact arrays instead of the faces.
+  const int edges = static_cast<int>(3 * faces.size());
+  std::vector<EdgePlace> places(edges);
+  std::vector<std::uint64_t> hashes(edges);
+#pragma omp parallel for schedule(static)
+  for (int edge = 0; edge < edges; ++edge)
+    if (faces[edge / 3].new_page >= 0) {
+      places[edge] = place_of(faces[edge / 3], edge % 3);
+      hashes[edge] = places[edge].hash();
     }
+  // Open addressing: each slot keeps the first edge found at a place, with
+  // its hash's high half, which rules out nearly every other place at once;
+  // per edge, the first one at its place, how many lie there and the second.
+  std::size_t slots = 16;
+  while (slots < 2 * static_cast<std::size_t>(edges)) slots *= 2;
+  struct Slot {
+    std::uint32_t tag = 0;
+    int edge = -1;
+  };
+  std::vector<Slot> table(slots);
+  std::vector<int> first(edges, -1), count(edges, 0), second(edges, -1);
+  for (int edge = 0; edge < edges; ++edge) {
+    if (faces[edge / 3].new_page < 0) continue;
+    const auto tag = static_cast<std::uint32_t>(hashes[edge] >> 32);
+    std::size_t slot = hashes[edge] & (slots - 1);
+    while (table[slot].edge >= 0 && !(table[slot].tag == tag && places[table[slot].edge] == places[edge]))
+      slot = (slot + 1) & (slots - 1);
+    if (table[slot].edge < 0) table[slot] = {tag, edge};
+    const int head = table[slot].edge;
+    first[edge] = head;
+    if (++count[head] == 2) second[head] = edge;
   }
   std::vector<std::uint8_t> border(faces.size(), 0);
-  for (std::size_t edge = 0; edge < first.size(); ++edge) {
-    const int head = first[edge];
-    if (head < 0) continue;
-    if (count[head] != 2 || !opposite_sides(faces, head, second[head]))
-      border[edge / 3] |= static_cast<std::uint8_t>(1 << (edge % 3));
-  }
+#pragma omp parallel for schedule(static)
+  for (int f = 0; f < static_cast<int>(faces.size()); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int head = first[3 * f + k];
+      if (head >= 0 && (count[head] != 2 || !opposite_sides(faces, head, second[head])))
+        border[f] |= static_cast<std::uint8_t>(1 << k);
+    }
   return border;
 }
 

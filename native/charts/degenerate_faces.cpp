@@ -6,6 +6,8 @@
 #include <cstring>
 #include <numeric>
 
+#include "core/hash_words.hpp"
+
 namespace atlas {
 namespace {
 
@@ -53,22 +55,26 @@ DuplicateFaces find_duplicate_faces(const Mesh& mesh, const std::vector<int>& fa
 
 std::vector<int> first_of_equal_faces(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page) {
   const int n = static_cast<int>(face_page.size());
-  // Bit patterns, not values: NaN (which a caller may pass) would break the sort's ordering.
+  // Bit patterns, not values: NaN (which a caller may pass) equals nothing, itself included.
   auto key = [&](int f) {
     std::array<std::uint64_t, 7> k{static_cast<std::uint64_t>(static_cast<std::uint32_t>(face_page[f]))};
     for (int i = 0; i < 6; ++i) std::memcpy(&k[1 + i], &corner_uv(3 * f + i / 2, i % 2), sizeof(double));
     return k;
   };
-  std::vector<int> order(n);
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int a, int b) {
-    const auto ka = key(a), kb = key(b);
-    return ka != kb ? ka < kb : a < b;
-  });
+  // Open addressing in face order: a face whose key is not in the table yet
+  // is the first to draw its triangle.
+  std::size_t slots = 16;
+  while (slots < 2 * static_cast<std::size_t>(n)) slots *= 2;
+  std::vector<int> table(slots, -1);
   std::vector<int> kept;
-  for (int i = 0; i < n; ++i)
-    if (i == 0 || key(order[i]) != key(order[i - 1])) kept.push_back(order[i]);
-  std::sort(kept.begin(), kept.end());
+  for (int f = 0; f < n; ++f) {
+    const std::array<std::uint64_t, 7> k = key(f);
+    std::size_t slot = hash_words(k.data(), k.size()) & (slots - 1);
+    while (table[slot] >= 0 && key(table[slot]) != k) slot = (slot + 1) & (slots - 1);
+    if (table[slot] >= 0) continue;
+    table[slot] = f;
+    kept.push_back(f);
+  }
   return kept;
 }
 

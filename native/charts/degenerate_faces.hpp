@@ -37,7 +37,7 @@ DuplicateFaces find_duplicate_faces(const Mesh& mesh, const std::vector<int>& fa
 // The faces that draw a triangle no earlier face draws: the same page and
 // bit-identical corner UVs (3F x 2 rows) make a repeat. Ascending. The copies
 // the pipeline gave the UVs of the face they repeat cover its texels again:
-// baking them once is enough. O(F log F).
+// baking them once is enough. O(F) expected.
 std::vector<int> first_of_equal_faces(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page);
 
 // mesh restricted to faces (all vertices kept).
