@@ -115,9 +115,10 @@ LayoutArrays layout_arrays(const py::handle& uvs, const py::handle& face_page, E
 RowMatrixX3i triangle_indices(const py::handle& triangles, py::ssize_t vertex_count) {
   const auto tri = checked<long long>(triangles, "triangles", {3}, "(F, 3)");
   RowMatrixX3i t(tri.shape(0), 3);
+  const long long* rows = tri.data();  // C order, as checked makes it: row f at 3 f
   for (py::ssize_t f = 0; f < tri.shape(0); ++f)
     for (int k = 0; k < 3; ++k) {
-      const long long v = tri.at(f, k);
+      const long long v = rows[3 * f + k];
       if (v < 0 || v >= vertex_count) {
         std::ostringstream msg;
         msg << "triangle " << f << " has vertex index " << v << " out of range [0, " << vertex_count << ")";

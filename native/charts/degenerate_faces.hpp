@@ -31,7 +31,7 @@ struct DuplicateFaces {
 // Two faces repeat each other when they name the same welded vertices in the
 // same cyclic order (a face wound the other way is a back face, not a copy),
 // lie in the same face_group (may be empty: one group) and are both textured
-// or both untextured. The first in index order is kept. O(F log F).
+// or both untextured. The first in index order is kept. O(F) expected.
 DuplicateFaces find_duplicate_faces(const Mesh& mesh, const std::vector<int>& face_group);
 
 // The faces that draw a triangle no earlier face draws: the same page and

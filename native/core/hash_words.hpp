@@ -1,8 +1,10 @@
-// Hashing of exact bit patterns, for the open-addressing tables that find
-// repeated keys (coinciding edges, repeated faces) in one pass instead of a sort.
+// Repeated keys found by hashing their exact bit patterns: one pass through an
+// open-addressing table instead of a sort (coinciding edges, repeated faces).
 #pragma once
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 namespace atlas {
 
@@ -16,6 +18,24 @@ inline std::uint64_t hash_words(const std::uint64_t* words, std::size_t n) {
     h ^= h >> 31;
   }
   return h;
+}
+
+// first[i] = the smallest j with key(j) == key(i), for i in [0, n): key(i)
+// returns a std::array<std::uint64_t, N>, compared word for word. Expected
+// O(n) time, 3n ints of memory.
+template <class Key>
+std::vector<int> first_of_equal_keys(int n, Key key) {
+  std::size_t slots = 16;
+  while (slots < 2 * static_cast<std::size_t>(n)) slots *= 2;
+  std::vector<int> table(slots, -1), first(n);
+  for (int i = 0; i < n; ++i) {
+    const auto k = key(i);
+    std::size_t slot = hash_words(k.data(), k.size()) & (slots - 1);
+    while (table[slot] >= 0 && key(table[slot]) != k) slot = (slot + 1) & (slots - 1);
+    if (table[slot] < 0) table[slot] = i;
+    first[i] = table[slot];
+  }
+  return first;
 }
 
 }  // namespace atlas

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <sstream>
+#include <tuple>
 
 #include "core/geometry.hpp"
 #include "core/uv_layout.hpp"
@@ -64,21 +64,24 @@ void require_indices(const RowMatrixX3i& triangles, Eigen::Index vertex_count) {
 // them, and a tolerance would fuse genuinely distinct nearby vertices.
 std::vector<int> weld_exact(const RowMatrixX3d& positions, RowMatrixX3d& welded) {
   const Eigen::Index n = positions.rows();
-  std::vector<int> order(n);
-  std::iota(order.begin(), order.end(), 0);
-  auto less = [&](int a, int b) {
-    for (int j = 0; j < 3; ++j)
-      if (positions(a, j) != positions(b, j)) return positions(a, j) < positions(b, j);
-    return a < b;
+  // Each vertex's coordinates beside its index, so that the sort reads
+  // contiguous memory; ties in position go by index.
+  struct Keyed {
+    double x, y, z;
+    int index;
+    bool same_place(const Keyed& o) const { return x == o.x && y == o.y && z == o.z; }
   };
-  std::sort(order.begin(), order.end(), less);
+  std::vector<Keyed> order(n);
+  for (Eigen::Index v = 0; v < n; ++v)
+    order[v] = {positions(v, 0), positions(v, 1), positions(v, 2), static_cast<int>(v)};
+  std::sort(order.begin(), order.end(), [](const Keyed& a, const Keyed& b) {
+    return std::tie(a.x, a.y, a.z, a.index) < std::tie(b.x, b.y, b.z, b.index);
+  });
   std::vector<int> remap(n);
   std::vector<int> kept;
   for (Eigen::Index i = 0; i < n; ++i) {
-    const int v = order[i];
-    const bool same = i > 0 && positions.row(v) == positions.row(order[i - 1]);
-    if (!same) kept.push_back(v);
-    remap[v] = static_cast<int>(kept.size()) - 1;
+    if (i == 0 || !order[i].same_place(order[i - 1])) kept.push_back(order[i].index);
+    remap[order[i].index] = static_cast<int>(kept.size()) - 1;
   }
   welded.resize(static_cast<Eigen::Index>(kept.size()), 3);
   for (size_t i = 0; i < kept.size(); ++i) welded.row(i) = positions.row(kept[i]);
