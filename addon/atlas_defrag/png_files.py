@@ -12,11 +12,12 @@ this module.
 
 from __future__ import annotations
 
+import io
 import os
 import struct
 import zlib
 from concurrent.futures import ThreadPoolExecutor
-from typing import Iterable, List, Optional, Tuple
+from typing import BinaryIO, Iterable, List, Optional, Tuple
 
 import numpy as np
 
@@ -31,9 +32,16 @@ _ZLIB_HEADER = b"\x78\x01"  # deflate, 32K window, the fastest level
 _ADLER_BASE = 65521
 
 
-def _chunk(kind: bytes, data: bytes) -> bytes:
-    crc = zlib.crc32(kind + data) & 0xFFFFFFFF
-    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", crc)
+def _write_chunk(out: BinaryIO, kind: bytes, pieces: List[bytes]) -> None:
+    """One chunk whose data is the pieces in order, written piece by piece:
+    a large image's data is never joined into one more copy of itself."""
+    crc = zlib.crc32(kind)
+    for piece in pieces:
+        crc = zlib.crc32(piece, crc)
+    out.write(struct.pack(">I", sum(len(piece) for piece in pieces)) + kind)
+    for piece in pieces:
+        out.write(piece)
+    out.write(struct.pack(">I", crc & 0xFFFFFFFF))
 
 
 _COLOUR_TYPE = {1: 0, 3: 2, 4: 6}  # channels -> PNG colour type: greyscale, truecolour, truecolour with alpha
@@ -65,10 +73,10 @@ def _parts(scanlines: np.ndarray) -> List[memoryview]:
     return [flat[i:i + step] for i in range(0, len(flat), step)]
 
 
-def _deflate(part: memoryview, last: bool) -> Tuple[bytes, int]:
-    """Raw deflate of one part, and its Adler-32."""
+def _deflate(part: memoryview, last: bool) -> Tuple[Tuple[bytes, bytes], int]:
+    """Raw deflate of one part, as the compressor's two outputs, and its Adler-32."""
     compressor = zlib.compressobj(1, zlib.DEFLATED, -15)
-    data = compressor.compress(part) + compressor.flush(zlib.Z_FINISH if last else zlib.Z_SYNC_FLUSH)
+    data = (compressor.compress(part), compressor.flush(zlib.Z_FINISH if last else zlib.Z_SYNC_FLUSH))
     return data, zlib.adler32(part)
 
 
@@ -80,20 +88,27 @@ def _adler32_combine(first: int, second: int, second_length: int) -> int:
     return (low % _ADLER_BASE) | ((high % _ADLER_BASE) << 16)
 
 
-def _png(pixels: np.ndarray, compressed: List[Tuple[bytes, int]], lengths: List[int]) -> bytes:
+def _write_png(out: BinaryIO, pixels: np.ndarray, compressed: List[Tuple[Tuple[bytes, bytes], int]],
+               lengths: List[int]) -> None:
     height, width, channels = pixels.shape
     adler = 1
     for (_, part_adler), length in zip(compressed, lengths):
         adler = _adler32_combine(adler, part_adler, length)
-    idat = b"".join([_ZLIB_HEADER] + [data for data, _ in compressed] + [struct.pack(">I", adler)])
+    idat = [_ZLIB_HEADER] + [piece for data, _ in compressed for piece in data] + [struct.pack(">I", adler)]
     header = struct.pack(">IIBBBBB", width, height, 8, _COLOUR_TYPE[channels], 0, 0, 0)  # 8-bit, no interlace
-    return SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", idat) + _chunk(b"IEND", b"")
+    out.write(SIGNATURE)
+    _write_chunk(out, b"IHDR", [header])
+    _write_chunk(out, b"IDAT", idat)
+    _write_chunk(out, b"IEND", [])
 
 
 def encode_png(pixels: np.ndarray) -> bytes:
     """(H, W, 1, 3 or 4) uint8 pixels, row 0 at the bottom as Blender stores them, as a PNG."""
     parts = _parts(_scanlines(pixels))
-    return _png(pixels, [_deflate(part, i == len(parts) - 1) for i, part in enumerate(parts)], [len(p) for p in parts])
+    out = io.BytesIO()
+    _write_png(out, pixels, [_deflate(part, i == len(parts) - 1) for i, part in enumerate(parts)],
+               [len(p) for p in parts])
+    return out.getvalue()
 
 
 def write_pngs(files: Iterable[Tuple[str, np.ndarray]]) -> None:
@@ -109,9 +124,9 @@ def write_pngs(files: Iterable[Tuple[str, np.ndarray]]) -> None:
             futures = [pool.submit(_deflate, part, i == len(parts) - 1) for i, part in enumerate(parts)]
             jobs.append((path, pixels, parts, futures))
         for path, pixels, parts, futures in jobs:
-            png = _png(pixels, [f.result() for f in futures], [len(p) for p in parts])
+            compressed = [future.result() for future in futures]
             with open(path, "wb") as f:
-                f.write(png)
+                _write_png(f, pixels, compressed, [len(p) for p in parts])
 
 
 # --------------------------------------------------------------------------- reading
