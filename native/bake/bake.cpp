@@ -233,22 +233,13 @@ EdgePlace place_of(const FaceMap& face, int k) {
 // theirs), so the point of the union nearest to a texel outside it lies on
 // one of them. Degenerate faces are never rasterised and count for none.
 std::vector<std::uint8_t> border_edges(const std::vector<FaceMap>& faces) {
-  // Each edge's place and hash, computed once in parallel: the probes below
-  // then read these compact arrays instead of the faces.
+  // Open addressing: each slot keeps the first edge (3 f + k) found at a
+  // place, with its hash's high half, which rules out nearly every other place
+  // without reading that edge's face; per edge, the first one at its place,
+  // how many lie there and the second.
   const int edges = static_cast<int>(3 * faces.size());
-  std::vector<EdgePlace> places(edges);
-  std::vector<std::uint64_t> hashes(edges);
-#pragma omp parallel for schedule(static)
-  for (int edge = 0; edge < edges; ++edge)
-    if (faces[edge / 3].new_page >= 0) {
-      places[edge] = place_of(faces[edge / 3], edge % 3);
-      hashes[edge] = places[edge].hash();
-    }
-  // Open addressing: each slot keeps the first edge found at a place, with
-  // its hash's high half, which rules out nearly every other place at once;
-  // per edge, the first one at its place, how many lie there and the second.
   std::size_t slots = 16;
-  while (slots < 2 * static_cast<std::size_t>(edges)) slots *= 2;
+  while (slots < static_cast<std::size_t>(edges)) slots *= 2;
   struct Slot {
     std::uint32_t tag = 0;
     int edge = -1;
@@ -257,10 +248,14 @@ std::vector<std::uint8_t> border_edges(const std::vector<FaceMap>& faces) {
   std::vector<int> first(edges, -1), count(edges, 0), second(edges, -1);
   for (int edge = 0; edge < edges; ++edge) {
     if (faces[edge / 3].new_page < 0) continue;
-    const auto tag = static_cast<std::uint32_t>(hashes[edge] >> 32);
-    std::size_t slot = hashes[edge] & (slots - 1);
-    while (table[slot].edge >= 0 && !(table[slot].tag == tag && places[table[slot].edge] == places[edge]))
-      slot = (slot + 1) & (slots - 1);
+    const EdgePlace place = place_of(faces[edge / 3], edge % 3);
+    const std::uint64_t hash = place.hash();
+    const auto tag = static_cast<std::uint32_t>(hash >> 32);
+    std::size_t slot = hash & (slots - 1);
+    for (; table[slot].edge >= 0; slot = (slot + 1) & (slots - 1)) {
+      const Slot& other = table[slot];
+      if (other.tag == tag && place_of(faces[other.edge / 3], other.edge % 3) == place) break;
+    }
     if (table[slot].edge < 0) table[slot] = {tag, edge};
     const int head = table[slot].edge;
     first[edge] = head;
