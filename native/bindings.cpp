@@ -218,6 +218,7 @@ PipelineOptions pipeline_options(const py::object& obj) {
     else if (key == "relief_cuts") o.relief_cuts = option_value<int>(value, key, "0 (split at once) .. 8");
     else if (key == "refine_min_area_ratio") o.refine.min_area_ratio = option_value<double>(value, key, "0..1");
     else if (key == "packing_cut_seam") o.packing_cut_seam = option_value<double>(value, key, "0 (no cut) .. 10");
+    else if (key == "fit_cut_seam") o.fit_cut_seam = option_value<double>(value, key, "0 (never) .. 10");
     else if (key == "padding") o.pack.padding = option_value<int>(value, key, "0..64 texels");
     else if (key == "fixed_page_size") o.pack.fixed_page_size = option_value<int>(value, key, "0 (automatic) or 64..16384 texels");
     else if (key == "max_page_size") o.pack.max_page_size = option_value<int>(value, key, "64..16384 texels");
@@ -251,6 +252,7 @@ PipelineOptions pipeline_options(const py::object& obj) {
   if (o.relief_cuts < 0 || o.relief_cuts > 8) throw py::value_error("relief_cuts must be 0 (split at once) .. 8");
   if (!(o.packing_cut_seam >= 0 && o.packing_cut_seam <= 10))
     throw py::value_error("packing_cut_seam must be 0 (no cut) .. 10");
+  if (!(o.fit_cut_seam >= 0 && o.fit_cut_seam <= 10)) throw py::value_error("fit_cut_seam must be 0 (never) .. 10");
   if (o.aggregate.target_charts < 0) throw py::value_error("target_charts must be 0 (automatic) or >= 1");
   if (!(o.aggregate.min_chart_fraction >= 0)) throw py::value_error("min_chart_fraction must be >= 0");
   if (!(o.aggregate.min_normal_coherence >= 0 && o.aggregate.min_normal_coherence <= 1))
@@ -325,6 +327,7 @@ py::dict report_dict(const PipelineReport& r) {
   d["refine_seam_removed"] = r.refine_seam_removed;
   d["packing_cuts"] = r.packing_cuts;
   d["packing_cut_seam"] = r.packing_cut_seam;
+  d["cut_to_fit"] = r.cut_to_fit;
   d["faces_detached"] = r.faces_detached;
   d["charts_after"] = r.charts_after;
   d["charts_solved"] = r.charts_solved;

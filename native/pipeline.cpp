@@ -248,6 +248,11 @@ bool budget_from_source(const PipelineOptions& pipeline) {
   return pipeline.texels_at_most_input && pipeline.pack.texel_budget <= 0;
 }
 
+// The input's texels on the `used` pages, at the density options ask for.
+double wanted_texels(const Mesh& mesh, const std::vector<char>& used, const PackOptions& options) {
+  return static_cast<double>(page_texels(mesh.pages, used)) * options.density_scale * options.density_scale;
+}
+
 // The pack options for one face group: its density, and unless the page is
 // fixed, as many pages as the input used (or as hold its texels) and, with
 // texels_at_most_input, the input's texels as the budget. used[p]: the group
@@ -260,9 +265,7 @@ PackOptions group_pack_options(const Mesh& mesh, const std::vector<FlatChart>& c
     if (density > 0) options.density_scale = pipeline.texels_per_unit / density;
   }
   if (options.fixed_page_size > 0) return options;
-  // The input's texels at the density asked for.
-  const double wanted =
-      static_cast<double>(page_texels(mesh.pages, used)) * options.density_scale * options.density_scale;
+  const double wanted = wanted_texels(mesh, used, options);
   // As many pages as the input used, or as many of max_page_size as hold its texels.
   const double max_page = static_cast<double>(options.max_page_size) * options.max_page_size;
   if (options.max_pages <= 0)
@@ -292,12 +295,16 @@ void write_placed(const std::vector<FlatChart>& charts, const std::vector<int>& 
 }
 
 // Packs each face group on pages of its own and writes the placed UVs.
-void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std::vector<FlatChart>& charts,
+// Returns whether some group's charts were shrunk or, on pages not fixed,
+// took more texels than its input's at the density asked for.
+bool pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std::vector<FlatChart>& charts,
                  const PipelineOptions& pipeline, const RunControl& control, PipelineResult& result) {
   std::map<int, std::vector<int>> by_group;
   for (size_t c = 0; c < charts.size(); ++c)
     by_group[face_group.empty() ? 0 : face_group[charts[c].faces.front()]].push_back(static_cast<int>(c));
   double covered = 0, total = 0, scale = std::numeric_limits<double>::infinity();
+  bool outgrew = false;
+  result.report.shrunk = false;
   for (const auto& [group, members] : by_group) {
     std::vector<char> used(mesh.pages.size(), 0);
     std::vector<RowMatrixX2d> uv;
@@ -315,9 +322,11 @@ void pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
     total += texels;
     scale = std::min(scale, packed.scale);
     result.report.shrunk |= packed.shrunk;
+    outgrew |= packed.shrunk || (options.fixed_page_size <= 0 && texels > wanted_texels(mesh, used, options));
   }
   result.report.packing_efficiency = total > 0 ? covered / total : 0;
   result.report.scale = by_group.empty() ? 1.0 : scale;
+  return outgrew;
 }
 
 // Sign of the exact determinant of face f's corners as float32 stores them,
@@ -464,18 +473,37 @@ void refine_charts(const Mesh& welded, const Mesh& mesh, const MeshTopology& top
 // Packs the charts into result. Untextured faces keep their input UVs and
 // page -1. A face whose winding float32 storage turns over becomes a chart of
 // its own and all is packed again (rare: slivers a hundredth of a texel high).
-void pack_keeping_windings(const Mesh& mesh, const std::vector<int>& face_group, const PipelineOptions& options,
+// Returns what pack_groups does.
+bool pack_keeping_windings(const Mesh& mesh, const std::vector<int>& face_group, const PipelineOptions& options,
                            const RunControl& control, std::vector<FlatChart>& charts, PipelineResult& result) {
   for (;;) {
     result.corner_uv = mesh.corner_uv;
     result.face_page = Eigen::VectorXi::Constant(mesh.face_count(), -1);
     result.pages.clear();
     result.page_padding.clear();
-    pack_groups(mesh, face_group, charts, options, control, result);
+    const bool outgrew = pack_groups(mesh, face_group, charts, options, control, result);
     const int detached = detach_turned_faces(mesh, result, charts);
-    if (detached == 0) break;
+    if (detached == 0) return outgrew;
     result.report.faces_detached += detached;
   }
+}
+
+// Packs the charts into result; where they outgrow the input (see
+// pack_groups), cuts more of them for packing, up to fit_cut_seam in all
+// (cuts: those made so far, updated), and packs them again.
+void pack_within_input(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& face_group,
+                       const PipelineOptions& options, const RunControl& control, std::vector<FlatChart>& charts,
+                       PackingCutStats& cuts, PipelineResult& result) {
+  if (!pack_keeping_windings(mesh, face_group, options, control, charts, result)) return;
+  PackingCutOptions more = packing_cut_options(mesh, charts, options);
+  more.seam_budget = options.fit_cut_seam * std::sqrt(total_area(mesh)) - cuts.seam_added_3d;
+  if (!(more.seam_budget > 0)) return;
+  const PackingCutStats added = cut_for_packing(mesh, topology, more, charts, control);
+  if (added.cuts == 0) return;
+  cuts.cuts += added.cuts;
+  cuts.seam_added_3d += added.seam_added_3d;
+  result.report.cut_to_fit = true;
+  pack_keeping_windings(mesh, face_group, options, control, charts, result);
 }
 
 // Into result: each face's chart (-1 for none; face_count faces), and per chart
@@ -519,13 +547,12 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   refine_charts(welded, mesh, topology, flat_graph.self_seam, face_group, options.refine, charts, report);
   clock.lap("refine");
 
-  const PackingCutStats cuts = cut_for_packing(mesh, topology, packing_cut_options(mesh, charts, options), charts,
-                                               control);
-  report.packing_cuts = cuts.cuts;
-  report.packing_cut_seam = per_sqrt_area(cuts.seam_added_3d, welded);
+  PackingCutStats cuts = cut_for_packing(mesh, topology, packing_cut_options(mesh, charts, options), charts, control);
   clock.lap("cut");
 
-  pack_keeping_windings(mesh, face_group, options, control, charts, result);
+  pack_within_input(mesh, topology, face_group, options, control, charts, cuts, result);
+  report.packing_cuts = cuts.cuts;
+  report.packing_cut_seam = per_sqrt_area(cuts.seam_added_3d, welded);
   report.texels_after = page_texels(result.pages, {});
   report.charts_after = static_cast<int>(charts.size());
   summarize_energy(charts, report);

@@ -25,6 +25,12 @@ struct PipelineOptions {
   // default: the job exists for fewer charts and shorter seams, and each
   // cut adds both for a smaller page.
   double packing_cut_seam = 0;
+  // When the packed charts would take more texels than the input's at the
+  // density asked for, or were shrunk to fit, more such cuts up to this seam
+  // in all, and the charts packed again; 0: never. Dense atlases (phone apps
+  // fill about three quarters of their pages) otherwise come out larger than
+  // they went in: a little more seam instead of a larger texture or lost detail.
+  double fit_cut_seam = 1.0;
   // max_pages 0: as many pages as the group's faces use in the input (at least
   // 1), or as many of max_page_size as hold the input's texels times
   // density_scale^2 if that is more: charts shrink only when they would not fit.
@@ -51,6 +57,7 @@ struct PipelineReport {
   double refine_seam_removed = 0;  // seam length it removed / sqrt(area) (in seam_after already)
   int packing_cuts = 0;        // charts cut in two to pack tighter (see packing_cuts.hpp)
   double packing_cut_seam = 0;  // seam length those cuts added / sqrt(area) (in seam_after already)
+  bool cut_to_fit = false;     // some of those cuts were made because the charts outgrew the input (fit_cut_seam)
   int faces_detached = 0;      // faces made charts of their own because float32 storage turned them over
   int charts_after = 0;        // in the output
   int charts_solved = 0;       // flattened by SLIM (the rest kept their original UVs)

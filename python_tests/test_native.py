@@ -331,7 +331,8 @@ def test_packing_cuts_pack_tighter_and_add_the_seam_they_report(native, scans, t
     scan, result = tetra_result
     whole = result["report"]
     cut = native.defragment(*args(scan), options={"packing_cut_seam": 1.0})["report"]
-    assert whole["packing_cuts"] == 0 and whole["packing_cut_seam"] == 0  # off by default
+    # Off by default, and a sparse atlas like tetra's has no need to be cut to fit.
+    assert whole["packing_cuts"] == 0 and whole["packing_cut_seam"] == 0 and not whole["cut_to_fit"]
     assert 0 < cut["packing_cut_seam"] <= 1.0  # the budget, in the unit of seam_after
     assert cut["charts_after"] == whole["charts_after"] + cut["packing_cuts"]
     assert cut["seam_after"] == pytest.approx(whole["seam_after"] + cut["packing_cut_seam"], abs=1e-6)
@@ -401,6 +402,37 @@ def test_a_dense_atlas_keeps_its_density_by_default(native, scans):
     limited = native.defragment(*dense, options={"texels_at_most_input": True})
     assert limited["report"]["shrunk"] and limited["report"]["scale"] < 1.0
     assert limited["report"]["texels_after"] <= limited["report"]["texels_before"]
+
+
+def test_a_dense_atlas_is_cut_to_stay_near_its_texels(native, scans):
+    # The tetra scan's own charts packed with 1 texel of padding onto a 512^2
+    # page, about two thirds full, as phone apps pack theirs. Whole, the 22
+    # output charts take about 1.2x its texels with the default padding.
+    scan = scans("tetra")
+    graph = native.chart_graph(*args(scan))
+    chart = np.asarray(graph["face_chart"])
+    texels = scan.uvs * np.asarray(scan.page_sizes)[np.maximum(scan.face_page, 0)][:, None, :]
+    members = [np.nonzero(chart == c)[0] for c in range(graph["chart_count"])]
+    packed = native.pack_charts([texels[f] for f in members],
+                                options={"padding": 1, "padding_follows_page": False, "fixed_page_size": 512})
+    uvs = scan.uvs.copy()
+    for faces, placed in zip(members, packed["uvs"]):
+        uvs[faces] = placed
+    dense = (scan.positions, scan.triangles, uvs, np.where(scan.face_page >= 0, 0, -1), np.array([[512, 512]]))
+    whole = native.defragment(*dense, options={"fit_cut_seam": 0})["report"]
+    assert whole["texels_after"] > 1.1 * whole["texels_before"]
+    assert whole["packing_cuts"] == 0 and not whole["cut_to_fit"]
+    fitted = native.defragment(*dense)["report"]
+    assert fitted["cut_to_fit"] and fitted["packing_cuts"] > 0
+    assert fitted["texels_after"] <= 1.1 * fitted["texels_before"]
+    assert 0 < fitted["packing_cut_seam"] <= 1.0  # fit_cut_seam's default, in the unit of seam_after
+    assert fitted["charts_after"] == whole["charts_after"] + fitted["packing_cuts"]
+    assert fitted["seam_after"] == pytest.approx(whole["seam_after"] + fitted["packing_cut_seam"], abs=1e-6)
+    assert not fitted["shrunk"] and fitted["scale"] == 1.0
+    with pytest.raises(ValueError, match="fit_cut_seam must be 0"):
+        native.defragment(*dense, options={"fit_cut_seam": 11})
+
+
 # Issue 12: upper bounds on charts and seam per scan (default options), with the
 # output guarantees. The bounds are what the layout reaches today plus a small
 # margin, within issue 12's own targets (90 / 300 / 80 charts, seam 10 / 40 /

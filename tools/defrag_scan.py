@@ -186,7 +186,8 @@ def print_report(result: job.JobResult, m: dict, fidelity: dict, t_load: float) 
           f"over {r['charts_solved']} flattened charts (4 = isometric)")
     print(f"  seam length   {r['seam_before']:.1f} -> {r['seam_after']:.1f} (3D length / sqrt(area); "
           f"refinement moved {r['refine_faces_moved']} faces, removing {r['refine_seam_removed']:.2f}; "
-          f"{r['packing_cuts']} cuts for packing added {r['packing_cut_seam']:.2f})")
+          f"{r['packing_cuts']} cuts for packing added {r['packing_cut_seam']:.2f}"
+          f"{', to stay within the input texels' if r['cut_to_fit'] else ''})")
     print(f"  density rule  {r['density_reflattened']} charts flattened again to keep the surface's loss in budget; "
           f"{r['faces_detached']} faces made charts of their own (float32 would turn them over)")
     print(f"  texels        {r['texels_before']:,} -> {r['texels_after']:,} "
