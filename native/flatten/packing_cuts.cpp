@@ -537,9 +537,11 @@ class CutSearch {
 
  private:
   void evaluate(int c) {
+    across_[c].clear();
+    // A cut runs along edges inside the chart: a lone face has none.
+    if (charts_[c].faces.size() < 2) return chords_[c].clear();
     chords_[c] = best_chords(charts_[c].corner_uv, options_);
     per_texel_[c] = length_per_texel(mesh_, charts_[c], options_.scale);
-    across_[c].clear();
   }
 
   // Padded box texels chart c's best chord saves per 3D length of seam.
