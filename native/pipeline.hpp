@@ -25,7 +25,7 @@ struct PipelineOptions {
   // default: the job exists for fewer charts and shorter seams, and each
   // cut adds both for a smaller page.
   double packing_cut_seam = 0;
-  // When the packed charts would take more texels than the input's at the
+  // When the packed charts would take over 1.1x the input's texels at the
   // density asked for, or were shrunk to fit, more such cuts up to this seam
   // in all, and the charts packed again; 0: never. Dense atlases (phone apps
   // fill about three quarters of their pages) otherwise come out larger than

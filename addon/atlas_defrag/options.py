@@ -85,9 +85,9 @@ SCHEMA: Tuple[Option, ...] = (
            "area), the unit of the seam figure (0: no cut): fewer texels for more seams and charts",
            low=0.0, high=10.0),
     Option("fit_cut_seam", float, 1.0, "Seam to Stay Within the Source",
-           "When the charts would take more texels than the source's at the density asked for, or be shrunk "
-           "to fit, charts that pack poorly are cut in two until this much seam in all (the unit of Seam for "
-           "Tighter Packing; 0: never): dense atlases keep about their size for a little more seam",
+           "When the charts would take over 1.1 times the source's texels at the density asked for, or be "
+           "shrunk to fit, charts that pack poorly are cut in two until this much seam in all (the unit of Seam "
+           "for Tighter Packing; 0: never): dense atlases keep about their size for a little more seam",
            low=0.0, high=10.0),
     Option("padding_between_charts", bool, False, "Padding Between Charts",
            "Padding is the gap between two charts (as in xatlas) rather than a ring around each chart "
