@@ -493,9 +493,18 @@ bool pack_keeping_windings(const Mesh& mesh, const std::vector<int>& face_group,
   }
 }
 
+// Whether packing a keeps more of the density asked for than packing b or,
+// as much, takes fewer texels.
+bool packs_better(const PipelineResult& a, const PipelineResult& b) {
+  if (a.report.scale != b.report.scale) return a.report.scale > b.report.scale;
+  return page_texels(a.pages, {}) < page_texels(b.pages, {});
+}
+
 // Packs the charts into result; where they outgrow the input (see
 // pack_groups), cuts more of them for packing, up to fit_cut_seam in all
-// (cuts: those made so far, updated), and packs them again.
+// (cuts: those made so far, updated), and packs them again, keeping the cuts
+// only if they pack better: the cuts judge the charts by their boxes, which
+// the packer may fill as well either way.
 void pack_within_input(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& face_group,
                        const PipelineOptions& options, const RunControl& control, std::vector<FlatChart>& charts,
                        PackingCutStats& cuts, PipelineResult& result) {
@@ -503,12 +512,19 @@ void pack_within_input(const Mesh& mesh, const MeshTopology& topology, const std
   PackingCutOptions more = packing_cut_options(mesh, charts, options);
   more.seam_budget = options.fit_cut_seam * std::sqrt(total_area(mesh)) - cuts.seam_added_3d;
   if (!(more.seam_budget > 0)) return;
+  std::vector<FlatChart> uncut = charts;
   const PackingCutStats added = cut_for_packing(mesh, topology, more, charts, control);
   if (added.cuts == 0) return;
+  PipelineResult whole = result;
+  pack_keeping_windings(mesh, face_group, options, control, charts, result);
+  if (!packs_better(result, whole)) {
+    charts = std::move(uncut);
+    result = std::move(whole);
+    return;
+  }
   cuts.cuts += added.cuts;
   cuts.seam_added_3d += added.seam_added_3d;
   result.report.cut_to_fit = true;
-  pack_keeping_windings(mesh, face_group, options, control, charts, result);
 }
 
 // Into result: each face's chart (-1 for none; face_count faces), and per chart
