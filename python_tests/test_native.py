@@ -433,6 +433,21 @@ def test_a_dense_atlas_is_cut_to_stay_near_its_texels(native, scans):
         native.defragment(*dense, options={"fit_cut_seam": 11})
 
 
+def test_cuts_to_fit_that_pack_no_better_are_undone(native, scans):
+    # The Smithsonian scan's charts on 512^2 pages with 4 texels of padding
+    # come out at 1.24x the input's texels; the cuts the fit rule finds there
+    # save nothing once packed, so the result is the uncut one.
+    scan = scans("smithsonian")
+    dense = args(scan)[:4] + (np.full_like(np.asarray(scan.page_sizes), 512),)
+    options = {"padding_follows_page": False}
+    tried = native.defragment(*dense, options=options)
+    uncut = native.defragment(*dense, options={**options, "fit_cut_seam": 0})
+    assert tried["report"]["texels_after"] > 1.1 * tried["report"]["texels_before"]
+    assert not tried["report"]["cut_to_fit"] and tried["report"]["packing_cuts"] == 0
+    assert tried["report"]["charts_after"] == uncut["report"]["charts_after"]
+    assert np.array_equal(tried["uvs"], uncut["uvs"])
+
+
 # Issue 12: upper bounds on charts and seam per scan (default options), with the
 # output guarantees. The bounds are what the layout reaches today plus a small
 # margin, within issue 12's own targets (90 / 300 / 80 charts, seam 10 / 40 /
