@@ -411,7 +411,8 @@ def main() -> int:
               "texels wide), and the tetra and Meshroom scans with their own charts packed by `pack_charts` "
               "with 1 texel of padding onto a 512 x 512 page ("
               + " and ".join(f"{efficiency:.0%}" for _, efficiency in tight.values())
-              + " of it covered) and their base colour baked there. Targets (issue 16): clean PSNR >= 40 dB, density loss 0, texels <= 1.1x the input. "
+              + " of it covered) and their base colour baked there. Targets (issue 16): clean PSNR >= 40 dB, "
+              "density loss 0, texels <= 1.1x the input. "
               "Defaults cut charts for packing where the pages would outgrow the input by more than a tenth "
               "(`fit_cut_seam`); *no cut to fit* turns that off.", "",
               "| atlas | options | texels in | texels out | ratio | padding | scale | charts | seam | density loss | "
@@ -429,7 +430,8 @@ def main() -> int:
                          f"{r['texels_after'] / r['texels_before']:.2f}x | {result['page_padding'].max()} | "
                          f"{r['scale']:.3f}{' (shrunk)' if r['shrunk'] else ''} | {r['charts_before']} -> "
                          f"{r['charts_after']}{' (cut to fit)' if r['cut_to_fit'] else ''} | "
-                         f"{r['seam_before']:.1f} -> {r['seam_after']:.1f} | {m['map']['density_loss_area_share']:.2%} | "
+                         f"{r['seam_before']:.1f} -> {r['seam_after']:.1f} | "
+                         f"{m['map']['density_loss_area_share']:.2%} | "
                          f"{stats['copied_share']:.1%} | {fidelity['psnr_db']:.1f} | {fidelity['psnr_clean_db']:.1f} | "
                          f"{fidelity['psnr_border_db']:.1f} |")
     lines.append("")

@@ -327,7 +327,8 @@ bool pack_groups(const Mesh& mesh, const std::vector<int>& face_group, const std
     total += texels;
     scale = std::min(scale, packed.scale);
     result.report.shrunk |= packed.shrunk;
-    outgrew |= packed.shrunk || (options.fixed_page_size <= 0 && texels > kOutgrowth * wanted_texels(mesh, used, options));
+    const bool grown = options.fixed_page_size <= 0 && texels > kOutgrowth * wanted_texels(mesh, used, options);
+    outgrew |= packed.shrunk || grown;
   }
   result.report.packing_efficiency = total > 0 ? covered / total : 0;
   result.report.scale = by_group.empty() ? 1.0 : scale;
