@@ -130,3 +130,10 @@ def test_argument_words_parse_back_to_the_value():
                 continue
             args = parser.parse_args(["in.obj", "out.glb"] + options.argument_words(o, value))
             assert getattr(args, o.name) == value, (o.name, value)
+
+
+def test_the_info_line_says_when_charts_were_cut_to_fit():
+    report = {"charts_before": 159, "charts_after": 46, "seam_before": 26.2, "seam_after": 13.9, "pages_before": 1,
+              "pages_after": 1, "padding": 2, "packing_cuts": 24, "seconds": {"total": 1.0}}
+    assert "stay within" not in job.summary(report)
+    assert "24 cuts for packing to stay within the source's texels" in job.summary({**report, "cut_to_fit": True})

@@ -525,7 +525,7 @@ def summary(report: dict) -> str:
     return (f"charts {num('charts_before')} -> {num('charts_after')}, "
             f"seam {num('seam_before', '{:.4g}')} -> {num('seam_after', '{:.4g}')}, "
             f"pages {num('pages_before')} -> {num('pages_after')} ({num('padding')} texels of padding), "
-            + (f"{num('packing_cuts')} charts cut to stay within the source's texels, "
+            + (f"{num('packing_cuts')} cuts for packing to stay within the source's texels, "
                if report.get("cut_to_fit") else "")
             + (f"charts scaled to {num('scale', '{:.3g}')} of their texel density, " if report.get("shrunk") else "")
             + f"time {'?' if secs is None else f'{secs:.1f}'} s")
