@@ -424,6 +424,7 @@ def filtered_png(pixels, chunks=()) -> bytes:
     """PNG bytes of (H, W, 1, 3 or 4) uint8 pixels (top row first), row y
     filtered with type y % 5 (None, Sub, Up, Average, Paeth: PNG spec 9.2),
     the chunks (type, data) given placed before the pixel data."""
+    import io
     import zlib
 
     from atlas_defrag import png_files
@@ -442,10 +443,12 @@ def filtered_png(pixels, chunks=()) -> bytes:
         scanlines[y, 0] = y % 5
         scanlines[y, 1:] = (rows[y] - predictions[y % 5][y]) & 255
     header = png_files._IHDR.pack(w, h, 8, png_files._COLOUR_TYPE[c], 0, 0, 0)
-    return b"".join([png_files.SIGNATURE, png_files._chunk(b"IHDR", header)]
-                    + [png_files._chunk(kind, data) for kind, data in chunks]
-                    + [png_files._chunk(b"IDAT", zlib.compress(scanlines.tobytes())),
-                       png_files._chunk(b"IEND", b"")])
+    out = io.BytesIO()
+    out.write(png_files.SIGNATURE)
+    for kind, data in [(b"IHDR", header)] + list(chunks) + [(b"IDAT", zlib.compress(scanlines.tobytes())),
+                                                           (b"IEND", b"")]:
+        png_files._write_chunk(out, kind, [data])
+    return out.getvalue()
 
 
 def png_read_from_file(pkg):
