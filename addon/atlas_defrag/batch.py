@@ -611,7 +611,7 @@ def main_single(argv) -> int:
     for w in report["warnings"] + [w for o in report["objects"] for w in o.get("warnings", [])]:
         print(f"atlas_defrag: warning: {w}", file=sys.stderr)
     for o in report["objects"]:
-        fitted = (f", {o.get('packing_cuts')} cuts for packing, to stay within the source's texels"
+        fitted = (f", {o.get('packing_cuts')} cuts for packing to stay within the source's texels"
                   if o.get("cut_to_fit") else "")
         print(f"atlas_defrag: {o['object']}: charts {o.get('charts_before')} -> {o.get('charts_after')}, "
               f"seam {o.get('seam_before', 0):.4g} -> {o.get('seam_after', 0):.4g}{fitted}")

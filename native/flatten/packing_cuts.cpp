@@ -539,7 +539,10 @@ class CutSearch {
   void evaluate(int c) {
     across_[c].clear();
     // A cut runs along edges inside the chart: a lone face has none.
-    if (charts_[c].faces.size() < 2) return chords_[c].clear();
+    if (charts_[c].faces.size() < 2) {
+      chords_[c].clear();
+      return;
+    }
     chords_[c] = best_chords(charts_[c].corner_uv, options_);
     per_texel_[c] = length_per_texel(mesh_, charts_[c], options_.scale);
   }
