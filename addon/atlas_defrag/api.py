@@ -114,6 +114,22 @@ def _materials_in_common(reads) -> set:
     return common
 
 
+def shared_materials(objects) -> set:
+    """Names of the materials that several of the objects use. Objects done
+    one at a time duplicate them: the first object's rewiring would
+    otherwise leave the others reading, and rendering, through a UV map
+    they do not have."""
+    users = {}
+    for obj in objects:
+        for name in {slot.material.name for slot in obj.material_slots if slot.material}:
+            users[name] = users.get(name, 0) + 1
+    return {name for name, count in users.items() if count > 1}
+
+
+def uses_any(obj, materials: set) -> bool:
+    return any(slot.material and slot.material.name in materials for slot in obj.material_slots)
+
+
 def compute(read: read_bpy.ReadResult, settings: Settings, progress=None, cancel=None,
             native=None) -> job.JobResult:
     """The native work: thread-safe (touches no bpy data)."""

@@ -5,6 +5,7 @@ import os
 import re
 import threading
 import time
+from dataclasses import replace
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
@@ -282,7 +283,7 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
             return {"CANCELLED"}
         try:
             objects = targets(context)
-            jobs = [(obj, self._settings(obj)) for obj in objects]
+            jobs = self._jobs(objects)
         except (DefragError, TypeError, ValueError) as exc:
             return self._fail("error", str(exc))
         if self.options.is_invoke and context.window is not None and not bpy.app.background:
@@ -305,6 +306,18 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         finally:
             wm.progress_end()
         return self._end(context, reports, None)
+
+    def _jobs(self, objects) -> list:
+        """(object, settings) per object; objects done one at a time that
+        share a material rewire copies of it (api.shared_materials)."""
+        shared = set() if self.one_atlas and len(objects) > 1 else api.shared_materials(objects)
+        jobs = []
+        for obj in objects:
+            settings = self._settings(obj)
+            if api.uses_any(obj, shared):
+                settings = replace(settings, duplicate_materials=True)
+            jobs.append((obj, settings))
+        return jobs
 
     def _units(self, jobs) -> list:
         """The runs, each a list of (object, settings): one per object, or

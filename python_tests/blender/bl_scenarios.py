@@ -748,6 +748,32 @@ def one_atlas_shared_material(pkg):
     return read_maps
 
 
+def shared_material_one_at_a_time(pkg):
+    """Two objects that share a material, each given its own atlas: both are
+    done, each through a copy of the material that reads its own new UV map,
+    and the original material is left as it was."""
+    H.reset()
+    a = H.textured_plane(name="First")
+    b = H.textured_plane(name="Second")
+    shared = a.data.materials[0]
+    b.data.materials[0] = shared
+    H.make_active(a)
+    b.select_set(True)
+    before = {n.name: (n.image.name, H.vector_uv_map(n)) for n in H.image_nodes(shared)}
+    assert run_operator(pkg) == {"FINISHED"}, pkg.operators.last_outcome
+    message = pkg.operators.last_outcome["message"]
+    assert "Defragmented 'First'" in message and "Defragmented 'Second'" in message, message
+    materials = set()
+    for obj in (a, b):
+        mat = obj.material_slots[0].material
+        materials.add(mat.name)
+        maps = {H.vector_uv_map(n) for n in H.image_nodes(mat)}
+        assert maps and all(m in obj.data.uv_layers for m in maps), (obj.name, maps)
+    assert len(materials) == 2 and shared.name not in materials, materials
+    assert {n.name: (n.image.name, H.vector_uv_map(n)) for n in H.image_nodes(shared)} == before
+    return sorted(materials)
+
+
 def _shared_atlas_measures(pkg, names, uv_map):
     """_native.measure of the objects' new UV maps together, each face on the
     page of the new image its material now shows (pages by image name)."""
@@ -932,6 +958,7 @@ SCENARIOS = {
     "several_objects": several_objects,
     "redo_asks_first": redo_asks_first,
     "several_objects_one_fails": several_objects_one_fails,
+    "shared_material_one_at_a_time": shared_material_one_at_a_time,
     "one_atlas_for_all_selected": one_atlas_for_all_selected,
     "one_atlas_shared_material": one_atlas_shared_material,
 }
