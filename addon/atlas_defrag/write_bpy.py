@@ -251,8 +251,10 @@ def _image_dir(storage: str, image_dir: Optional[str]) -> str:
         image_dir = os.path.dirname(bpy.path.abspath(bpy.data.filepath))
     image_dir = bpy.path.abspath(image_dir)  # '//textures' is relative to the .blend
     if not os.path.isabs(image_dir):
-        raise DefragError(f"Image folder '{image_dir}' is relative to an unsaved .blend: "
-                          "save the file first, or give an absolute folder")
+        if not bpy.data.filepath:
+            raise DefragError(f"Image folder '{image_dir}' is relative to an unsaved .blend: "
+                              "save the file first, or give an absolute folder")
+        image_dir = os.path.join(os.path.dirname(bpy.path.abspath(bpy.data.filepath)), image_dir)
     os.makedirs(image_dir, exist_ok=True)
     return image_dir
 

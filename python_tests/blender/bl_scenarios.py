@@ -223,9 +223,11 @@ def save_beside_blend(pkg):
         _failed_write_leaves_no_file(pkg, bpy.data.objects[obj.name], tmp)
         assert sorted(os.listdir(tmp)) == files
         # A folder relative to the .blend ('//'), as Blender's file fields give it.
-        report = pkg.defragment(bpy.data.objects[obj.name], storage="SAVE", image_dir="//textures")
-        written = {os.path.basename(bpy.path.abspath(bpy.data.images[n].filepath)) for n in report["images"]}
-        assert written and written <= set(os.listdir(os.path.join(tmp, "textures"))), written
+        # ... and a plain relative one, taken from the .blend's folder too.
+        for folder in ("//textures", "maps"):
+            report = pkg.defragment(bpy.data.objects[obj.name], storage="SAVE", image_dir=folder)
+            written = {os.path.basename(bpy.path.abspath(bpy.data.images[n].filepath)) for n in report["images"]}
+            assert written and written <= set(os.listdir(os.path.join(tmp, folder.lstrip("/")))), written
         return {"files": files}
 
 
