@@ -53,17 +53,56 @@ def test_obj_faces_counted_and_cut_caught(tmp_path):
 
 
 def test_obj_material_libraries_found_and_checked(tmp_path):
-    (tmp_path / "scan.obj").write_bytes(b"mtllib first.mtl\r\n" + OBJ + b"  mtllib  last.mtl\n# mtllib not.mtl")
+    (tmp_path / "scan.obj").write_bytes(b"mtllib first.mtl\r\n" + OBJ + b"usemtl a\nusemtl b c\n  mtllib  last.mtl\n"
+                                        b"# mtllib not.mtl")
     names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "scan.obj"))}
     assert names == {"scan.obj", "first.mtl", "scan.mtl", "last.mtl"}
     for lib in ("first.mtl", "scan.mtl"):
-        (tmp_path / lib).write_bytes(b"newmtl a\nmap_Kd a.png\n")
+        (tmp_path / lib).write_bytes(b"newmtl a\nmap_Kd -bm 0.5 -s 1 1 a b.png\n")
+    images = ["a b.png", "n.png", "ao.png"]
     with pytest.raises(batch.BatchError, match="last.mtl is missing"):
-        batch._verify_obj_references(str(tmp_path), "scan.obj", ["a.png"])
-    (tmp_path / "last.mtl").write_bytes(b"newmtl b\n")
-    batch._verify_obj_references(str(tmp_path), "scan.obj", ["a.png"])
-    with pytest.raises(batch.BatchError, match="do not name b.png"):
-        batch._verify_obj_references(str(tmp_path), "scan.obj", ["a.png", "b.png"])
+        batch._verify_obj_references(str(tmp_path), "scan.obj", images)
+    (tmp_path / "last.mtl").write_bytes(b"newmtl b c\nmap_Bump -bm 1.0 n.png")
+    with pytest.raises(batch.BatchError, match="last.mtl is cut short"):
+        batch._verify_obj_references(str(tmp_path), "scan.obj", images)
+    (tmp_path / "last.mtl").write_bytes(b"newmtl x\n")
+    with pytest.raises(batch.BatchError, match="do not define b c"):
+        batch._verify_obj_references(str(tmp_path), "scan.obj", images)
+    # Whole: the images no map names (an occlusion map, which OBJ cannot carry) come back.
+    (tmp_path / "last.mtl").write_bytes(b"newmtl b c\nmap_Bump -bm 1.0 n.png\n")
+    assert batch._verify_obj_references(str(tmp_path), "scan.obj", images) == ["ao.png"]
+
+
+@pytest.mark.parametrize("arguments, name", [
+    ("tex.png", "tex.png"), ("-o 0.1 0.2 tex.png", "tex.png"), ("-s 1 2 3 my  scan.png", "my  scan.png"),
+    ("-bm 1.0 2024 scan.png", "2024 scan.png"), ("-s 2 2024.png", "2024.png"),
+    ("-clamp on -imfchan l t.png", "t.png"), ("-bm 1.0", "1.0"), ("", "")])
+def test_map_statements_name_their_file_after_the_options(arguments, name):
+    assert batch._map_file(arguments) == name
+
+
+def test_a_report_may_not_replace_the_input_or_the_output(tmp_path):
+    model, out = tmp_path / "in.obj", tmp_path / "out.obj"
+    model.write_bytes(b"mtllib in.mtl\n" + OBJ)
+    for report in (model, tmp_path / "in.mtl", out, tmp_path / "out.mtl"):
+        assert "would overwrite" in batch._report_path_problem(str(report), str(model), str(out)), report
+    assert batch._report_path_problem(str(tmp_path / "r.json"), str(model), str(out)) == ""
+
+
+def test_a_run_into_its_input_folder_takes_no_output_for_an_input(tmp_path):
+    for name in ("a.obj", "a.glb", "a_2.glb", "b.glb"):
+        (tmp_path / name).write_bytes(b"")
+    kept = batch._without_outputs(batch._expand([str(tmp_path)]), str(tmp_path), "glb")
+    assert [p.split("/")[-1] for p in kept] == ["a.obj", "b.glb"]
+    jobs = batch._output_names(kept, str(tmp_path), "glb")
+    assert [out.split("/")[-1] for _, out, _ in jobs] == ["a.glb", "b_2.glb"]  # never an input onto itself
+
+
+def test_the_many_models_form_names_a_missing_blender(tmp_path, capsys):
+    code = batch.main_multi(["--out-dir", str(tmp_path / "out"), "--blender", str(tmp_path / "no" / "blender"),
+                             str(tmp_path / "x.obj")])
+    assert code == 2 and "Blender not found" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 def test_importer_errors_come_without_their_traceback():

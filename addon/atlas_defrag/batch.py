@@ -214,15 +214,28 @@ def export_model(path: str, objects) -> None:
                               forward_axis="NEGATIVE_Z", up_axis="Y")
     elif ext in (".glb", ".gltf"):
         _numpy_bool_alias()
+        if ext == ".gltf":
+            _allow_embedded_gltf()
         kw = dict(filepath=path, export_format="GLB" if ext == ".glb" else "GLTF_EMBEDDED",
                   use_selection=True)
-        try:
-            bpy.ops.export_scene.gltf(**kw)
-        except TypeError:
+        if "use_selection" not in _operator_properties(bpy.ops.export_scene.gltf):
             kw.pop("use_selection")
-            bpy.ops.export_scene.gltf(**kw)
+        bpy.ops.export_scene.gltf(**kw)
     else:
         raise BatchError(f"unsupported output format '{ext}' (use {', '.join(OUTPUT_EXTS)})")
+
+
+def _allow_embedded_gltf() -> None:
+    """Blender 4.2 and later offer the glTF format with embedded data only
+    when the glTF add-on's preference allows it."""
+    import bpy
+    addon = bpy.context.preferences.addons.get("io_scene_gltf2")
+    if addon is not None and hasattr(addon.preferences, "allow_embedded_format"):
+        addon.preferences.allow_embedded_format = True
+
+
+def _operator_properties(op) -> set:
+    return {p.identifier for p in op.get_rna_type().properties}
 
 
 def run_one(args, cancel=None) -> dict:
@@ -247,10 +260,14 @@ def run_one(args, cancel=None) -> dict:
     report = {"input": src, "output": dst, "objects": [], "warnings": []}
     try:
         _defragment_meshes(pkg, args, meshes, tmp, report, cancel)
-        _name_images_after(os.path.splitext(os.path.basename(dst))[0], tmp)
+        _name_images_after(dst, tmp)
         t_export = time.perf_counter()
-        _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),
-                         lambda: _stop_if_cancelled(pkg, cancel))
+        unnamed = _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),
+                                   lambda: _stop_if_cancelled(pkg, cancel))
+        if unnamed:
+            report["warnings"].append(
+                f"{', '.join(unnamed)} written beside {os.path.basename(dst)}, but its materials do not name "
+                "them: Blender's OBJ exporter writes only maps wired straight into the shader")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     report["seconds"] = {"import": t_import, "export": time.perf_counter() - t_export,
@@ -309,25 +326,49 @@ def _refuse_overwriting(inputs: set, outputs) -> None:
                              "choose another output path or folder")
 
 
-def _name_images_after(stem: str, folder: str) -> None:
-    """Renames the images saved in folder to '<stem>_<name>' (and the bpy images
-    pointing at them), so that models written into one folder never share an
-    image file: every Meshroom scan names its texture texture_1001.png."""
+def _name_images_after(dst: str, folder: str) -> None:
+    """Renames the images saved in folder to '<stem>_<name>' after the model
+    dst (and the bpy images pointing at them), so that models written into
+    one folder never share an image file: every Meshroom scan names its
+    texture texture_1001.png. A name taken in dst's folder by a file that
+    dst's own material library does not name (another model's, whose stem
+    and image name join the same way) gets a number."""
     import bpy
+    stem = os.path.splitext(os.path.basename(dst))[0]
+    out_dir = os.path.dirname(dst)
+    owned = _images_named_by(dst)
     real = _real(folder)
     for img in bpy.data.images:
         path = bpy.path.abspath(img.filepath) if img.filepath else ""
         if not path or _real(os.path.dirname(path)) != real:
             continue
         name = os.path.basename(path)
-        new = os.path.join(folder, f"{stem}_{name}")
-        k = 1
-        while os.path.exists(new):
+        new, k = f"{stem}_{name}", 1
+        while os.path.exists(os.path.join(folder, new)) or (
+                os.path.exists(os.path.join(out_dir, new)) and new not in owned):
             base, ext = os.path.splitext(name)
-            new = os.path.join(folder, f"{stem}_{base}.{k:03d}{ext}")
+            new = f"{stem}_{base}.{k:03d}{ext}"
             k += 1
-        os.replace(path, new)
-        img.filepath = new
+        os.replace(path, os.path.join(folder, new))
+        img.filepath = os.path.join(folder, new)
+
+
+def _images_named_by(model: str) -> set:
+    """The files the material libraries of an existing OBJ model name (a
+    previous run's output, which this one replaces)."""
+    if not model.lower().endswith(".obj") or not os.path.isfile(model):
+        return set()
+    folder = os.path.dirname(model)
+    named = set()
+    with open(model, "rb") as f:
+        libs = [_rest_of(ln) for ln in _lines_starting(f.read(), b"mtllib")]
+    for lib in libs:
+        try:
+            with open(os.path.join(folder, lib), "rb") as f:
+                named |= _map_files(f.read())
+        except OSError:
+            continue
+    return named
 
 
 def _import_input(src: str, dst: str):
@@ -354,7 +395,8 @@ def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict, cancel=N
     """Each mesh once (linked duplicates share it); its report into report['objects']."""
     done_meshes = set()
     errors = []
-    shared = _shared_materials(meshes)
+    api = importlib.import_module(pkg.__name__ + ".api")
+    shared = api.shared_materials(meshes)
     options = {o.name: getattr(args, o.name) for o in _schema().SCHEMA}
     for o in meshes:
         if o.data.name in done_meshes:
@@ -362,7 +404,7 @@ def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict, cancel=N
         try:
             r = pkg.defragment(
                 o, cancel=cancel, wait_in_main_thread=True, uv_map=args.uv_map, storage="SAVE", image_dir=image_dir,
-                duplicate_materials=any(s.material and s.material.name in shared for s in o.material_slots),
+                duplicate_materials=api.uses_any(o, shared),
                 **options)
         except pkg.DefragCancelled:
             raise
@@ -378,45 +420,60 @@ def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict, cancel=N
     report["warnings"].extend(errors)
 
 
-def _shared_materials(meshes) -> set:
-    """Materials used by several objects: they are duplicated, so each object gets its own."""
-    users = {}
-    for o in meshes:
-        for s in o.material_slots:
-            if s.material:
-                users[s.material.name] = users.get(s.material.name, 0) + 1
-    return {name for name, count in users.items() if count > 1}
-
-
 def _stop_if_cancelled(pkg, cancel) -> None:
     if cancel is not None and cancel.cancelled:
         raise pkg.DefragCancelled("cancelled")
 
 
-def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) -> None:
+def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) -> list:
     """Exports into tmp, checks every file there, calls before_moving (which
     may raise), then moves them beside dst: images next to an OBJ (a glTF
-    carries them), the model file last."""
+    carries them), the model file last. Returns the images moved beside an
+    OBJ that its materials do not name."""
     out_dir = os.path.dirname(dst) or "."
     tmp_out = os.path.join(tmp, os.path.basename(dst))
     export_model(tmp_out, objects)
     is_obj = dst.lower().endswith(".obj")
     moving = [name for name in sorted(os.listdir(tmp))
               if name != os.path.basename(dst) and (is_obj or name.lower().endswith(".bin"))]
-    _verify_outputs(tmp, os.path.basename(dst), moving,
-                    sum(len(o.data.polygons) for o in objects if o.type == "MESH"))
+    unnamed = _verify_outputs(tmp, os.path.basename(dst), moving,
+                              sum(len(o.data.polygons) for o in objects if o.type == "MESH"))
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
+    # Images may replace only those of the run that wrote dst before.
+    replaceable = _images_named_by(dst) | {os.path.basename(p) for p in _model_files(dst)}
     before_moving()
     moved = []
     try:
         for name in moving:
-            os.replace(os.path.join(tmp, name), os.path.join(out_dir, name))
-            moved.append(os.path.join(out_dir, name))
+            target = os.path.join(out_dir, name)
+            if name in replaceable or name.lower().endswith(".bin"):
+                os.replace(os.path.join(tmp, name), target)
+            else:
+                _move_new(os.path.join(tmp, name), target)
+            moved.append(target)
         os.replace(tmp_out, dst)
     except BaseException:
         for path in moved:
             _remove_quietly(path)
         raise
+    return unnamed
+
+
+def _move_new(src: str, dst: str) -> None:
+    """Moves src to dst, which must not exist: another model's run may have
+    written that name into the folder since it was chosen (or a file the
+    user keeps there)."""
+    try:
+        os.link(src, dst)
+    except FileExistsError:
+        raise BatchError(f"{dst} appeared while this model was written (another model's image?): "
+                         "nothing was replaced; run this model again") from None
+    except OSError:  # a file system without hard links
+        if os.path.exists(dst):
+            raise BatchError(f"{dst} appeared while this model was written: nothing was replaced") from None
+        os.replace(src, dst)
+        return
+    os.remove(src)
 
 
 def _remove_quietly(path: str) -> None:
@@ -426,16 +483,18 @@ def _remove_quietly(path: str) -> None:
         pass
 
 
-def _verify_outputs(folder: str, model: str, others, polygons: int) -> None:
+def _verify_outputs(folder: str, model: str, others, polygons: int) -> list:
     """BatchError unless every written file is whole: exporters report success
-    on a full disk and leave truncated or empty files."""
+    on a full disk and leave truncated or empty files. Returns the images
+    written beside an OBJ that its materials do not name."""
     for name in [model] + list(others):
         path = os.path.join(folder, name)
         problem = _file_problem(path, polygons if name == model else None)
         if problem:
             raise BatchError(f"writing {name} failed ({problem}): is the disk full?")
-    if model.lower().endswith(".obj"):
-        _verify_obj_references(folder, model, [n for n in others if not n.lower().endswith(".mtl")])
+    if not model.lower().endswith(".obj"):
+        return []
+    return _verify_obj_references(folder, model, [n for n in others if not n.lower().endswith(".mtl")])
 
 
 def _file_problem(path: str, polygons) -> str:
@@ -478,25 +537,74 @@ def _binary_file_problem(path: str, ext: str) -> str:
     return ""
 
 
-def _verify_obj_references(folder: str, model: str, images) -> None:
-    """The OBJ's material libraries are there and name every image written
-    beside it (a cut-short MTL loses the last ones). Other names the MTL
-    carries over from the input (even broken ones) are not checked."""
+def _verify_obj_references(folder: str, model: str, images) -> list:
+    """BatchError unless the OBJ's material libraries are there and whole:
+    each ends with a line end, and together they define every material the
+    OBJ uses (a cut-short MTL loses its last lines). Returns the images
+    written beside the OBJ that no MTL names: Blender's OBJ exporter writes
+    only maps wired straight into the shader (not an occlusion map, nor one
+    behind a Mix node). Names the MTL carries over from the input (even
+    broken ones) are not checked."""
     with open(os.path.join(folder, model), "rb") as f:
-        libs = [ln.split(None, 1)[1].strip().decode("utf-8", "replace")
-                for ln in _lines_starting(f.read(), b"mtllib") if len(ln.split()) > 1]
-    named = set()
-    for lib in libs:
+        obj = f.read()
+    used = {_rest_of(ln) for ln in _lines_starting(obj, b"usemtl")}
+    defined, named = set(), set()
+    for lib in (_rest_of(ln) for ln in _lines_starting(obj, b"mtllib")):
         lib_path = os.path.join(folder, lib)
-        if not os.path.isfile(lib_path):
+        if not lib or not os.path.isfile(lib_path):
             raise BatchError(f"writing {model} failed: its material library {lib} is missing")
         with open(lib_path, "rb") as f:
-            named.update(ln.split()[-1].decode("utf-8", "replace") for ln in f
-                         if ln.strip().startswith(b"map_") and len(ln.split()) > 1)
-    unnamed = sorted(set(images) - named)
-    if unnamed:
-        raise BatchError(f"writing {model} failed: its materials do not name {', '.join(unnamed)}: "
+            data = f.read()
+        if not data.endswith(b"\n"):
+            raise BatchError(f"writing {model} failed: its material library {lib} is cut short: is the disk full?")
+        defined.update(_rest_of(ln) for ln in _lines_starting(data, b"newmtl"))
+        named |= _map_files(data)
+    undefined = sorted(used - defined)
+    if undefined:
+        raise BatchError(f"writing {model} failed: its material libraries do not define {', '.join(undefined)}: "
                          "is the disk full?")
+    return sorted(set(images) - named)
+
+
+def _map_files(mtl: bytes) -> set:
+    """The files the map statements of an MTL file's text name."""
+    return {_map_file(_rest_of(ln)) for statement in (b"map_", b"bump", b"disp", b"norm", b"refl")
+            for ln in _lines_starting(mtl, statement)}
+
+
+def _rest_of(line: bytes) -> str:
+    """A statement's argument: the line after its first word, spaces inside kept."""
+    parts = line.split(None, 1)
+    return parts[1].strip().decode("utf-8", "replace") if len(parts) > 1 else ""
+
+
+# Options of an MTL map statement and how many words follow each; -o, -s and
+# -t take one to three numbers.
+_MAP_OPTION_WORDS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1,
+                     "-mm": 2, "-texres": 1, "-type": 1, "-o": 3, "-s": 3, "-t": 3}
+
+
+def _map_file(arguments: str) -> str:
+    """The file a map statement names: its arguments after the options (a
+    file name may hold spaces)."""
+    words = list(re.finditer(r"\S+", arguments))
+    i = 0
+    while i < len(words) - 1 and words[i].group().lower() in _MAP_OPTION_WORDS:
+        option = words[i].group().lower()
+        i += 1
+        for _ in range(_MAP_OPTION_WORDS[option]):
+            if i >= len(words) - 1 or (option in ("-o", "-s", "-t") and not _is_number(words[i].group())):
+                break
+            i += 1
+    return arguments[words[i].start():] if i < len(words) else ""
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True
 
 
 def _lines_starting(data: bytes, prefix: bytes) -> list:
@@ -530,13 +638,17 @@ def _write_report(path, report):
         raise
 
 
-def _report_path_problem(path) -> str:
-    """Why the report could not be written there, checked before the work ('' if it can)."""
+def _report_path_problem(path, src: str, dst: str) -> str:
+    """Why the report could not be written there, checked before the work
+    ('' if it can): among others, onto the input or the output."""
     if not path:
         return ""
     path = os.path.abspath(path)
     if os.path.isdir(path):
         return f"--report {path} is a folder"
+    for other in sorted(_input_files(os.path.abspath(src)) | _model_files(os.path.abspath(dst))):
+        if _real(other) == _real(path):
+            return f"--report {path} would overwrite {other}"
     folder = os.path.dirname(path)
     probe = folder
     while probe and not os.path.exists(probe):
@@ -576,7 +688,7 @@ def main_single(argv) -> int:
         args = p.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
-    problem = _report_path_problem(args.report)
+    problem = _report_path_problem(args.report, args.input, args.output)
     if problem:
         print(f"atlas_defrag: error: {problem}", file=sys.stderr)
         return 2
@@ -652,12 +764,15 @@ def main_multi(argv) -> int:
         args = p.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
-    files = _expand(args.inputs)
+    files = _without_outputs(_expand(args.inputs), args.out_dir, args.format)
     if not files:
         print("atlas_defrag: error: no input models", file=sys.stderr)
         return 2
-    os.makedirs(args.out_dir, exist_ok=True)
     blender = _blender_exe(args.blender)
+    if shutil.which(blender) is None:
+        print(f"atlas_defrag: error: Blender not found: {blender} (set --blender or $BLENDER)", file=sys.stderr)
+        return 2
+    os.makedirs(args.out_dir, exist_ok=True)
     command = [blender, "--background", "--factory-startup", "--python-exit-code", "1",
                "--python", os.path.abspath(__file__), "--"]
     runner = _Runner(command, _passthrough(args), _blender_env(blender))
@@ -696,16 +811,37 @@ def _passthrough(args) -> list:
     return out
 
 
+def _without_outputs(files, out_dir: str, fmt: str) -> list:
+    """files less the models a run into out_dir wrote there before: an input
+    in out_dir in the output format whose name, less a _2, _3, ... ending,
+    is another input's stem (see _output_names)."""
+    stems = {}
+    for f in files:
+        stem = os.path.splitext(os.path.basename(f))[0].lower()
+        stems.setdefault(stem, set()).add(_real(f))
+    out = _real(out_dir)
+
+    def earlier_output(f: str) -> bool:
+        stem, ext = os.path.splitext(os.path.basename(f))
+        if ext.lower() != "." + fmt or _real(os.path.dirname(os.path.abspath(f))) != out:
+            return False
+        base = re.sub(r"_\d+$", "", stem).lower()
+        return bool(stems.get(base, set()) - {_real(f)})
+
+    return [f for f in files if not earlier_output(f)]
+
+
 def _output_names(files, out_dir: str, fmt: str) -> list:
-    """(input, output, report) per file, every output name distinct: a stem
-    already taken (by an earlier file's stem or its _2 form) gets the next free
-    _2, _3, ... The same inputs in the same order always get the same names."""
+    """(input, output, report) per file, every output name distinct and none
+    the input itself: a stem already taken (by an earlier file's stem or its
+    _2 form) gets the next free _2, _3, ... The same inputs in the same order
+    always get the same names."""
     taken = set()
     jobs = []
     for f in files:
         base = os.path.splitext(os.path.basename(f))[0]
         stem, k = base, 1
-        while stem.lower() in taken:
+        while stem.lower() in taken or _real(os.path.join(out_dir, f"{stem}.{fmt}")) == _real(f):
             k += 1
             stem = f"{base}_{k}"
         taken.add(stem.lower())

@@ -108,6 +108,27 @@ def test_batch45_glb_to_obj(tmp_path):
     assert maps and all((tmp_path / m).is_file() for m in maps), maps
 
 
+def test_batch45_glb_with_a_map_obj_cannot_name_to_obj(tmp_path):
+    """The Smithsonian scan's occlusion map goes beside the OBJ, whose MTL
+    cannot name it: a warning, not a failure. A name with a space is read whole."""
+    out = tmp_path / "my scan.obj"
+    proc = bpy45_batch(H.model_path("smithsonian"), out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "its materials do not name them" in proc.stderr, proc.stderr[-2000:]
+    _, maps = _read_obj_output(out)
+    assert maps and all(m.startswith("my scan_") and (tmp_path / m).is_file() for m in maps), maps
+
+
+def test_batch45_gltf_holds_its_data(tmp_path):
+    """Blender 4.2 and later write glTF with embedded data only when allowed."""
+    out = tmp_path / "tetra.gltf"
+    proc = bpy45_batch(H.model_path("tetra"), out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    gltf = json.loads(out.read_text())
+    assert gltf.get("images") and all(b["uri"].startswith("data:") for b in gltf["buffers"]), gltf.get("buffers")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tetra.gltf"]
+
+
 @pytest.mark.parametrize("runner", ["blender34", "bpy45"])
 def test_batch_failures(tmp_path, runner):
     run = blender34_batch if runner == "blender34" else bpy45_batch

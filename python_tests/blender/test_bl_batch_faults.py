@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import blhelp as H
@@ -165,6 +166,36 @@ def test_many_models_of_one_name_get_their_own_files(tmp_path):
         assert ms and all((out / n).is_file() and n.startswith(m[:-4] + "_") for n in ms), (m, ms)
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
     assert proc.returncode == 0 and "0 done, 3 skipped" in proc.stdout, proc.stdout + proc.stderr
+
+
+def _square_model(folder: Path, stem: str, texture: str, colour) -> Path:
+    """Two triangles textured in one colour through an MTL of the model's own."""
+    from atlas_defrag import png_files
+
+    folder.mkdir(exist_ok=True)
+    (folder / texture).write_bytes(png_files.encode_png(np.full((16, 16, 3), colour, np.uint8)))
+    (folder / f"{stem}.mtl").write_text(f"newmtl m\nmap_Kd {texture}\n")
+    (folder / f"{stem}.obj").write_text(
+        f"mtllib {stem}.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0.1 0.1\nvt 0.9 0.1\nvt 0.9 0.9\n"
+        "vt 0.1 0.9\nusemtl m\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    return folder / f"{stem}.obj"
+
+
+def test_models_whose_image_names_join_alike_keep_their_own(tmp_path):
+    """Model a with texture x_tex.png and model a_x with tex.png would both
+    name their new image a_x_tex_defrag.png in one output folder."""
+    _square_model(tmp_path / "in", "a", "x_tex.png", (200, 0, 0))
+    _square_model(tmp_path / "in", "a_x", "tex.png", (0, 0, 200))
+    out = tmp_path / "out"
+    cmd = [sys.executable, str(BATCH), "--out-dir", str(out), "--format", "obj", "--jobs", "1", str(tmp_path / "in")]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, env=dict(os.environ, BLENDER=BLENDER))
+    assert proc.returncode == 0 and "2 done" in proc.stdout, proc.stdout + proc.stderr
+    maps = {m: _maps(out / m) for m in ("a.obj", "a_x.obj")}
+    assert len(maps["a.obj"]) == 1 and maps["a.obj"] != maps["a_x.obj"], maps
+    from atlas_defrag import png_files
+    for model, blue in (("a.obj", False), ("a_x.obj", True)):
+        pixels = png_files.decode_png((out / maps[model][0]).read_bytes())
+        assert (pixels[..., 2].max() > 100) == blue, (model, maps[model])
 
 
 def test_an_unwritable_report_path_fails_before_the_work(tmp_path):
