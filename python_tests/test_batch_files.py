@@ -57,6 +57,12 @@ def test_obj_material_libraries_found_and_checked(tmp_path):
                                         b"# mtllib not.mtl")
     names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "scan.obj"))}
     assert names == {"scan.obj", "first.mtl", "scan.mtl", "last.mtl"}
+    (tmp_path / "spaced.obj").write_bytes(b"mtllib my scan.mtl\n" + OBJ)
+    names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "spaced.obj"))}
+    assert names == {"spaced.obj", "my", "scan.mtl", "my scan.mtl"}
+    (tmp_path / "a.gltf").write_text('{"buffers": [{"uri": "my%20scan.bin"}], "images": [{"uri": "data:x"}]}')
+    names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "a.gltf"))}
+    assert names == {"a.gltf", "my scan.bin"}
     for lib in ("first.mtl", "scan.mtl"):
         (tmp_path / lib).write_bytes(b"newmtl a\nmap_Kd -bm 0.5 -s 1 1 a b.png\n")
     images = ["a b.png", "n.png", "ao.png"]

@@ -34,6 +34,7 @@ import sys
 import tempfile
 import threading
 import time
+import urllib.parse
 from concurrent.futures import ThreadPoolExecutor
 
 INPUT_EXTS = (".obj", ".gltf", ".glb", ".ply")
@@ -297,14 +298,16 @@ def _input_files(src: str) -> set:
         if src.lower().endswith(".obj"):
             with open(src, "rb") as f:
                 for line in _lines_starting(f.read(), b"mtllib"):
-                    files.update(os.path.join(folder, n) for n in line.decode("utf-8", "replace").split()[1:])
+                    # Several libraries, or one whose name holds spaces: both readings are inputs.
+                    names = line.decode("utf-8", "replace").split()[1:] + [_rest_of(line)]
+                    files.update(os.path.join(folder, n) for n in names if n)
         elif src.lower().endswith(".gltf"):
             with open(src, "r", encoding="utf-8") as f:
                 gltf = json.load(f)
             for item in gltf.get("buffers", []) + gltf.get("images", []):
                 uri = item.get("uri", "")
                 if uri and not uri.startswith("data:"):
-                    files.add(os.path.join(folder, uri))
+                    files.add(os.path.join(folder, urllib.parse.unquote(uri)))
     except (OSError, ValueError):
         pass  # the importer reports what it cannot read
     return files
