@@ -5,7 +5,7 @@ import struct
 import numpy as np
 import pytest
 
-from atlas_defrag import batch, png_files
+from atlas_defrag import batch, mtl_text, png_files
 
 
 def _glb(body: bytes, declared_extra: int = 0) -> bytes:
@@ -84,7 +84,7 @@ def test_obj_material_libraries_found_and_checked(tmp_path):
     ("-bm 1.0 2024 scan.png", "2024 scan.png"), ("-s 2 2024.png", "2024.png"),
     ("-clamp on -imfchan l t.png", "t.png"), ("-bm 1.0", "1.0"), ("", "")])
 def test_map_statements_name_their_file_after_the_options(arguments, name):
-    assert batch._map_file(arguments) == name
+    assert mtl_text.map_file(arguments) == name
 
 
 def test_a_report_may_not_replace_the_input_or_the_output(tmp_path):

@@ -128,7 +128,9 @@ def test_gltf_primitive_without_indices_reads_its_vertices_in_order(tmp_path):
 
 
 @pytest.mark.parametrize("changes,message", [
-    ({"nodes": [{"mesh": 0, "children": [1]}, {"children": [0]}]}, "node 0 is its own ancestor"),
+    ({"nodes": [{"mesh": 0, "children": [1]}, {"children": [0]}]}, "node 0 is reached twice"),
+    ({"nodes": [{"children": [1, 1]}, {"mesh": 0}]}, "node 1 is reached twice"),
+    ({"nodes": [{"mesh": -1}]}, "mesh index -1 is out of range"),
     ({"asset": {"version": "1.0"}}, "not a glTF 2.0 file"),
     ({"extensionsRequired": ["KHR_draco_mesh_compression"]}, "KHR_draco_mesh_compression"),
     ({"buffers": [{"byteLength": 36, "uri": "missing.bin"}]}, "cannot be read"),
@@ -145,6 +147,57 @@ def test_cli_names_what_is_wrong_with_a_bad_gltf(tool_env, tmp_path, changes, me
     assert "Traceback" not in proc.stderr and message in proc.stderr, proc.stderr
     assert proc.stderr.startswith("defrag_scan: error: cannot read"), proc.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("changes, triangles", [
+    ({}, [[0, 1, 2]]),
+    ({"nodes": [{"mesh": 0, "scale": [-1, 1, 1]}]}, [[2, 1, 0]]),  # mirrored: the winding turns round
+    ({"meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": 5}]}]}, [[0, 1, 2]]),  # a strip
+    ({"meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": 6}]}]}, [[0, 1, 2]]),  # a fan
+])
+def test_gltf_triangles_as_the_primitive_and_its_node_give_them(tmp_path, changes, triangles):
+    import scan_io
+
+    assert scan_io.load(_one_triangle_gltf(tmp_path, "t.gltf", **changes)).triangles.tolist() == triangles
+
+
+def test_gltf_strips_keep_one_winding_and_drop_their_joins(tmp_path):
+    """A strip of two quads joined by a degenerate pair: every other
+    triangle's first two corners swap, and the joins are dropped."""
+    import base64
+
+    import scan_io
+
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0, 2, 0], [1, 2, 0]], np.float32).tobytes()
+    indices = np.array([0, 1, 2, 3, 3, 2, 2, 3, 4, 5], np.uint16).tobytes()
+    data = positions + indices
+    path = _one_triangle_gltf(
+        tmp_path, "strip.gltf",
+        meshes=[{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 5}]}],
+        accessors=[{"bufferView": 0, "componentType": 5126, "count": 6, "type": "VEC3"},
+                   {"bufferView": 1, "componentType": 5123, "count": 10, "type": "SCALAR"}],
+        bufferViews=[{"buffer": 0, "byteLength": 72}, {"buffer": 0, "byteOffset": 72, "byteLength": 20}],
+        buffers=[{"byteLength": len(data), "uri": "data:;base64," + base64.b64encode(data).decode()}])
+    assert scan_io.load(path).triangles.tolist() == [[0, 1, 2], [2, 1, 3], [2, 3, 4], [4, 3, 5]]
+
+
+def test_gltf_sparse_accessors_are_applied(tmp_path):
+    """A sparse accessor without a buffer view: zeros, then its substitutions."""
+    import base64
+
+    import scan_io
+
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32).tobytes()
+    sparse = np.array([1], np.uint16).tobytes() + b"\0\0" + np.array([[5, 0, 0]], np.float32).tobytes()
+    data = positions + sparse
+    path = _one_triangle_gltf(
+        tmp_path, "sparse.gltf",
+        accessors=[{"componentType": 5126, "count": 3, "type": "VEC3",
+                    "sparse": {"count": 1, "indices": {"bufferView": 1, "componentType": 5123},
+                               "values": {"bufferView": 1, "byteOffset": 4}}}],
+        bufferViews=[{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 16}],
+        buffers=[{"byteLength": len(data), "uri": "data:;base64," + base64.b64encode(data).decode()}])
+    assert scan_io.load(path).positions.tolist() == [[0, 0, 0], [5, 0, 0], [0, 0, 0]]
 
 
 def _textured_triangle_gltf(tmp_path, material: dict, texture: dict):
@@ -224,3 +277,105 @@ def test_png_images_load_as_pillow_reads_them(mode, transparency):
             png_files.decode_png(data)
     loaded = scan_io.load_image(data)
     assert loaded.shape == pixels.shape and np.array_equal(loaded[::-1], pixels)
+
+
+def _two_material_obj(folder: Path, mtl: str, mtllib: str = "m.mtl", textures=("t0.png", "t1.png")) -> Path:
+    """Two unit squares, material a on the first and b on the second, the
+    MTL text as given, and 8 x 8 PNGs of the given names (red, then blue)."""
+    from atlas_defrag import png_files
+
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, colour in zip(textures, ((200, 0, 0), (0, 0, 200))):
+        if name:
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_bytes(png_files.encode_png(np.full((8, 8, 3), colour, np.uint8)))
+    (folder / mtllib.split()[-1]).write_text(mtl, encoding="utf-8")
+    (folder / "m.obj").write_text(
+        f"mtllib {mtllib}\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\n"
+        "vt 0.1 0.1\nvt 0.9 0.1\nvt 0.9 0.9\nvt 0.1 0.9\n"
+        "usemtl a\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\nusemtl b\nf 2/1 5/2 6/3\nf 2/1 6/3 3/4\n")
+    return folder / "m.obj"
+
+
+@pytest.mark.parametrize("mtl, mtllib, textures", [
+    ("newmtl a\nmap_Kd -s 1 1 1 my t0.png\nnewmtl b\nmap_Kd t1.png # diffuse\n", "m.mtl", ("my t0.png", "t1.png")),
+    ("\ufeffnewmtl a\nmap_kd t0.png\nnewmtl b\nmap_Kd C:\\scans\\t1.png\n", "m.mtl", ("t0.png", "t1.png")),
+    ("newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n", "mat/m.mtl", ("mat/t0.png", "t1.png")),
+])
+def test_mtl_textures_are_found_as_writers_name_them(tmp_path, mtl, mtllib, textures):
+    """Names with spaces after options, a trailing comment, a byte-order
+    mark, lower-case keywords, a path from another machine, a texture
+    beside an MTL in a subfolder."""
+    import scan_io
+
+    scan = scan_io.load(_two_material_obj(tmp_path, mtl, mtllib, textures))
+    assert scan.face_page.tolist() == [0, 0, 1, 1] and not scan.warnings, scan.warnings
+    assert [p.name for p in scan.page_images] == [Path(t).name for t in textures]
+
+
+def test_an_obj_may_name_two_material_libraries(tmp_path):
+    import scan_io
+
+    path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\n", "m.mtl")
+    (tmp_path / "n.mtl").write_text("newmtl b\nmap_Kd t1.png\n")
+    path.write_text(path.read_text().replace("mtllib m.mtl", "mtllib m.mtl n.mtl"))
+    assert scan_io.load(path).face_page.tolist() == [0, 0, 1, 1]
+
+
+def test_a_missing_texture_is_named_and_its_faces_left_untextured(tool_env, tmp_path):
+    path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd gone.png\n")
+    proc = subprocess.run([sys.executable, str(CLI), str(path), str(tmp_path / "out")], env=tool_env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "warning: texture" in proc.stderr and "gone.png" in proc.stderr and "2 faces" in proc.stderr, proc.stderr
+
+
+def test_a_texture_cut_short_ends_in_one_line(tool_env, tmp_path):
+    """Its header whole (so the layout runs), its pixels cut short."""
+    from atlas_defrag import png_files
+
+    path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
+    noise = np.random.default_rng(3).integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    png = png_files.encode_png(noise)
+    (tmp_path / "t1.png").write_bytes(png[:len(png) * 2 // 3])
+    proc = subprocess.run([sys.executable, str(CLI), str(path), str(tmp_path / "out")], env=tool_env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "cannot read the texture" in proc.stderr and "t1.png" in proc.stderr, proc.stderr
+
+
+def test_out_dir_problems_end_before_the_work_and_inputs_are_never_replaced(tool_env, tmp_path):
+    path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd m_defrag_page0_base_color.png\n",
+                             textures=("t0.png", "m_defrag_page0_base_color.png"))
+    (tmp_path / "a_file").write_text("")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    for out, message in ((tmp_path / "a_file", "is not a folder"), (tmp_path / "a_file" / "sub", "is not a folder"),
+                         (tmp_path, "would replace the input file")):
+        proc = subprocess.run([sys.executable, str(CLI), str(path), str(out)], env=tool_env,
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 1 and "Traceback" not in proc.stderr and message in proc.stderr, proc.stderr
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
+
+
+def test_gltf_colour_texture_reads_the_texcoord_set_it_names(tmp_path):
+    import json
+
+    import scan_io
+
+    path = _textured_triangle_gltf(tmp_path, {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "texCoord": 1}}},
+                                   {"source": 0})
+    gltf = json.loads(path.read_text())
+    gltf["meshes"][0]["primitives"][0]["attributes"] = {"POSITION": 0, "TEXCOORD_0": 0, "TEXCOORD_1": 1}
+    path.write_text(json.dumps(gltf))
+    scan = scan_io.load(path)
+    assert scan.face_page.tolist() == [0]
+    assert scan.uvs[0].tolist() == [[0, 1], [1, 1], [0, 0]]  # TEXCOORD_1, v turned up
+
+
+@pytest.mark.parametrize("line_end, start", [("\n", ""), ("\r\n", ""), ("\r", ""), ("\n", "\ufeff")])
+def test_obj_reader_takes_every_line_end_and_a_byte_order_mark(native, tmp_path, line_end, start):
+    path = tmp_path / "t.obj"
+    lines = ["v 0 0 0", "v 1 0 0", "v 0 1 0", "vt 0 0", "f 1/1 2/1 3/1", "f 3/1 2/1 1/1"]
+    path.write_bytes((start + line_end.join(lines) + line_end).encode("utf-8"))
+    obj = native.read_obj(str(path))
+    assert obj["positions"].shape == (3, 3) and obj["triangles"].tolist() == [[0, 1, 2], [2, 1, 0]]

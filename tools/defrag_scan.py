@@ -12,6 +12,7 @@ exists for machines and pipelines without Blender.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -57,6 +58,14 @@ def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: li
         pngs.result()
 
 
+def decoded(source, label: str) -> np.ndarray:
+    """scan_io.load_image, its failures (a file cut short) as DefragError naming the image."""
+    try:
+        return scan_io.load_image(source)
+    except (OSError, ValueError, SyntaxError) as exc:  # Pillow raises SyntaxError on some broken files
+        raise job.DefragError(f"cannot read the texture {label}: {exc}") from exc
+
+
 class DecodingImage:
     """A job.ImageData whose pixels a background thread decodes: the layout
     needs only the image's size (from its header), so it runs meanwhile and
@@ -65,11 +74,15 @@ class DecodingImage:
     def __init__(self, name: str, source, colorspace: str, pool: ThreadPoolExecutor):
         self.name, self.colorspace, self.is_float, self.alpha_mode = name, colorspace, False, "STRAIGHT"
         self.size = scan_io.image_size(source)
-        self._pixels = pool.submit(scan_io.load_image, source)
+        self._pixels = pool.submit(decoded, source, source_label(source, name))
 
     @property
     def pixels(self) -> np.ndarray:
         return self._pixels.result()
+
+
+def source_label(source, name: str) -> str:
+    return str(source) if isinstance(source, Path) else f"{name} (embedded)"
 
 
 def job_input(scan, pool: ThreadPoolExecutor = None) -> job.JobInput:
@@ -82,7 +95,8 @@ def job_input(scan, pool: ThreadPoolExecutor = None) -> job.JobInput:
         for role in sorted(roles, key=job.role_sort_key):
             name, colorspace = f"page{p}_{role}", "sRGB" if role == "base_color" else "Non-Color"
             images[name] = (DecodingImage(name, roles[role], colorspace, pool) if pool else
-                            job.ImageData(name, scan_io.load_image(roles[role]), colorspace=colorspace))
+                            job.ImageData(name, decoded(roles[role], source_label(roles[role], name)),
+                                          colorspace=colorspace))
             maps.append(job.ImageMap(role, name, normal_map=role == "normal"))
         pages.append(job.SourcePage(maps, groups.setdefault(tuple(m.role for m in maps), len(groups))))
     mesh = job.MeshData(scan.positions, scan.triangles, scan.uvs, scan.face_page)
@@ -138,6 +152,31 @@ def parse_args(argv):
     return parser.parse_args(argv)
 
 
+def folder_problem(folder: Path) -> str:
+    """Why OUT_DIR could not take the files ('' if it can), before the work."""
+    probe = folder
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    if not probe.is_dir():
+        return f"{probe} is not a folder"
+    if not os.access(probe, os.W_OK | os.X_OK):
+        return f"{probe} is not writable"
+    return ""
+
+
+def output_files(folder: Path, stem: str, maps: list[dict]) -> list[Path]:
+    """What write_obj writes: the OBJ, its MTL and one PNG per page and map."""
+    names = [f"{stem}.obj", f"{stem}.mtl"] + [f"{stem}_page{p}_{role}.png" for p, roles in enumerate(maps)
+                                                for role in roles]
+    return [folder / n for n in names]
+
+
+def overwritten_input(outputs: list[Path], inputs: list[Path]) -> str:
+    """The input file an output would replace, or ''."""
+    read = {os.path.realpath(p) for p in inputs}
+    return next((str(p) for p in outputs if os.path.realpath(p) in read), "")
+
+
 def main(argv=None) -> int:
     args = parse_args(argv)
     t0 = time.perf_counter()
@@ -146,28 +185,47 @@ def main(argv=None) -> int:
     except (OSError, ValueError) as exc:
         print(f"defrag_scan: error: cannot read {args.input}: {exc}", file=sys.stderr)
         return 1
+    problem = folder_problem(args.output)
+    if problem:
+        print(f"defrag_scan: error: cannot write into {args.output}: {problem}", file=sys.stderr)
+        return 1
+    for warning in scan.warnings:
+        print(f"defrag_scan: warning: {warning}", file=sys.stderr)
     chosen = job.Options(**{o.name: getattr(args, o.name) for o in options.SCHEMA})
     # The images decode without the GIL (zlib and native row filters for PNGs,
     # Pillow for the others), beside the layout, and the input's own
     # atlas is measured after that, where the layout leaves a core idle.
     with ThreadPoolExecutor(max_workers=1) as decoder:
-        inp = job_input(scan, decoder)
-        old = decoder.submit(measure_input, scan) if args.metrics else None
-        t_load = time.perf_counter() - t0
         try:
+            inp = job_input(scan, decoder)
+            old = decoder.submit(measure_input, scan) if args.metrics else None
+            t_load = time.perf_counter() - t0
             result = job.run(inp, chosen, progress=progress_line, native=_native)
-        except job.DefragError as exc:
+        except (job.DefragError, OSError, ValueError, SyntaxError) as exc:  # SyntaxError: Pillow's, on bad headers
             print(f"defrag_scan: error: {exc}", file=sys.stderr)
             return 1
     if sys.stderr.isatty():
         print(file=sys.stderr)
-    args.output.mkdir(parents=True, exist_ok=True)
+    maps = page_maps(result)
+    outputs = output_files(args.output, f"{args.input.stem}_defrag", maps)
+    replaced = overwritten_input(outputs, scan.files)
+    if replaced:
+        print(f"defrag_scan: error: writing would replace the input file {replaced}: choose another OUT_DIR",
+              file=sys.stderr)
+        return 1
     # The metrics run natively without the GIL, beside the writing (Python
     # formatting the OBJ text, zlib the PNGs).
     with ThreadPoolExecutor(max_workers=1) as pool:
         measured = pool.submit(quality, scan, inp, result, old.result()) if args.metrics else None
-        write_obj(args.output / f"{args.input.stem}_defrag.obj", scan, result.uvs, result.face_page,
-                  page_maps(result))
+        try:
+            args.output.mkdir(parents=True, exist_ok=True)
+            write_obj(outputs[0], scan, result.uvs, result.face_page, maps)
+        except OSError as exc:
+            for path in outputs:  # no OBJ left naming a PNG that was not written
+                if path.is_file():
+                    path.unlink()
+            print(f"defrag_scan: error: writing into {args.output} failed: {exc}", file=sys.stderr)
+            return 1
         m, fidelity = measured.result() if measured else (None, None)
     print(f"{args.input.name}: {len(scan.triangles)} faces")
     print_report(result, m, fidelity, t_load)

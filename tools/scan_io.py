@@ -27,6 +27,8 @@ class Scan:
     page_sizes: np.ndarray         # (P, 2) int32, width and height
     page_images: list = field(default_factory=list)  # per page: Path or bytes of the base colour image
     maps: list = field(default_factory=list)         # per page: {role: Path or bytes}
+    files: list = field(default_factory=list)        # every file read (model, MTL, buffers, textures)
+    warnings: list = field(default_factory=list)     # what was read otherwise than asked (textures missing)
 
 
 def load_image(source) -> np.ndarray:
@@ -66,7 +68,7 @@ def load(path) -> Scan:
     suffix = path.suffix.lower()
     if suffix == ".obj":
         return load_obj(path)
-    if suffix == ".glb":
+    if suffix == ".glb" or (suffix == ".gltf" and _starts_as_glb(path)):
         return load_glb(path)
     if suffix == ".gltf":
         return load_gltf(path)
@@ -75,23 +77,56 @@ def load(path) -> Scan:
     raise ValueError(f"unsupported scan format: {path.suffix} (OBJ, glTF, GLB or PLY)")
 
 
+def _starts_as_glb(path: Path) -> bool:
+    with open(path, "rb") as f:
+        return f.read(4) == b"glTF"
+
+
 # ---- OBJ ------------------------------------------------------------------
 
-def _read_mtl_textures(obj_path: Path, mtllibs: list[str]) -> dict[str, Path]:
-    textures: dict[str, Path] = {}
+def _material_libraries(obj_path: Path, mtllibs: list[str]) -> list[Path]:
+    """The MTL files of an OBJ: each mtllib statement names one file, whose
+    name may hold spaces, or several (the OBJ format allows both)."""
+    found = []
     for lib in mtllibs:
-        mtl = obj_path.parent / lib
-        if not mtl.exists():
+        whole = obj_path.parent / lib.replace("\\", "/")
+        found += [whole] if whole.is_file() else [obj_path.parent / n for n in lib.split()]
+    return found
+
+
+def _texture_path(reference: str, folders: list[Path]) -> Path:
+    """The file a map_Kd statement names: its arguments after the options,
+    with a trailing comment or only the last word as fallbacks (older writers
+    never quoted names), relative to the MTL's folder, then the OBJ's; a path
+    from another machine (C:\\...) by its file name there."""
+    from atlas_defrag import mtl_text
+
+    whole = mtl_text.map_file(reference).replace("\\", "/")
+    names = [whole, whole.split(" #")[0].strip(), whole.split()[-1] if whole.split() else ""]
+    names += [n.rsplit("/", 1)[-1] for n in names]
+    for name in filter(None, names):
+        for folder in folders:
+            if (folder / name).is_file():
+                return folder / name
+    return folders[0] / whole
+
+
+def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, Path]:
+    """material name -> its map_Kd file (which may not exist)."""
+    textures: dict[str, Path] = {}
+    for mtl in libraries:
+        if not mtl.is_file():
             continue
         current = None
-        for line in mtl.read_text(errors="replace").splitlines():
-            parts = line.split()
+        for line in mtl.read_text(encoding="utf-8-sig", errors="replace").splitlines():
+            parts = line.split(None, 1)
             if not parts:
                 continue
-            if parts[0] == "newmtl":
-                current = " ".join(parts[1:])
-            elif parts[0] == "map_Kd" and current is not None:
-                textures[current] = obj_path.parent / parts[-1].replace("\\", "/")
+            keyword, rest = parts[0].lower(), parts[1].strip() if len(parts) > 1 else ""
+            if keyword == "newmtl":
+                current = rest
+            elif keyword == "map_kd" and current is not None:
+                textures[current] = _texture_path(rest, [mtl.parent, obj_path.parent])
     return textures
 
 
@@ -108,13 +143,18 @@ def load_obj(path: Path) -> Scan:
     uvs = vt[np.maximum(uv_idx, 0)] if len(vt) else np.zeros((len(tris), 3, 2))
     uvs[~has_uv] = 0.0
 
-    textures = _read_mtl_textures(path, obj["material_libraries"])
-    pages, page_of = [], {}
+    libraries = _material_libraries(path, obj["material_libraries"])
+    textures = _read_mtl_textures(path, libraries)
+    pages, page_of, warnings = [], {}, []
     material_page = np.full(len(obj["materials"]) + 1, -1, dtype=np.int32)  # the last: no usemtl
-    used, first_face = np.unique(obj["face_material"][has_uv], return_index=True)
-    for m in used[np.argsort(first_face)]:  # pages in the order faces first use them
+    used, first_face, counts = np.unique(obj["face_material"][has_uv], return_index=True, return_counts=True)
+    for k in np.argsort(first_face):  # pages in the order faces first use them
+        m = used[k]
         tex = textures.get(obj["materials"][m]) if m >= 0 else None
-        if tex is None or not tex.exists():
+        if tex is not None and not tex.is_file():
+            warnings.append(f"texture {tex} of material '{obj['materials'][m]}' not found: its {counts[k]} "
+                            "faces are left untextured")
+        if tex is None or not tex.is_file():
             continue
         if tex not in page_of:
             page_of[tex] = len(pages)
@@ -122,7 +162,8 @@ def load_obj(path: Path) -> Scan:
         material_page[m] = page_of[tex]
     face_page = np.where(has_uv, material_page[obj["face_material"]], -1).astype(np.int32)
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
-    return Scan(obj["positions"], tris, uvs, face_page, sizes, pages, [{"base_color": p} for p in pages])
+    return Scan(obj["positions"], tris, uvs, face_page, sizes, pages, [{"base_color": p} for p in pages],
+                files=[path] + [m for m in libraries if m.is_file()] + pages, warnings=warnings)
 
 
 # ---- PLY ------------------------------------------------------------------
@@ -133,13 +174,14 @@ def load_ply(path: Path) -> Scan:
     from atlas_defrag import ply_io
 
     mesh = ply_io.read(path.read_bytes())
-    found, face_page, _ = ply_io.face_textures(mesh, str(path.parent))
+    found, face_page, missing = ply_io.face_textures(mesh, str(path.parent))
     pages = [Path(p) for p in found]
     face_page = face_page.astype(np.int32) if mesh.uvs is not None else np.full(len(mesh.triangles), -1, np.int32)
     uvs = mesh.uvs if mesh.uvs is not None else np.zeros((len(mesh.triangles), 3, 2))
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
+    warnings = [f"texture {name} not found: its faces are left untextured" for name in missing]
     return Scan(mesh.positions, mesh.triangles.astype(np.int32), uvs, face_page, sizes, pages,
-                [{"base_color": p} for p in pages])
+                [{"base_color": p} for p in pages], files=[path] + pages, warnings=warnings)
 
 
 # ---- glTF and GLB -----------------------------------------------------------
@@ -148,18 +190,46 @@ _COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 
 
-def _accessor(gltf: dict, buffers: list, index: int) -> np.ndarray:
-    acc = gltf["accessors"][index]
-    view = gltf["bufferViews"][acc["bufferView"]]
-    binary = buffers[view["buffer"]]
-    dtype = np.dtype(_COMPONENTS[acc["componentType"]])
-    width = _WIDTH[acc["type"]]
-    start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+def _item(items: list, index, what: str):
+    """items[index] for a glTF index, which must be a non-negative int in range
+    (Python would take -1 from the end)."""
+    if not isinstance(index, int) or isinstance(index, bool) or not 0 <= index < len(items):
+        raise ValueError(f"{what} index {index!r} is out of range (0..{len(items) - 1})")
+    return items[index]
+
+
+def _view_values(gltf: dict, buffers: list, view_index: int, offset: int, count: int, dtype, width: int):
+    """(count, width) values of dtype from a buffer view, byteStride honoured."""
+    view = _item(gltf["bufferViews"], view_index, "bufferView")
+    binary = _item(buffers, view["buffer"], "buffer")
+    start = view.get("byteOffset", 0) + offset
     stride = view.get("byteStride", dtype.itemsize * width)
-    raw = np.frombuffer(binary, dtype=np.uint8, count=stride * (acc["count"] - 1) + dtype.itemsize * width,
-                        offset=start)
-    rows = np.lib.stride_tricks.as_strided(raw, (acc["count"], dtype.itemsize * width), (stride, 1))
-    values = np.ascontiguousarray(rows).view(dtype).reshape(acc["count"], width)
+    raw = np.frombuffer(binary, dtype=np.uint8, count=stride * (count - 1) + dtype.itemsize * width, offset=start)
+    rows = np.lib.stride_tricks.as_strided(raw, (count, dtype.itemsize * width), (stride, 1))
+    return np.ascontiguousarray(rows).view(dtype).reshape(count, width)
+
+
+def _accessor(gltf: dict, buffers: list, index: int) -> np.ndarray:
+    """An accessor's values: from its buffer view (zeros without one), with
+    its sparse substitutions applied, normalized integers as floats."""
+    acc = _item(gltf["accessors"], index, "accessor")
+    dtype = np.dtype(_COMPONENTS[acc["componentType"]])
+    width, count = _WIDTH[acc["type"]], acc["count"]
+    if "bufferView" in acc:
+        values = _view_values(gltf, buffers, acc["bufferView"], acc.get("byteOffset", 0), count, dtype, width)
+    else:
+        values = np.zeros((count, width), dtype)
+    sparse = acc.get("sparse")
+    if sparse:
+        n = sparse["count"]
+        at = sparse["indices"]
+        rows = _view_values(gltf, buffers, at["bufferView"], at.get("byteOffset", 0), n,
+                            np.dtype(_COMPONENTS[at["componentType"]]), 1)[:, 0].astype(np.int64)
+        if n and (rows.min() < 0 or rows.max() >= count):
+            raise ValueError(f"accessor {index}: a sparse index is out of range")
+        values = values.copy()
+        values[rows] = _view_values(gltf, buffers, sparse["values"]["bufferView"],
+                                    sparse["values"].get("byteOffset", 0), n, dtype, width)
     if acc.get("normalized"):
         values = values.astype(np.float64) / np.iinfo(dtype).max
     return values
@@ -189,12 +259,13 @@ def _texture_source(texture: dict) -> int:
 
 
 def _image_bytes(gltf: dict, buffers: list, folder: Path, texture_index: int) -> bytes:
-    image = gltf["images"][_texture_source(gltf["textures"][texture_index])]
+    texture = _item(gltf["textures"], texture_index, "texture")
+    image = _item(gltf["images"], _texture_source(texture), "image")
     if "uri" in image:
         return _uri_bytes(image["uri"], folder)
-    view = gltf["bufferViews"][image["bufferView"]]
+    view = _item(gltf["bufferViews"], image["bufferView"], "bufferView")
     start = view.get("byteOffset", 0)
-    return buffers[view["buffer"]][start:start + view["byteLength"]]
+    return _item(buffers, view["buffer"], "buffer")[start:start + view["byteLength"]]
 
 
 def _node_matrices(gltf: dict):
@@ -212,18 +283,21 @@ def _node_matrices(gltf: dict):
         return t
 
     nodes = gltf.get("nodes", [])
-    roots = gltf["scenes"][gltf.get("scene", 0)].get("nodes", []) if gltf.get("scenes") else range(len(nodes))
-    # Each entry carries its ancestors: a node listed among its own
-    # descendants would otherwise be walked forever.
-    stack = [(n, np.eye(4), frozenset()) for n in roots]
+    roots = _item(gltf["scenes"], gltf.get("scene", 0), "scene").get("nodes", []) if gltf.get("scenes") \
+        else range(len(nodes))
+    # The nodes form a tree: a node reached twice (a cycle, or two parents
+    # sharing it) would otherwise be walked forever or 2^depth times.
+    stack, reached = [(n, np.eye(4)) for n in roots], set()
     while stack:
-        n, parent, ancestors = stack.pop()
-        if n in ancestors:
-            raise ValueError(f"glTF node {n} is its own ancestor (the node hierarchy has a cycle)")
-        world = parent @ local(nodes[n])
-        if "mesh" in nodes[n]:
-            yield nodes[n]["mesh"], world
-        stack.extend((c, world, ancestors | {n}) for c in nodes[n].get("children", []))
+        n, parent = stack.pop()
+        node = _item(nodes, n, "node")
+        if n in reached:
+            raise ValueError(f"glTF node {n} is reached twice (the node hierarchy must be a tree)")
+        reached.add(n)
+        world = parent @ local(node)
+        if "mesh" in node:
+            yield node["mesh"], world
+        stack.extend((c, world) for c in node.get("children", []))
 
 
 def load_glb(path: Path) -> Scan:
@@ -266,6 +340,10 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
                          "support")
     try:
         scan = _scan_from_gltf(gltf, read_buffers(), path.parent)
+        if scan is not None:
+            scan.files = [path] + [path.parent / urllib.parse.unquote(item["uri"])
+                                   for item in gltf.get("buffers", []) + gltf.get("images", [])
+                                   if not item.get("uri", "data:").startswith("data:")]
     except UnreadableTexture:
         raise
     except OSError as exc:
@@ -277,11 +355,28 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
     return scan
 
 
+_TRIANGLES, _STRIP, _FAN = 4, 5, 6
+
+
 def _primitive_triangles(gltf: dict, buffers: list, prim: dict, vertex_count: int) -> np.ndarray:
-    """(T, 3) vertex indices; a primitive without indices lists its vertices in order."""
-    if "indices" not in prim:
-        return np.arange(vertex_count - vertex_count % 3, dtype=np.int64).reshape(-1, 3)
-    return _accessor(gltf, buffers, prim["indices"]).reshape(-1, 3).astype(np.int64)
+    """(T, 3) vertex indices of a triangle list, strip or fan; a primitive
+    without indices lists its vertices in order. Strip triangles alternate
+    their order so that all keep one winding; degenerate ones (a strip's
+    joins) are dropped."""
+    order = (_accessor(gltf, buffers, prim["indices"]).reshape(-1).astype(np.int64) if "indices" in prim
+             else np.arange(vertex_count, dtype=np.int64))
+    if order.size and (order.min() < 0 or order.max() >= vertex_count):
+        raise ValueError(f"a vertex index is outside the primitive's {vertex_count} vertices")
+    mode = prim.get("mode", _TRIANGLES)
+    if mode == _TRIANGLES:
+        return order[:len(order) - len(order) % 3].reshape(-1, 3)
+    k = np.arange(max(len(order) - 2, 0))
+    if mode == _STRIP:
+        tris = np.stack([order[k + k % 2], order[k + 1 - k % 2], order[k + 2]], axis=1)
+    else:
+        tris = np.stack([np.full_like(k, order[0] if len(order) else 0), order[k + 1], order[k + 2]], axis=1)
+    keep = (tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 0] != tris[:, 2])
+    return tris[keep]
 
 
 def _colour_texture(material: dict):
@@ -298,6 +393,10 @@ def _material_maps(gltf: dict, buffers: list, folder: Path, material: dict) -> d
     only in a format Pillow cannot read is left out: the colour still bakes."""
     pbr = material.get("pbrMetallicRoughness", {})
     roles = {"base_color": _image_bytes(gltf, buffers, folder, _colour_texture(material)["index"])}
+    if any(slot is not None and slot.get("texCoord", 0) != _colour_texture(material).get("texCoord", 0)
+           for slot in (material.get("normalTexture"), material.get("occlusionTexture"),
+                        pbr.get("metallicRoughnessTexture"), material.get("emissiveTexture"))):
+        raise ValueError("a material's maps read different TEXCOORD sets, which this reader does not support")
     for role, slot in (("normal", material.get("normalTexture")), ("occlusion", material.get("occlusionTexture")),
                        ("metallic_roughness", pbr.get("metallicRoughnessTexture")),
                        ("emission", material.get("emissiveTexture"))):
@@ -315,16 +414,20 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
     page_of, maps = {}, []
     base = 0
     for mesh_index, world in _node_matrices(gltf):
-        for prim in gltf["meshes"][mesh_index]["primitives"]:
-            if prim.get("mode", 4) != 4:
-                continue
+        for prim in _item(gltf["meshes"], mesh_index, "mesh")["primitives"]:
+            if prim.get("mode", _TRIANGLES) not in (_TRIANGLES, _STRIP, _FAN):
+                continue  # points and lines
             pos = _accessor(gltf, buffers, prim["attributes"]["POSITION"]).astype(np.float64)
             pos = pos @ world[:3, :3].T + world[:3, 3]
             idx = _primitive_triangles(gltf, buffers, prim, len(pos))
-            material = gltf["materials"][prim["material"]] if "material" in prim else {}
+            if np.linalg.det(world[:3, :3]) < 0:  # a mirroring transform turns the winding round
+                idx = idx[:, ::-1]
+            material = _item(gltf["materials"], prim["material"], "material") if "material" in prim else {}
+            slot = _colour_texture(material) or {}
+            coords = f"TEXCOORD_{slot.get('texCoord', 0)}"
             page = -1
-            if "TEXCOORD_0" in prim["attributes"]:
-                uv = _accessor(gltf, buffers, prim["attributes"]["TEXCOORD_0"]).astype(np.float64)
+            if coords in prim["attributes"]:
+                uv = _accessor(gltf, buffers, prim["attributes"][coords]).astype(np.float64)
                 uv[:, 1] = 1.0 - uv[:, 1]  # glTF puts v = 0 at the top
                 uvs.append(uv[idx])
                 if _colour_texture(material) is not None:

@@ -571,43 +571,15 @@ def _verify_obj_references(folder: str, model: str, images) -> list:
 
 def _map_files(mtl: bytes) -> set:
     """The files the map statements of an MTL file's text name."""
-    return {_map_file(_rest_of(ln)) for statement in (b"map_", b"bump", b"disp", b"norm", b"refl")
-            for ln in _lines_starting(mtl, statement)}
+    mtl_text = importlib.import_module(_package().__name__ + ".mtl_text")
+    return {mtl_text.map_file(_rest_of(ln)) for statement in mtl_text.MAP_STATEMENTS
+            for ln in _lines_starting(mtl, statement.encode())}
 
 
 def _rest_of(line: bytes) -> str:
     """A statement's argument: the line after its first word, spaces inside kept."""
     parts = line.split(None, 1)
     return parts[1].strip().decode("utf-8", "replace") if len(parts) > 1 else ""
-
-
-# Options of an MTL map statement and how many words follow each; -o, -s and
-# -t take one to three numbers.
-_MAP_OPTION_WORDS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1,
-                     "-mm": 2, "-texres": 1, "-type": 1, "-o": 3, "-s": 3, "-t": 3}
-
-
-def _map_file(arguments: str) -> str:
-    """The file a map statement names: its arguments after the options (a
-    file name may hold spaces)."""
-    words = list(re.finditer(r"\S+", arguments))
-    i = 0
-    while i < len(words) - 1 and words[i].group().lower() in _MAP_OPTION_WORDS:
-        option = words[i].group().lower()
-        i += 1
-        for _ in range(_MAP_OPTION_WORDS[option]):
-            if i >= len(words) - 1 or (option in ("-o", "-s", "-t") and not _is_number(words[i].group())):
-                break
-            i += 1
-    return arguments[words[i].start():] if i < len(words) else ""
-
-
-def _is_number(word: str) -> bool:
-    try:
-        float(word)
-    except ValueError:
-        return False
-    return True
 
 
 def _lines_starting(data: bytes, prefix: bytes) -> list:

@@ -196,9 +196,13 @@ ObjFile read_obj(const std::string& path) {
   const std::string text = file_contents(path);
   Lists lists;
   const std::string_view all(text);
+  // Lines end in \n (a \r before it is a space to read_line); files of old
+  // Mac tools end them in \r alone. A UTF-8 byte-order mark is skipped.
+  const char line_end = all.find('\n') == std::string_view::npos ? '\r' : '\n';
+  const std::string_view bom = "\xEF\xBB\xBF";
   int number = 1;
-  for (size_t start = 0; start < all.size(); ++number) {
-    size_t end = all.find('\n', start);
+  for (size_t start = all.substr(0, 3) == bom ? 3 : 0; start < all.size(); ++number) {
+    size_t end = all.find(line_end, start);
     if (end == std::string_view::npos) end = all.size();
     std::string_view line = all.substr(start, end - start);
     line = line.substr(0, line.find('#'));
