@@ -605,6 +605,18 @@ TEST(PackCharts, LongChartIsRotatedToFit) {
   expect_reported_transform(charts, result);
 }
 
+TEST(PackCharts, AChartWithoutAreaKeepsItsCornersOnThePage) {
+  // Corners on one texel row: no texel overlaps the chart, but it spans 200.
+  RowMatrixX2d segment(3, 2);
+  segment << 0, 0, 100, 0, 200, 0;
+  const PackResult result = pack_charts({segment, rectangle(6, 6)}, PackOptions(), RunControl());
+  ASSERT_EQ(result.pages.size(), 1u);
+  for (const RowMatrixX2d& uv : result.placed_uv) {
+    EXPECT_GE(uv.minCoeff(), 0.0);
+    EXPECT_LE(uv.maxCoeff(), 1.0);
+  }
+}
+
 TEST(PackCharts, DegenerateInputs) {
   RowMatrixX2d point(3, 2), with_nan = rectangle(8, 8, 100, 100);
   point << 5, 5, 5, 5, 5, 5;

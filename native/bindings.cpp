@@ -720,6 +720,8 @@ ColorFidelity compare_typed(const Mesh& mesh, const py::list& old_images, const 
 py::dict compare_colors_py(const py::object& positions, const py::object& triangles, const py::object& old_uvs,
                            const py::object& old_face_page, const py::list& old_images, const py::object& new_uvs,
                            const py::object& new_face_page, const py::list& new_images, int samples, unsigned seed) {
+  constexpr int kMaxSamples = 100'000'000;  // about a minute; far more than any figure needs
+  if (samples > kMaxSamples) throw py::value_error("samples must be at most 100,000,000");
   const std::vector<PageSize> old_pages = image_sizes(old_images, "old_images");
   const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, old_pages);
   const LayoutArrays new_l = layout_arrays(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page",

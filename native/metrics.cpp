@@ -543,12 +543,12 @@ ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const 
   const ColorPair<T> pair{old_atlas, old_images, new_atlas, new_images, face_chart, owner, old_sizes};
 
   constexpr int kChunk = 4096;  // per-chunk partial sums keep the total independent of thread count
-  const int chunks = (samples + kChunk - 1) / kChunk;
+  const int chunks = static_cast<int>((static_cast<long long>(samples) + kChunk - 1) / kChunk);
   std::vector<ColorSums> chunk_sums(chunks);
   const std::uint64_t stream = splitmix64(0x5eed0000ull ^ seed);
 #pragma omp parallel for schedule(dynamic, 1)
   for (int chunk = 0; chunk < chunks; ++chunk) {
-    const int begin = chunk * kChunk, end = std::min(samples, begin + kChunk);
+    const int begin = chunk * kChunk, end = samples - begin < kChunk ? samples : begin + kChunk;
     chunk_sums[chunk] = sample_run(pair, area, samples, stream, begin, end);
   }
   return fidelity_of(chunk_sums, samples);

@@ -266,3 +266,25 @@ def test_ten_thousand_stacked_one_triangle_charts_all_pack(native, groups):
     m = native.measure(positions, triangles, uvs, face_page, sizes, r["uvs"], r["face_page"], r["page_sizes"])
     assert m["new"]["overlap_texels"] == 0
     assert m["new"]["flipped_faces"] == 0
+
+
+def test_a_sliver_whose_footprint_reaches_far_off_the_page_bakes_safely(native):
+    """A new face of almost no area maps its texels 1e19 old texels apart: the
+    taps wrap round the old page exactly (the process used to read outside
+    it and crash)."""
+    img = np.zeros((7, 39, 3), np.uint8)
+    old = np.array([[[0, 0], [27531841.384615384, 0], [12485631.961439135, 27531841.384615384]]])
+    new = np.array([[[-524262.2007688674, 19.4033203125], [524313.7992311326, 19.4033203125],
+                     [25.79923113261627, 19.403320312500004]]]) / 64
+    out = native.bake(old, np.zeros(1, np.int32), [img], new, np.zeros(1, np.int32), np.array([[64, 64]]), padding=4)
+    assert out[0].shape == (64, 64, 3)
+
+
+def test_compare_colors_refuses_more_samples_than_it_can_count(native):
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    triangles = np.array([[0, 1, 2]], np.int32)
+    uvs = np.array([[[0.1, 0.1], [0.9, 0.1], [0.1, 0.9]]])
+    img = np.zeros((8, 8, 3), np.uint8)
+    page = np.zeros(1, np.int32)
+    with pytest.raises(ValueError, match="samples must be at most"):
+        native.compare_colors(positions, triangles, uvs, page, [img], uvs, page, [img], samples=2 ** 31 - 1)

@@ -221,7 +221,8 @@ struct EdgePlace {
 };
 
 EdgePlace place_of(const FaceMap& face, int k) {
-  Eigen::Vector2d a = face.corner[k], b = face.corner[(k + 1) % 3];
+  // + 0.0 turns -0.0 into 0.0: equal places must hash alike, bit for bit.
+  Eigen::Vector2d a = face.corner[k].array() + 0.0, b = face.corner[(k + 1) % 3].array() + 0.0;
   if (std::tie(b.x(), b.y()) < std::tie(a.x(), a.y())) std::swap(a, b);
   return {face.new_page, {a.x(), a.y(), b.x(), b.y()}};
 }

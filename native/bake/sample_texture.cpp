@@ -45,10 +45,13 @@ inline Tap wrapped_tap(double u, int n) {
     const int lo = static_cast<int>(g);
     return {lo, lo + 1, g - lo};
   }
-  const double r = g - n * std::floor(g / n);  // in [0, n]; n only through rounding
-  const int whole = static_cast<int>(r);
-  const int lo = whole >= n ? whole - n : whole;
-  return {lo, lo + 1 == n ? 0 : lo + 1, r - whole};
+  // fmod is exact at any magnitude (g - n floor(g / n) is not: far off the
+  // page, as a sliver's footprint can reach, its rounding exceeds n).
+  double r = std::fmod(g, static_cast<double>(n));
+  if (r < 0) r += n;
+  if (!(r >= 0 && r < n)) r = 0;  // n by rounding, or g not finite
+  const int lo = static_cast<int>(r);
+  return {lo, lo + 1 == n ? 0 : lo + 1, r - lo};
 }
 
 // Bilinear interpolation of the four texels around the taps, C channels.

@@ -9,15 +9,19 @@
 namespace atlas {
 
 // A 64-bit hash of words[0 .. n): each word is folded in with a multiply and a
-// shift (after splitmix64), so keys that differ in any bit spread over the
-// table. Equal keys hash equally; nothing else is promised.
+// shift, then the whole is finalized as splitmix64 finalizes, so that every
+// bit of every word reaches the low bits that pick a slot (a word's high bits
+// reach them only through a later multiply). Equal keys hash equally; nothing
+// else is promised.
 inline std::uint64_t hash_words(const std::uint64_t* words, std::size_t n) {
   std::uint64_t h = 0x9e3779b97f4a7c15ull;
   for (std::size_t i = 0; i < n; ++i) {
     h = (h ^ words[i]) * 0xbf58476d1ce4e5b9ull;
     h ^= h >> 31;
   }
-  return h;
+  h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+  h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+  return h ^ (h >> 31);
 }
 
 // first[i] = the smallest j with key(j) == key(i), for i in [0, n): key(i)

@@ -512,13 +512,15 @@ class CutSearch {
   // within `budget` (3D length): the chart is replaced by its two pieces,
   // turned to their smallest boxes unless they keep their original UVs.
   // Returns the seam it added (0: no cut).
-  double cut_best_chord(int c, double budget) {
+  // The 3D length of the seam the cut added (0 for a cut along faces of no
+  // area), or nothing when chart c's best chord made no cut.
+  std::optional<double> cut_best_chord(int c, double budget) {
     const Chord chord = chords_[c].front();
     chords_[c].erase(chords_[c].begin());
-    if (chord.length * per_texel_[c] > budget) return 0;
+    if (chord.length * per_texel_[c] > budget) return std::nullopt;
     if (across_[c].empty()) across_[c] = chart_neighbours(mesh_, topology_, charts_[c], c, slots_);
     auto split = split_along(mesh_, charts_[c], across_[c], chord);
-    if (!split || split->seam_3d > budget) return 0;
+    if (!split || split->seam_3d > budget) return std::nullopt;
     for (FlatChart& piece : split->pieces)
       if (!piece.kept_original) piece.corner_uv = turned_to_smallest_box(piece.corner_uv);
     const int added = static_cast<int>(charts_.size());
@@ -574,8 +576,10 @@ PackingCutStats cut_for_packing(const Mesh& mesh, const MeshTopology& topology, 
   search.evaluate_all(control);
   for (int c = search.best_chart(); c >= 0; c = search.best_chart()) {
     control.throw_if_cancelled();
-    const double seam = search.cut_best_chord(c, options.seam_budget - stats.seam_added_3d);
-    if (seam > 0) ++stats.cuts, stats.seam_added_3d += seam;
+    if (const auto seam = search.cut_best_chord(c, options.seam_budget - stats.seam_added_3d)) {
+      ++stats.cuts;
+      stats.seam_added_3d += *seam;
+    }
   }
   return stats;
 }

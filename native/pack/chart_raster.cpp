@@ -71,9 +71,15 @@ TexelMask rasterize_chart(const RowMatrixX2d& corner_texels) {
     append_triangle_runs(p, runs);
   }
   if (runs.empty()) {
-    const int x = corner_texels.rows() ? static_cast<int>(std::floor(corner_texels(0, 0))) : 0;
-    const int y = corner_texels.rows() ? static_cast<int>(std::floor(corner_texels(0, 1))) : 0;
-    runs.push_back({y, x, x + 1});
+    // No area (a point, or segments along texel borders): the texels of its
+    // corners' box, so that a placed chart keeps every corner on its page.
+    Eigen::Vector2d lo = Eigen::Vector2d::Zero(), hi = Eigen::Vector2d::Zero();
+    if (corner_texels.rows() > 0) {
+      lo = corner_texels.colwise().minCoeff().transpose().array().floor();
+      hi = corner_texels.colwise().maxCoeff().transpose().array().floor();
+    }
+    for (int y = static_cast<int>(lo.y()); y <= static_cast<int>(hi.y()); ++y)
+      runs.push_back({y, static_cast<int>(lo.x()), static_cast<int>(hi.x()) + 1});
   }
   int x_min = runs[0].x_begin, x_max = runs[0].x_end, y_min = runs[0].y, y_max = runs[0].y;
   for (const TexelRun& run : runs) {
