@@ -72,10 +72,14 @@ class Straightener {
       if (in_.seam[edge(f, k)]) return true;
     return false;
   }
-  // Sign of chart c's winding in UV.
+  // Sign of chart c's winding in UV: that of its first face with area (a
+  // face of none, which a flattening may leave, has no sign).
   double winding(int c) const {
-    const int f = charts_[c].faces.front();
-    return signed_area(uv(f, vertex(f, 0)), uv(f, vertex(f, 1)), uv(f, vertex(f, 2))) > 0 ? 1.0 : -1.0;
+    for (int f : charts_[c].faces) {
+      const double area = signed_area(uv(f, vertex(f, 0)), uv(f, vertex(f, 1)), uv(f, vertex(f, 2)));
+      if (area != 0) return area > 0 ? 1.0 : -1.0;
+    }
+    return 1.0;
   }
 
   // Solved charts of one face group that share an edge, longest border first.
