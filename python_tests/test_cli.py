@@ -328,6 +328,8 @@ def test_a_missing_texture_is_named_and_its_faces_left_untextured(tool_env, tmp_
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "warning: texture" in proc.stderr and "gone.png" in proc.stderr and "2 faces" in proc.stderr, proc.stderr
+    # The output's MTL defines the material its untextured faces use.
+    assert "newmtl untextured" in (tmp_path / "out" / "m_defrag.mtl").read_text()
 
 
 def test_a_texture_cut_short_ends_in_one_line(tool_env, tmp_path):

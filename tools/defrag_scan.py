@@ -42,6 +42,7 @@ def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: li
     stem = path.stem
     images = []
     with open(path.with_suffix(".mtl"), "w") as mtl:
+        mtl.write("newmtl untextured\nKd 0.8 0.8 0.8\n")  # faces without a page use it
         for page, roles in enumerate(maps):
             mtl.write(f"newmtl page{page}\nKd 1 1 1\n")
             for role, image in roles.items():
