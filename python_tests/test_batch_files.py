@@ -53,8 +53,8 @@ def test_obj_faces_counted_and_cut_caught(tmp_path):
 
 
 def test_obj_material_libraries_found_and_checked(tmp_path):
-    (tmp_path / "scan.obj").write_bytes(b"mtllib first.mtl\r\n" + OBJ + b"usemtl a\nusemtl b c\n  mtllib  last.mtl\n"
-                                        b"# mtllib not.mtl")
+    (tmp_path / "scan.obj").write_bytes(b"mtllib first.mtl\r\n" + OBJ + b"usemtl a\nusemtl b c\nusemtl \n"
+                                        b"  mtllib  last.mtl\n# mtllib not.mtl")
     names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "scan.obj"))}
     assert names == {"scan.obj", "first.mtl", "scan.mtl", "last.mtl"}
     (tmp_path / "spaced.obj").write_bytes(b"mtllib my scan.mtl\n" + OBJ)

@@ -550,7 +550,7 @@ def _verify_obj_references(folder: str, model: str, images) -> list:
     broken ones) are not checked."""
     with open(os.path.join(folder, model), "rb") as f:
         obj = f.read()
-    used = {_rest_of(ln) for ln in _lines_starting(obj, b"usemtl")}
+    used = {_rest_of(ln) for ln in _lines_starting(obj, b"usemtl")} - {""}  # "": an empty material slot
     defined, named = set(), set()
     for lib in (_rest_of(ln) for ln in _lines_starting(obj, b"mtllib")):
         lib_path = os.path.join(folder, lib)
