@@ -178,44 +178,51 @@ def overwritten_input(outputs: list[Path], inputs: list[Path]) -> str:
     return next((str(p) for p in outputs if os.path.realpath(p) in read), "")
 
 
-def main(argv=None) -> int:
-    args = parse_args(argv)
-    t0 = time.perf_counter()
+class Failed(Exception):
+    """Ends the run with its message on stderr and exit code 1."""
+
+
+def load_checked(args):
+    """The scan, once OUT_DIR is known to be able to take the files."""
     try:
         scan = scan_io.load(args.input)
     except (OSError, ValueError) as exc:
-        print(f"defrag_scan: error: cannot read {args.input}: {exc}", file=sys.stderr)
-        return 1
+        raise Failed(f"cannot read {args.input}: {exc}") from exc
     problem = folder_problem(args.output)
     if problem:
-        print(f"defrag_scan: error: cannot write into {args.output}: {problem}", file=sys.stderr)
-        return 1
+        raise Failed(f"cannot write into {args.output}: {problem}")
     for warning in scan.warnings:
         print(f"defrag_scan: warning: {warning}", file=sys.stderr)
+    return scan
+
+
+def run_job(args, scan):
+    """(job input, result, the input atlas's measures pending or None). The
+    images decode without the GIL (zlib and native row filters for PNGs,
+    Pillow for the others), beside the layout, and the input's own atlas is
+    measured after that, where the layout leaves a core idle."""
     chosen = job.Options(**{o.name: getattr(args, o.name) for o in options.SCHEMA})
-    # The images decode without the GIL (zlib and native row filters for PNGs,
-    # Pillow for the others), beside the layout, and the input's own
-    # atlas is measured after that, where the layout leaves a core idle.
     with ThreadPoolExecutor(max_workers=1) as decoder:
         try:
             inp = job_input(scan, decoder)
             old = decoder.submit(measure_input, scan) if args.metrics else None
-            t_load = time.perf_counter() - t0
             result = job.run(inp, chosen, progress=progress_line, native=_native)
         except (job.DefragError, OSError, ValueError, SyntaxError) as exc:  # SyntaxError: Pillow's, on bad headers
-            print(f"defrag_scan: error: {exc}", file=sys.stderr)
-            return 1
+            raise Failed(str(exc)) from exc
     if sys.stderr.isatty():
         print(file=sys.stderr)
+    return inp, result, old
+
+
+def write_checked(args, scan, inp, result, old):
+    """Writes the files, never over one the scan was read from, none left
+    when writing fails; the metrics (measured natively without the GIL,
+    beside the writing) or (None, None)."""
     maps = page_maps(result)
     outputs = output_files(args.output, f"{args.input.stem}_defrag", maps)
     replaced = overwritten_input(outputs, scan.files)
     if replaced:
-        print(f"defrag_scan: error: writing would replace the input file {replaced}: choose another OUT_DIR",
-              file=sys.stderr)
-        return 1
-    # The metrics run natively without the GIL, beside the writing (Python
-    # formatting the OBJ text, zlib the PNGs).
+        raise Failed(f"writing would replace the input file {replaced}: choose another OUT_DIR")
     with ThreadPoolExecutor(max_workers=1) as pool:
         measured = pool.submit(quality, scan, inp, result, old.result()) if args.metrics else None
         try:
@@ -225,9 +232,21 @@ def main(argv=None) -> int:
             for path in outputs:  # no OBJ left naming a PNG that was not written
                 if path.is_file():
                     path.unlink()
-            print(f"defrag_scan: error: writing into {args.output} failed: {exc}", file=sys.stderr)
-            return 1
-        m, fidelity = measured.result() if measured else (None, None)
+            raise Failed(f"writing into {args.output} failed: {exc}") from exc
+        return measured.result() if measured else (None, None)
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    t0 = time.perf_counter()
+    try:
+        scan = load_checked(args)
+        t_load = time.perf_counter() - t0
+        inp, result, old = run_job(args, scan)
+        m, fidelity = write_checked(args, scan, inp, result, old)
+    except Failed as exc:
+        print(f"defrag_scan: error: {exc}", file=sys.stderr)
+        return 1
     print(f"{args.input.name}: {len(scan.triangles)} faces")
     print_report(result, m, fidelity, t_load)
     print(f"  written to    {args.output}")
