@@ -1,6 +1,8 @@
 """The batch entry's check of the files an export wrote (no Blender needed):
 a file cut short is caught from its ends, without reading large images whole."""
+import os
 import struct
+import types
 
 import numpy as np
 import pytest
@@ -124,3 +126,39 @@ def test_importer_errors_come_without_their_traceback():
     dotted = RuntimeError("Error: Python: Traceback (most recent call last):\n  File \"x.py\", line 3, in f\n"
                           "struct.error: unpack_from requires a buffer of at least 4 bytes\n\nLocation: ops.py:113")
     assert batch._importer_error(dotted) == "struct.error: unpack_from requires a buffer of at least 4 bytes"
+
+
+def test_a_move_that_fails_puts_the_previous_run_back(tmp_path, monkeypatch):
+    """A run over an earlier OBJ output that fails while moving its files in
+    leaves the earlier model whole: its MTL and images as they were."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "scan.obj").write_bytes(b"mtllib scan.mtl\n" + OBJ)
+    (out / "scan.mtl").write_bytes(b"newmtl a\nmap_Kd scan_tex.png\n")
+    (out / "scan_tex.png").write_bytes(b"old pixels")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+
+    def export(path, objects):
+        folder = os.path.dirname(path)
+        with open(path, "wb") as f:
+            f.write(b"mtllib scan.mtl\nusemtl a\n" + OBJ)
+        with open(os.path.join(folder, "scan.mtl"), "wb") as f:
+            f.write(b"newmtl a\nmap_Kd scan_tex.png\n")
+        with open(os.path.join(folder, "scan_tex.png"), "wb") as f:
+            f.write(png_files.encode_png(np.zeros((2, 2, 3), np.uint8)))
+
+    real_replace = os.replace
+
+    def replace(src, dst):
+        if str(dst) == str(out / "scan.obj"):
+            raise OSError(28, "No space left on device")
+        real_replace(src, dst)
+
+    monkeypatch.setattr(batch, "export_model", export)
+    monkeypatch.setattr(batch.os, "replace", replace)
+    mesh = types.SimpleNamespace(type="MESH", data=types.SimpleNamespace(polygons=[0, 1]))
+    with pytest.raises(OSError):
+        batch._export_and_move([mesh], str(tmp), str(out / "scan.obj"), set(), lambda: None)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before

@@ -445,11 +445,14 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) ->
     # Images may replace only those of the run that wrote dst before.
     replaceable = _images_named_by(dst) | {os.path.basename(p) for p in _model_files(dst)}
     before_moving()
-    moved = []
+    moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
     try:
         for name in moving:
             target = os.path.join(out_dir, name)
             if name in replaceable or name.lower().endswith(".bin"):
+                if os.path.exists(target):
+                    kept.append((os.path.join(tmp, ".previous_" + name), target))
+                    os.replace(target, kept[-1][0])
                 os.replace(os.path.join(tmp, name), target)
             else:
                 _move_new(os.path.join(tmp, name), target)
@@ -458,6 +461,8 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) ->
     except BaseException:
         for path in moved:
             _remove_quietly(path)
+        for previous, target in kept:  # the previous run's model stays whole
+            os.replace(previous, target)
         raise
     return unnamed
 
