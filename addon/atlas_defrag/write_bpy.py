@@ -336,8 +336,9 @@ def _write_uv_map(target: _Target, first: bool) -> str:
     fallback = _uv_array(old_uv)
     per_loop, conflicts = loop_uvs(read.tri_loops, target.result.uvs, read.n_loops, fallback)
     if conflicts:
-        target.warnings.append(f"{conflicts} polygon corners were split between charts: "
-                               "their polygons keep one of the UVs (triangulate n-gons first to avoid this)")
+        target.warnings.append(f"{conflicts} corners of quads or n-gons were split between charts: each keeps "
+                               "one chart's UV, which distorts the texture on those polygons (triangulate the "
+                               "mesh first, Ctrl+T, to avoid this)")
     active_name = me.uv_layers.active.name if me.uv_layers.active else None
     render_name = read.render_uv
     layer = me.uv_layers.new(name=read.uv_map + SUFFIX, do_init=False)
