@@ -126,7 +126,8 @@ struct TwoCharts {
   explicit TwoCharts(Mesh (*build)(std::vector<int>&))
       : mesh(build(chart)), topology(build_topology(mesh.triangles, mesh.vertex_count())),
         charts(kept_charts(mesh, chart, 2)), no_seams(topology.edge_count(), 0) {}
-  RefineInput input() const { return {mesh, topology, no_seams, no_groups, options}; }
+  Polygons polygons{{}};
+  RefineInput input() const { return {mesh, topology, no_seams, no_groups, options, polygons}; }
 };
 
 void expect_flip_free_disks(const Mesh& mesh, const MeshTopology& topology, const std::vector<FlatChart>& charts) {
@@ -162,6 +163,43 @@ TEST(RefineSeams, ZigZagBorderGetsShorterAndChartsStayFlipFreeDisks) {
   EXPECT_NEAR(after, 1.0, 1e-9);  // straight: every tooth went back
   EXPECT_NEAR(before - after, stats.seam_removed_3d, 1e-9);
   expect_flip_free_disks(t.mesh, t.topology, t.charts);
+}
+
+// Per face, a polygon id: each face of `moving` (by chart in t) paired with
+// its neighbour across an edge that `partner` accepts, every other face alone.
+template <class Partner>
+std::vector<int> paired_polygons(const TwoCharts& t, const std::vector<int>& moving, Partner partner) {
+  std::vector<int> polygon(t.mesh.face_count());
+  for (int f = 0; f < t.mesh.face_count(); ++f) polygon[f] = f;
+  for (int f : moving)
+    for (int k = 0; k < 3; ++k) {
+      const int e = t.topology.corner_edge[3 * f + k];
+      if (t.topology.edge_valence(e) != 2) continue;
+      const int g = face_across(t.topology, e, f);
+      if (partner(g) && polygon[g] == g && polygon[f] == f) {
+        polygon[g] = f;
+        break;
+      }
+    }
+  return polygon;
+}
+
+TEST(RefineSeams, ATriangleGoesBackToItsQuadButDoesNotLeaveIt) {
+  TwoCharts t(zigzag_charts);
+  std::vector<int> teeth;
+  for (int f = 0; f < t.mesh.face_count(); ++f)
+    if (t.chart[f] == 1 && t.mesh.positions.row(t.mesh.triangles(f, 0)).x() < 0.5 + 1e-12 &&
+        t.mesh.positions.row(t.mesh.triangles(f, 1)).x() < 0.5 + 1e-12 &&
+        t.mesh.positions.row(t.mesh.triangles(f, 2)).x() < 0.5 + 1e-12)
+      teeth.push_back(f);
+  ASSERT_EQ(teeth.size(), static_cast<size_t>(kGrid / 2 - 1));
+  // Each tooth a quad with a triangle of the left chart: moving back joins it.
+  t.polygons = Polygons(paired_polygons(t, teeth, [&](int g) { return t.chart[g] == 0; }));
+  EXPECT_EQ(refine_seams(t.input(), t.charts).faces_moved, kGrid / 2 - 1);
+  // Each tooth a quad with a triangle of its own chart: moving would part it.
+  TwoCharts u(zigzag_charts);
+  u.polygons = Polygons(paired_polygons(u, teeth, [&](int g) { return u.chart[g] == 1; }));
+  EXPECT_EQ(refine_seams(u.input(), u.charts).faces_moved, 0);
 }
 
 TEST(RefineSeams, DisabledByZeroAreaRatio) {
@@ -231,6 +269,43 @@ TEST(StraightenBorders, BumpGoesBackWholeAndChartsStayFlipFreeDisks) {
     const double input = std::abs(t.mesh.signed_area_uv(left.faces[j]));
     EXPECT_NEAR(std::abs(area), input, 1e-6 * input) << "face " << left.faces[j];
   }
+}
+
+TEST(StraightenBorders, QuadsMoveWholeOrNotAtAll) {
+  TwoCharts t(bump_charts);
+  for (FlatChart& c : t.charts) c.kept_original = false;
+  auto centre_x = [&](int f) {
+    return (t.mesh.positions(t.mesh.triangles(f, 0), 0) + t.mesh.positions(t.mesh.triangles(f, 1), 0) +
+            t.mesh.positions(t.mesh.triangles(f, 2), 0)) / 3;
+  };
+  std::vector<int> bump, inner;  // inner: the bump's column away from the border
+  for (int f = 0; f < t.mesh.face_count(); ++f)
+    if (t.chart[f] == 1 && centre_x(f) < 0.5) {
+      bump.push_back(f);
+      if (centre_x(f) < 0.375) inner.push_back(f);
+    }
+  ASSERT_EQ(bump.size(), 16u);
+  auto in = [](const std::vector<int>& faces, int g) { return std::find(faces.begin(), faces.end(), g) != faces.end(); };
+  // The bump's cells as quads: the strips move them whole, the border ends straight.
+  t.polygons = Polygons(paired_polygons(t, bump, [&](int g) { return in(bump, g); }));
+  EXPECT_EQ(straighten_borders(t.input(), t.charts).faces_moved, 16);
+  EXPECT_NEAR(seam_length(t.mesh, t.topology, labels(t.mesh, t.charts)), 1.0, 1e-9);
+  // Quads across the bump's two columns: no strip may part them.
+  TwoCharts u(bump_charts);
+  for (FlatChart& c : u.charts) c.kept_original = false;
+  const std::vector<int> pairs =
+      paired_polygons(u, inner, [&](int g) { return in(bump, g) && !in(inner, g); });
+  u.polygons = Polygons(pairs);
+  straighten_borders(u.input(), u.charts);
+  const std::vector<int> after = labels(u.mesh, u.charts);
+  int quads = 0;
+  for (int f = 0; f < u.mesh.face_count(); ++f)
+    if (pairs[f] != f) {
+      ++quads;
+      EXPECT_EQ(after[f], after[pairs[f]]) << "faces " << f << " and " << pairs[f];
+    }
+  EXPECT_EQ(quads, 4);
+  expect_flip_free_disks(u.mesh, u.topology, u.charts);
 }
 
 TEST(StraightenBorders, ChartsKeepingTheirOriginalUVsTakeNoPart) {

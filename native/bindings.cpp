@@ -349,23 +349,28 @@ py::dict report_dict(const PipelineReport& r) {
   return d;
 }
 
+// A per-face int array (F,) as a vector, or empty for None; `what` names it in errors.
+std::vector<int> per_face_ints(const py::object& array, int faces, const char* what) {
+  if (array.is_none()) return {};
+  const auto a = checked<long long>(array, what, {}, "(F,)");
+  if (a.shape(0) != faces) throw py::value_error(std::string(what) + " must hold one value per triangle");
+  const Eigen::VectorXi values = int_values(a, what);
+  return std::vector<int>(values.data(), values.data() + values.size());
+}
+
 py::dict defragment_py(const py::object& positions, const py::object& triangles, const py::object& uvs,
                        const py::object& face_page, const py::object& sizes, const py::object& face_group,
-                       const py::object& options, const py::object& progress, const py::object& cancel) {
+                       const py::object& face_polygon, const py::object& options, const py::object& progress,
+                       const py::object& cancel) {
   const Mesh mesh = mesh_from(positions, triangles, uvs, face_page, page_sizes(sizes, "page_sizes"));
-  std::vector<int> groups;
-  if (!face_group.is_none()) {
-    const auto g = checked<long long>(face_group, "face_group", {}, "(F,)");
-    if (g.shape(0) != mesh.face_count()) throw py::value_error("face_group must hold one group per triangle");
-    const Eigen::VectorXi values = int_values(g, "face_group");
-    groups.assign(values.data(), values.data() + values.size());
-  }
+  const std::vector<int> groups = per_face_ints(face_group, mesh.face_count(), "face_group");
+  const std::vector<int> polygons = per_face_ints(face_polygon, mesh.face_count(), "face_polygon");
   const PipelineOptions opts = pipeline_options(options);
   const RunControl control = control_from(progress, cancel);
   PipelineResult r;
   {
     py::gil_scoped_release release;
-    r = defragment(mesh, groups, opts, control);
+    r = defragment(mesh, groups, polygons, opts, control);
   }
   py::dict out;
   out["uvs"] = uv_array(r.corner_uv);
@@ -782,13 +787,16 @@ PYBIND11_MODULE(_native, m) {
 
   m.def("defragment", &defragment_py, py::arg("positions"), py::arg("triangles"), py::arg("uvs"),
         py::arg("face_page"), py::arg("page_sizes"), py::kw_only(), py::arg("face_group") = py::none(),
-        py::arg("options") = py::none(), py::arg("progress") = py::none(), py::arg("cancel") = py::none(),
+        py::arg("face_polygon") = py::none(), py::arg("options") = py::none(), py::arg("progress") = py::none(),
+        py::arg("cancel") = py::none(),
         R"(Computes a defragmented UV layout.
 
-positions (V,3) float, triangles (F,3) int (triangulate quads and n-gons first),
+positions (V,3) float, triangles (F,3) int (quads and n-gons triangulated),
 uvs (F,3,2) per-corner UVs in page units, face_page (F,) int (-1: untextured,
 UVs pass through), page_sizes (P,2) (width, height) in texels. face_group (F,)
-keeps groups apart. Returns dict(uvs, face_page, page_sizes, report, charts, face_chart
+keeps groups apart. face_polygon (F,) int: the polygon each triangle comes
+from; the border refinements move a polygon's triangles together or not at all,
+so that each polygon corner keeps one UV. Returns dict(uvs, face_page, page_sizes, report, charts, face_chart
 (output chart per face, -1 untextured)); charts
 holds per output chart: faces, flattened (else original UVs kept), energy_initial
 and energy_final (symmetric Dirichlet per unit reference area, 4 = isometric).)");

@@ -464,10 +464,11 @@ void report_input(const Mesh& welded, const MeshTopology& topology, const ChartG
 // solved ones turned to their smallest box. What moved goes into report.
 void refine_charts(const Mesh& welded, const Mesh& mesh, const MeshTopology& topology,
                    const std::vector<char>& graph_seams, const std::vector<int>& face_group,
-                   const RefineOptions& options, std::vector<FlatChart>& charts, PipelineReport& report) {
+                   const Polygons& polygons, const RefineOptions& options, std::vector<FlatChart>& charts,
+                   PipelineReport& report) {
   // Before tiny charts are enlarged: the refinement compares texel areas.
   const std::vector<char> kept_seams = seams_in_flat_charts(mesh, topology, graph_seams, charts);
-  const RefineInput input{mesh, topology, kept_seams, face_group, options};
+  const RefineInput input{mesh, topology, kept_seams, face_group, options, polygons};
   const RefineStats strips = straighten_borders(input, charts);
   const RefineStats teeth = refine_seams(input, charts);
   report.refine_faces_moved = strips.faces_moved + teeth.faces_moved;
@@ -539,7 +540,8 @@ void record_charts(const std::vector<FlatChart>& charts, int face_count, Pipelin
 }
 
 PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& face_group,
-                                   const PipelineOptions& options, const RunControl& control) {
+                                   const std::vector<int>& face_polygon, const PipelineOptions& options,
+                                   const RunControl& control) {
   PipelineResult result;
   PipelineReport& report = result.report;
   StageClock clock(report);
@@ -566,7 +568,8 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   std::vector<FlatChart> charts =
       flatten_all(mesh, topology, flat_graph, aggregation, options.slim, options.relief_cuts, control, report);
   clock.lap("flatten");
-  refine_charts(welded, mesh, topology, flat_graph.self_seam, face_group, options.refine, charts, report);
+  refine_charts(welded, mesh, topology, flat_graph.self_seam, face_group, Polygons(face_polygon), options.refine,
+                charts, report);
   clock.lap("refine");
 
   PackingCutStats cuts = cut_for_packing(mesh, topology, packing_cut_options(mesh, charts, options), charts, control);
@@ -612,15 +615,22 @@ PipelineResult with_copies(PipelineResult kept, const Mesh& mesh, const Duplicat
 
 }  // namespace
 
-PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group, const PipelineOptions& options,
-                          const RunControl& control) {
+PipelineResult defragment(const Mesh& welded, const std::vector<int>& face_group, const std::vector<int>& face_polygon,
+                          const PipelineOptions& options, const RunControl& control) {
   require_face_groups(face_group, welded.face_count());
+  if (!face_polygon.empty() && static_cast<int>(face_polygon.size()) != welded.face_count())
+    throw InputError("face_polygon must hold one polygon per triangle");
   const DuplicateFaces dup = find_duplicate_faces(welded, face_group);
-  if (dup.copies() == 0) return defragment_distinct(welded, face_group, options, control);
-  std::vector<int> kept_group;
-  if (!face_group.empty())
-    for (int f : dup.kept) kept_group.push_back(face_group[f]);
-  return with_copies(defragment_distinct(mesh_of_faces(welded, dup.kept), kept_group, options, control), welded, dup);
+  if (dup.copies() == 0) return defragment_distinct(welded, face_group, face_polygon, options, control);
+  auto kept = [&](const std::vector<int>& per_face) {
+    std::vector<int> out;
+    if (!per_face.empty())
+      for (int f : dup.kept) out.push_back(per_face[f]);
+    return out;
+  };
+  return with_copies(defragment_distinct(mesh_of_faces(welded, dup.kept), kept(face_group), kept(face_polygon),
+                                         options, control),
+                     welded, dup);
 }
 
 }  // namespace atlas

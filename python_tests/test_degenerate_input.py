@@ -288,3 +288,12 @@ def test_compare_colors_refuses_more_samples_than_it_can_count(native):
     page = np.zeros(1, np.int32)
     with pytest.raises(ValueError, match="samples must be at most"):
         native.compare_colors(positions, triangles, uvs, page, [img], uvs, page, [img], samples=2 ** 31 - 1)
+
+
+def test_face_polygon_needs_one_value_per_triangle(native):
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    triangles = np.array([[0, 1, 2]], np.int32)
+    uvs = np.array([[[0.1, 0.1], [0.9, 0.1], [0.1, 0.9]]])
+    with pytest.raises(ValueError, match="face_polygon must hold one value per triangle"):
+        native.defragment(positions, triangles, uvs, np.zeros(1, np.int32), np.array([[8, 8]]),
+                          face_polygon=np.zeros(2, np.int32))

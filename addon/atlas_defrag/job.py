@@ -92,6 +92,9 @@ class MeshData:
     triangles: np.ndarray  # (F, 3) int32
     uvs: np.ndarray  # (F, 3, 2) float64, page units
     face_page: np.ndarray  # (F,) int32, -1 = untextured
+    # (F,) int32: the polygon each triangle comes from, whose triangles change
+    # charts together (a polygon corner holds one UV); None: triangles only.
+    polygons: Optional[np.ndarray] = None
 
 
 @dataclass
@@ -370,6 +373,7 @@ def _new_layout(job: JobInput, options: Options, calls: _NativeCalls, progress) 
         np.ascontiguousarray(mesh.face_page, dtype=np.int32),
         src_sizes,
         face_group=face_group,
+        face_polygon=None if mesh.polygons is None else np.ascontiguousarray(mesh.polygons, dtype=np.int32),
         options=options.native(),
         progress=progress,
     )
@@ -468,8 +472,8 @@ def concatenate(jobs: Sequence[JobInput]) -> Tuple[JobInput, List[slice]]:
     group_index: Dict[tuple, int] = {}
     pages: List[SourcePage] = []
     images: Dict[str, ImageData] = {}
-    positions, triangles, uvs, face_page, faces = [], [], [], [], []
-    n_verts = n_faces = 0
+    positions, triangles, uvs, face_page, polygons, faces = [], [], [], [], [], []
+    n_verts = n_faces = n_polygons = 0
     x_end = 0.0
     for job in jobs:
         images.update(job.images)
@@ -488,11 +492,16 @@ def concatenate(jobs: Sequence[JobInput]) -> Tuple[JobInput, List[slice]]:
         triangles.append(m.triangles + n_verts)
         uvs.append(m.uvs)
         face_page.append(np.where(m.face_page >= 0, local[np.maximum(m.face_page, 0)], -1).astype(np.int32))
+        own = np.arange(len(m.triangles), dtype=np.int64) if m.polygons is None else m.polygons.astype(np.int64)
+        polygons.append(own + n_polygons)  # each job's polygons apart from the others'
+        n_polygons += int(own.max()) + 1 if len(own) else 0
         faces.append(slice(n_faces, n_faces + len(m.triangles)))
         n_verts += len(m.positions)
         n_faces += len(m.triangles)
+    shared = any(job.mesh.polygons is not None for job in jobs)
     mesh = MeshData(positions=np.concatenate(positions), triangles=np.concatenate(triangles).astype(np.int32),
-                    uvs=np.concatenate(uvs), face_page=np.concatenate(face_page))
+                    uvs=np.concatenate(uvs), face_page=np.concatenate(face_page),
+                    polygons=np.concatenate(polygons).astype(np.int32) if shared else None)
     return JobInput(mesh=mesh, pages=pages, images=images), faces
 
 

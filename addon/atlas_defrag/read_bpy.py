@@ -446,7 +446,8 @@ def _read(obj, me, uv_name: str) -> ReadResult:
         raise DefragError(_no_texture_message(obj, uv_name, warnings))
     job = JobInput(
         mesh=MeshData(positions=geo.positions, triangles=geo.triangles, uvs=geo.uvs,
-                      face_page=face_page.astype(np.int32)),
+                      face_page=face_page.astype(np.int32),
+                      polygons=geo.tri_polygons.astype(np.int32) if len(me.polygons) < len(geo.triangles) else None),
         pages=pages, images=_read_images(pages))
     return ReadResult(
         job=job, mesh_name=obj.data.name, uv_map=uv_name, render_uv=render_uv, n_loops=geo.n_loops, tri_loops=geo.tri_loops,

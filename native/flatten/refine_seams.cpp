@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <queue>
+#include <unordered_map>
 
 #include "charts/disk_merge.hpp"
 #include "core/geometry.hpp"
@@ -98,6 +99,7 @@ class Refiner {
       const int g1 = across(f, k1), g2 = across(f, k2);
       if (g1 < 0 || g2 < 0 || g1 == g2 || chart(g1) != chart(g2) || chart(g1) == from || chart(g1) < 0) continue;
       if (!in_.face_group.empty() && in_.face_group[g1] != in_.face_group[f]) continue;
+      if (!in_.polygons.move_keeps_whole({f}, [&](int g) { return chart(g); })) continue;
       m = {f, chart(g1), k1, k2, k3, g1, g2, 0, {Point::Zero(), Point::Zero(), Point::Zero()}};
       if (place(m) && fits(m) && disks_.move_keeps_topology(f, m.to)) return true;
     }
@@ -182,6 +184,19 @@ class Refiner {
 };
 
 }  // namespace
+
+Polygons::Polygons(const std::vector<int>& face_polygon) {
+  if (face_polygon.empty()) return;
+  std::unordered_map<int, int> number;
+  polygon_.reserve(face_polygon.size());
+  for (int id : face_polygon) polygon_.push_back(number.emplace(id, static_cast<int>(number.size())).first->second);
+  start_.assign(number.size() + 1, 0);
+  for (int p : polygon_) ++start_[p + 1];
+  for (size_t p = 0; p + 1 < start_.size(); ++p) start_[p + 1] += start_[p];
+  members_.resize(polygon_.size());
+  std::vector<int> next(start_.begin(), start_.end() - 1);
+  for (size_t f = 0; f < polygon_.size(); ++f) members_[next[polygon_[f]]++] = static_cast<int>(f);
+}
 
 RefineStats refine_seams(const RefineInput& input, std::vector<FlatChart>& charts) {
   if (input.options.min_area_ratio <= 0) return {};

@@ -23,6 +23,37 @@ struct RefineOptions {
   double min_area_ratio = 0.5;
 };
 
+// The polygons (quads, n-gons) that faces triangulate: faces leave a chart
+// only with every face of their polygons in that chart, since each corner of
+// a polygon holds one UV where the mesh came from (Blender). A move may
+// bring a polygon's faces together, never part them.
+class Polygons {
+ public:
+  // face_polygon (F): a polygon id per face (any ints); empty: every face
+  // is a polygon of its own.
+  explicit Polygons(const std::vector<int>& face_polygon);
+
+  // Whether moving `faces` out of their chart parts no polygon: each face
+  // of theirs that chart_of(g) puts in the same chart as they are is among
+  // them.
+  template <class ChartOf>
+  bool move_keeps_whole(std::vector<int> faces, ChartOf chart_of) const {
+    if (polygon_.empty()) return true;
+    std::sort(faces.begin(), faces.end());
+    for (int f : faces)
+      for (int k = start_[polygon_[f]]; k < start_[polygon_[f] + 1]; ++k) {
+        const int g = members_[k];
+        if (chart_of(g) == chart_of(f) && !std::binary_search(faces.begin(), faces.end(), g)) return false;
+      }
+    return true;
+  }
+
+ private:
+  std::vector<int> polygon_;  // per face, its polygon numbered 0..P-1
+  std::vector<int> start_;    // P + 1: polygon p's faces are members_[start_[p] .. start_[p + 1])
+  std::vector<int> members_;
+};
+
 // What both border refinements read. seam (per edge): edges that stay
 // boundary on both sides (the seams kept inside charts: the aggregation's and
 // the cuts of the flattening); faces on them do not move. face_group (F) as
@@ -33,6 +64,7 @@ struct RefineInput {
   const std::vector<char>& seam;
   const std::vector<int>& face_group;
   const RefineOptions& options;
+  const Polygons& polygons;
 
   // The texel area a face moved to another chart must keep: min_area_ratio of
   // its original, and a hundredth of a texel at least, so that float32

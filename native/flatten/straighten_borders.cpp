@@ -326,6 +326,7 @@ class Straightener {
 
   // Windings, texel areas, the receiver's boundary and the giver's connectivity.
   bool fits(const Strip& s) const {
+    if (!in_.polygons.move_keeps_whole(s.faces, [&](int g) { return label_[g]; })) return false;
     const double w = winding(s.to);
     for (size_t i = 0; i < s.faces.size(); ++i) {
       const double area = signed_area(s.uv[3 * i], s.uv[3 * i + 1], s.uv[3 * i + 2]);

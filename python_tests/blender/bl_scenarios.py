@@ -776,6 +776,25 @@ def shared_material_one_at_a_time(pkg):
     return sorted(materials)
 
 
+def quads_stay_whole(pkg):
+    """A quad sphere cut into many charts by Smart UV Project: the seam
+    refinement moves a quad's two triangles together or not at all, so no
+    polygon corner is split between charts (each holds one UV)."""
+    H.reset()
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32)
+    obj = bpy.context.active_object
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="SELECT")
+    bpy.ops.uv.smart_project(angle_limit=0.3)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    plane = H.textured_plane(name="Source")  # its material: an image on Base Color
+    obj.data.materials.append(plane.data.materials[0])
+    report = pkg.defragment(obj)
+    assert report["charts_before"] > 20 and report["charts_after"] < report["charts_before"], report
+    assert not any("split between charts" in w for w in report["warnings"]), report["warnings"]
+    return {"charts": [report["charts_before"], report["charts_after"]], "moved": report["refine_faces_moved"]}
+
+
 def _shared_atlas_measures(pkg, names, uv_map):
     """_native.measure of the objects' new UV maps together, each face on the
     page of the new image its material now shows (pages by image name)."""
@@ -961,6 +980,7 @@ SCENARIOS = {
     "redo_asks_first": redo_asks_first,
     "several_objects_one_fails": several_objects_one_fails,
     "shared_material_one_at_a_time": shared_material_one_at_a_time,
+    "quads_stay_whole": quads_stay_whole,
     "one_atlas_for_all_selected": one_atlas_for_all_selected,
     "one_atlas_shared_material": one_atlas_shared_material,
 }
