@@ -1,10 +1,12 @@
 // Overlap detection and the backtracking that splits overlapping charts.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 
 #include "charts/aggregate.hpp"
 #include "charts/chart_graph.hpp"
+#include "core/corners.hpp"
 #include "core/geometry.hpp"
 #include "flatten/cut_to_disk.hpp"
 #include "flatten/flatten_chart.hpp"
@@ -126,6 +128,51 @@ TEST(CutToDisk, TorusIsNotADisk) {
   RowMatrixX3i t = torus.triangles;
   std::vector<int> source = identity(torus.vertex_count());
   EXPECT_FALSE(cut_to_disk(t, source));
+}
+
+namespace {
+
+// Quads (a, b, c, d) as triangles (a, b, c) and (a, c, d): the corners
+// whose edge is the diagonal a-c are set in *uncut.
+RowMatrixX3i split_quads(const std::vector<std::array<int, 4>>& quads, std::vector<char>* uncut) {
+  RowMatrixX3i t(2 * static_cast<Eigen::Index>(quads.size()), 3);
+  uncut->assign(3 * t.rows(), 0);
+  for (size_t q = 0; q < quads.size(); ++q) {
+    const auto [a, b, c, d] = quads[q];
+    t.row(2 * q) << a, b, c;
+    t.row(2 * q + 1) << a, c, d;
+    (*uncut)[6 * q + 2] = (*uncut)[6 * q + 3] = 1;
+  }
+  return t;
+}
+
+// Corners set in uncut whose edge the cut made boundary (one corner left on it).
+int diagonals_cut(const RowMatrixX3i& t, const std::vector<char>& uncut) {
+  const auto keyed = corners_by_edge(static_cast<int>(3 * t.rows()), [&](int c) { return corner_vertex(t, c); });
+  int cut = 0;
+  for_each_edge_run(keyed, [&](int first, int count) { cut += count == 1 && uncut[keyed[first].second]; });
+  return cut;
+}
+
+}  // namespace
+
+TEST(CutToDisk, CutsGoAroundTheDiagonalsOfQuads) {
+  std::vector<char> uncut;
+  // A tube of four quads, one ring high: the first path from the bottom loop
+  // to the top one that the search meets is a diagonal.
+  std::vector<std::array<int, 4>> tube;
+  for (int i = 0; i < 4; ++i) tube.push_back({i, (i + 1) % 4, 4 + (i + 1) % 4, 4 + i});
+  RowMatrixX3i t = split_quads(tube, &uncut);
+  std::vector<int> source = identity(8);
+  ASSERT_TRUE(cut_to_disk(t, source, uncut));
+  EXPECT_EQ(diagonals_cut(t, uncut), 0);
+  // A closed cube of six quads: the slit that opens it takes no diagonal either.
+  const std::vector<std::array<int, 4>> cube = {{0, 1, 2, 3}, {7, 6, 5, 4}, {0, 4, 5, 1},
+                                                {1, 5, 6, 2}, {2, 6, 7, 3}, {3, 7, 4, 0}};
+  t = split_quads(cube, &uncut);
+  source = identity(8);
+  ASSERT_TRUE(cut_to_disk(t, source, uncut));
+  EXPECT_EQ(diagonals_cut(t, uncut), 0);
 }
 
 TEST(CutToDisk, ClosedSurfaceIsSlitOpen) {

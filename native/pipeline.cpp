@@ -552,7 +552,7 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   // charts are the input's, except that a chart joined only across a winding
   // flip falls in two.
   const Mesh mesh = cut_internal_seams(welded, welded_topology, welded_graph);
-  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count(), face_polygon);
   const ChartGraph graph = without_merges_of_handles(mesh, topology, build_chart_graph(mesh, topology, face_group));
   clock.lap("charts");
   control.progress("charts", 1.0);

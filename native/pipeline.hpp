@@ -101,7 +101,8 @@ struct PipelineResult {
 // mesh: welded (make_mesh); face_group (F) or empty: faces of different
 // groups never share a chart or a page; face_polygon (F) or empty: the
 // polygon (quad, n-gon) each face triangulates, whose faces the border
-// refinements move together or not at all (see Polygons).
+// refinements move together or not at all (see Polygons) and no cut parts
+// (MeshTopology::inside_polygon).
 PipelineResult defragment(const Mesh& mesh, const std::vector<int>& face_group, const std::vector<int>& face_polygon,
                           const PipelineOptions& options, const RunControl& control);
 

@@ -342,6 +342,52 @@ def test_packing_cuts_pack_tighter_and_add_the_seam_they_report(native, scans, t
         native.defragment(*args(scan), options={"packing_cut_seam": -1})
 
 
+def quads_of(scan):
+    """Pairs of triangles of one input chart sharing an edge, taken greedily as
+    quads: (P, 4) rows of the two faces and the shared edge's two vertices.
+    Pairs across a UV fold are left alone, as Blender's Tris to Quads does."""
+    tri, uv, page = scan.triangles, scan.uvs, scan.face_page
+    d1, d2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    sign = np.sign(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    ends = np.stack([tri, np.roll(tri, -1, axis=1)], axis=-1).reshape(-1, 2)  # corner c starts edge c
+    key = np.sort(ends, axis=1) @ np.array([1, len(scan.positions)], np.int64)
+    order = np.argsort(key, kind="stable")
+    runs = np.flatnonzero(key[order][1:] == key[order][:-1])
+    used, quads = np.zeros(len(tri), bool), []
+    for c0, c1 in zip(order[runs], order[runs + 1]):
+        f, g = c0 // 3, c1 // 3
+        if used[f] or used[g] or page[f] != page[g] or sign[f] * sign[g] <= 0:
+            continue
+        edge = ends[c0]
+        if all(np.allclose(corner_uv(scan.uvs, tri, f, v), corner_uv(scan.uvs, tri, g, v)) for v in edge):
+            used[f] = used[g] = True
+            quads.append((f, g, *edge))
+    return np.array(quads)
+
+
+def corner_uv(uvs, tri, f, v):
+    return uvs[f, list(tri[f]).index(v)]
+
+
+def test_cuts_keep_the_quads_of_a_real_scan_whole(native, scans):
+    """Tetra's triangles paired into quads: the relief cuts, the cuts to a disk
+    and the cuts for packing run around the quads, so each quad's corners keep
+    one UV (a quad split between charts shows its texture distorted)."""
+    scan = scans("tetra")
+    quads = quads_of(scan)
+    polygon = np.arange(len(scan.triangles), dtype=np.int32)
+    polygon[quads[:, 1]] = quads[:, 0]
+    result = native.defragment(*args(scan), face_polygon=polygon, options={"packing_cut_seam": 1.0})
+    report = result["report"]
+    assert len(quads) > 5000 and report["relief_cuts"] > 0 and report["packing_cuts"] > 0, report
+    uvs, page = result["uvs"], result["face_page"]
+    def whole(f, g, a, b):
+        return page[f] == page[g] and all((corner_uv(uvs, scan.triangles, f, v) ==
+                                           corner_uv(uvs, scan.triangles, g, v)).all() for v in (a, b))
+    split = [(f, g) for f, g, a, b in quads if not whole(f, g, a, b)]
+    assert not split, (len(split), split[:5])
+
+
 def test_a_small_max_page_size_shrinks_and_says_so(native, scans):
     scan = scans("tetra")
     # By default charts spill onto as many 640^2 pages as the input's texels fill.

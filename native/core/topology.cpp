@@ -18,7 +18,7 @@ void bucket(const std::vector<int>& keys, int key_count, std::vector<int>& offse
 
 }  // namespace
 
-MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count) {
+MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count, const std::vector<int>& face_polygon) {
   const int corners = static_cast<int>(3 * triangles.rows());
   const auto keyed = corners_by_edge(corners, [&](int c) { return corner_vertex(triangles, c); });
 
@@ -38,6 +38,13 @@ MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count) {
   std::vector<int> vertex_at(corners);
   for (int c = 0; c < corners; ++c) vertex_at[c] = corner_vertex(triangles, c);
   bucket(vertex_at, vertex_count, t.vertex_offsets, t.vertex_corners);
+  if (face_polygon.empty()) return t;
+  t.inside_polygon.assign(t.edge_count(), 0);
+  for (int e = 0; e < t.edge_count(); ++e) {
+    if (t.edge_valence(e) != 2) continue;
+    const int f0 = t.edge_corners[t.edge_offsets[e]] / 3, f1 = t.edge_corners[t.edge_offsets[e] + 1] / 3;
+    t.inside_polygon[e] = f0 != f1 && face_polygon[f0] == face_polygon[f1];
+  }
   return t;
 }
 

@@ -17,14 +17,23 @@ struct MeshTopology {
   std::vector<int> edge_corners;     // corners whose edge is e (1: border, 2: manifold, >2: non-manifold)
   std::vector<int> vertex_offsets;   // V+1: CSR into vertex_corners
   std::vector<int> vertex_corners;   // corners sitting at vertex v
+  // E, or empty when every face is a polygon of its own: 1 where both faces
+  // of the edge triangulate one polygon of the input (a quad's diagonal).
+  // Each corner of a polygon holds one UV where the mesh came from, so no
+  // cut may run along such an edge.
+  std::vector<char> inside_polygon;
 
   int edge_count() const { return static_cast<int>(edge_vertices.rows()); }
   int edge_valence(int e) const { return edge_offsets[e + 1] - edge_offsets[e]; }
+  bool may_cut(int e) const { return inside_polygon.empty() || !inside_polygon[e]; }
 };
 
 // triangles (F,3) indices into vertex_count vertices: every undirected edge
 // once, with the corners on it and each corner's edge.
-MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count);
+// face_polygon (F): the polygon each face triangulates (any ints), which
+// sets inside_polygon; empty: every face is a polygon of its own.
+MeshTopology build_topology(const RowMatrixX3i& triangles, int vertex_count,
+                            const std::vector<int>& face_polygon = {});
 
 // The other face at edge e from face f; e has two faces (edge_valence 2).
 inline int face_across(const MeshTopology& topology, int e, int f) {

@@ -34,12 +34,17 @@ int label_boundary_loops(const RowMatrixX3i& t, int vertex_count, std::vector<in
   return loops;
 }
 
-// Shortest path (in edges) from loop 0 to any other loop through interior vertices.
-std::vector<int> path_between_loops(const RowMatrixX3i& t, const std::vector<int>& loop_of) {
+// Shortest path (in edges) from loop 0 to any other loop through interior
+// vertices, along no edge whose corner is set in `uncut` (empty: any edge).
+std::vector<int> path_between_loops(const RowMatrixX3i& t, const std::vector<int>& loop_of,
+                                    const std::vector<char>& uncut) {
   const int n = static_cast<int>(loop_of.size());
   std::vector<std::vector<int>> adjacent(n);
   for (Eigen::Index f = 0; f < t.rows(); ++f)
-    for (int k = 0; k < 3; ++k) adjacent[t(f, k)].push_back(t(f, (k + 1) % 3)), adjacent[t(f, (k + 1) % 3)].push_back(t(f, k));
+    for (int k = 0; k < 3; ++k) {
+      if (!uncut.empty() && uncut[3 * f + k]) continue;
+      adjacent[t(f, k)].push_back(t(f, (k + 1) % 3)), adjacent[t(f, (k + 1) % 3)].push_back(t(f, k));
+    }
   std::vector<int> from(n, -2);
   std::queue<int> bfs;
   for (int v = 0; v < n; ++v)
@@ -84,9 +89,17 @@ void split_along(RowMatrixX3i& t, std::vector<int>& vertex_source, const std::ve
   vertex_source = std::move(source);
 }
 
+// The corner of a face whose edge and the one before it may both be cut
+// (the face's corner 0 if none).
+int slit_corner(const RowMatrixX3i& t, const std::vector<char>& uncut) {
+  for (int c = 0; c < 3 * static_cast<int>(t.rows()) && !uncut.empty(); ++c)
+    if (!uncut[c] && !uncut[next_corner(next_corner(c))]) return c;
+  return 0;
+}
+
 }  // namespace
 
-bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source) {
+bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source, const std::vector<char>& uncut) {
   std::vector<int> loop_of;
   for (;;) {
     const int loops = label_boundary_loops(triangles, static_cast<int>(vertex_source.size()), loop_of);
@@ -94,14 +107,16 @@ bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source) {
       // Closed: slit open along two edges of one face, which makes a loop of
       // four edges (two would put the whole boundary on one segment).
       if (triangles.rows() == 0) return false;
-      std::vector<std::int64_t> cut = {edge_key(triangles(0, 0), triangles(0, 1)),
-                                       edge_key(triangles(0, 0), triangles(0, 2))};
+      const int c = slit_corner(triangles, uncut), v = corner_vertex(triangles, c);
+      std::vector<std::int64_t> cut = {edge_key(v, corner_vertex(triangles, next_corner(c))),
+                                       edge_key(v, corner_vertex(triangles, next_corner(next_corner(c))))};
       std::sort(cut.begin(), cut.end());
       split_along(triangles, vertex_source, cut);
       continue;
     }
     if (loops == 1) break;
-    const std::vector<int> path = path_between_loops(triangles, loop_of);
+    std::vector<int> path = path_between_loops(triangles, loop_of, uncut);
+    if (path.empty() && !uncut.empty()) path = path_between_loops(triangles, loop_of, {});
     if (path.empty()) return false;
     // Named in the current numbering; once split, these edges are boundary.
     std::vector<std::int64_t> cut;

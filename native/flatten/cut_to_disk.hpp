@@ -17,6 +17,9 @@ namespace atlas {
 // loop, chi == 1); false leaves a chart with handles or in several pieces,
 // which the caller must split instead.
 // triangles (F,3) and vertex_source (V) are changed in place.
-bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source);
+// uncut (3F, or empty): 1 at a corner whose edge lies inside a polygon of the
+// input (MeshTopology::inside_polygon); cuts go around such edges wherever
+// another path joins the same loops.
+bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source, const std::vector<char>& uncut = {});
 
 }  // namespace atlas

@@ -104,6 +104,16 @@ LocalChart localize(const Mesh& mesh, const MeshTopology& topology, const ChartG
   return c;
 }
 
+// Per corner of `faces` (3 per face, in order): 1 where its edge lies
+// inside an input polygon (see cut_to_disk); empty without polygons.
+std::vector<char> uncut_corners(const MeshTopology& topology, const std::vector<int>& faces) {
+  if (topology.inside_polygon.empty()) return {};
+  std::vector<char> out(3 * faces.size());
+  for (size_t i = 0; i < faces.size(); ++i)
+    for (int k = 0; k < 3; ++k) out[3 * i + k] = !topology.may_cut(topology.corner_edge[3 * faces[i] + k]);
+  return out;
+}
+
 ChartProblem make_problem(const Mesh& mesh, const ChartGraph& graph, const LocalChart& c) {
   ChartProblem p;
   p.triangles = c.triangles;
@@ -425,22 +435,35 @@ bool folds_over(const Mesh& mesh, const std::vector<int>& faces) {
 }
 
 // Faces as two edge-connected halves, each face going to the nearer of two
-// far-apart seeds (breadth first, over manifold edges inside the set). Faces
-// not connected to the first are returned as the second part instead.
-std::vector<std::vector<int>> halves(const MeshTopology& topology, const std::vector<int>& faces) {
+// far-apart seeds (breadth first, over manifold edges inside the set), the
+// triangles of an input polygon together unless that leaves a half empty.
+// Faces not connected to the first are returned as the second part instead.
+std::vector<std::vector<int>> halves(const MeshTopology& topology, const std::vector<int>& faces,
+                                     bool whole_polygons = true) {
   const int n = static_cast<int>(faces.size());
   std::vector<std::vector<int>> neighbours(n);
-  for_each_shared_edge(topology, faces, [&](int i, int j, int) { neighbours[i].push_back(j); });
-  // Multi-source breadth-first search: label[i] is the seed that reached i first.
+  UnionFind polygon(n);
+  for_each_shared_edge(topology, faces, [&](int i, int j, int e) {
+    neighbours[i].push_back(j);
+    if (whole_polygons && !topology.may_cut(e)) polygon.unite(i, j);
+  });
+  std::vector<std::vector<int>> mates(n);
+  for (int i = 0; i < n; ++i) mates[polygon.find(i)].push_back(i);
+  // Multi-source breadth-first search: label[i] is the seed that reached i
+  // (its polygon) first.
   auto grow = [&](const std::vector<int>& seeds, std::vector<int>& label) {
     label.assign(n, -1);
     std::queue<int> queue;
-    for (size_t s = 0; s < seeds.size(); ++s) label[seeds[s]] = static_cast<int>(s), queue.push(seeds[s]);
+    auto claim = [&](int i, int l) {
+      for (int m : mates[polygon.find(i)])
+        if (label[m] < 0) label[m] = l, queue.push(m);
+    };
+    for (size_t s = 0; s < seeds.size(); ++s) claim(seeds[s], static_cast<int>(s));
     int last = seeds.front();
     for (; !queue.empty(); queue.pop()) {
       last = queue.front();
       for (int m : neighbours[last])
-        if (label[m] < 0) label[m] = label[last], queue.push(m);
+        if (label[m] < 0) claim(m, label[last]);
     }
     return last;
   };
@@ -449,6 +472,7 @@ std::vector<std::vector<int>> halves(const MeshTopology& topology, const std::ve
   std::vector<std::vector<int>> out(2);
   if (std::count(label.begin(), label.end(), -1) == 0) grow({far, grow({far}, label)}, label);
   for (int i = 0; i < n; ++i) out[label[i] == 0 ? 0 : 1].push_back(faces[i]);
+  if (out[1].empty() && whole_polygons && n > 1) return halves(topology, faces, false);
   return out;
 }
 
@@ -476,7 +500,8 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
   double cut_length = 0;
   for (int round = 0;; ++round) {
     LocalChart local = localize(mesh, topology, graph, faces, cuts);
-    if (!cut_to_disk(local.triangles, local.vertices)) return {std::nullopt, &FlattenStats::not_disk};
+    if (!cut_to_disk(local.triangles, local.vertices, uncut_corners(topology, local.faces)))
+      return {std::nullopt, &FlattenStats::not_disk};
     const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options.slim, control);
     stats.scaffolded += solution.scaffolded;
     if (!solution.status.ok() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
@@ -553,7 +578,7 @@ std::vector<char> charts_with_handles(const Mesh& mesh, const MeshTopology& topo
                                       [&](int k) { return corner_vertex(local.triangles, k); }),
                       [&](int, int) { ++edges; });
     const long long chi = static_cast<long long>(local.vertices.size()) - edges + local.triangles.rows();
-    out[c] = chi != 1 && !cut_to_disk(local.triangles, local.vertices);
+    out[c] = chi != 1 && !cut_to_disk(local.triangles, local.vertices, uncut_corners(topology, local.faces));
   });
   return out;
 }

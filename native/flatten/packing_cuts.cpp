@@ -440,19 +440,44 @@ void straighten_cut(const Mesh& mesh, const FlatChart& chart, const std::vector<
   }
 }
 
+// Each input polygon's triangles (MeshTopology::inside_polygon) into the
+// piece that holds most of them, the first of them on a tie.
+void keep_polygons_whole(const MeshTopology& topology, const FlatChart& chart, const std::vector<int>& across,
+                         std::vector<char>& piece) {
+  if (topology.inside_polygon.empty()) return;
+  const int n = static_cast<int>(chart.faces.size());
+  UnionFind polygon(n);
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k)
+      if (across[3 * i + k] >= 0 && !topology.may_cut(topology.corner_edge[3 * chart.faces[i] + k]))
+        polygon.unite(i, across[3 * i + k]);
+  std::vector<int> votes(n, 0), first(n, -1);
+  for (int i = 0; i < n; ++i) {
+    const int p = polygon.find(i);
+    votes[p] += piece[i] ? 1 : -1;
+    if (first[p] < 0) first[p] = i;
+  }
+  for (int i = 0; i < n; ++i) {
+    const int p = polygon.find(i);
+    piece[i] = votes[p] != 0 ? static_cast<char>(votes[p] > 0) : piece[first[p]];
+  }
+}
+
 // The chart cut along the mesh edges nearest the chord, or nothing when
 // that does not give two disks.
-std::optional<Split> split_along(const Mesh& mesh, const FlatChart& chart, const std::vector<int>& across,
-                                 const Chord& chord) {
+std::optional<Split> split_along(const Mesh& mesh, const MeshTopology& topology, const FlatChart& chart,
+                                 const std::vector<int>& across, const Chord& chord) {
   auto piece = chord_pieces(chart, across, chord);
   if (!piece) return std::nullopt;
   straighten_cut(mesh, chart, across, *piece);
+  keep_polygons_whole(topology, chart, across, *piece);
   const int n = static_cast<int>(chart.faces.size());
   Split split;
   for (int s = 0; s < 2; ++s) {
     std::vector<char> in_piece(n);
     for (int i = 0; i < n; ++i) in_piece[i] = (*piece)[i] == s;
-    if (!piece_is_disk(mesh, chart, across, in_piece)) return std::nullopt;
+    const bool empty = std::find(in_piece.begin(), in_piece.end(), 1) == in_piece.end();
+    if (empty || !piece_is_disk(mesh, chart, across, in_piece)) return std::nullopt;
     split.pieces[s] = piece_of(chart, in_piece);
   }
   for (int i = 0; i < n; ++i)
@@ -519,7 +544,7 @@ class CutSearch {
     chords_[c].erase(chords_[c].begin());
     if (chord.length * per_texel_[c] > budget) return std::nullopt;
     if (across_[c].empty()) across_[c] = chart_neighbours(mesh_, topology_, charts_[c], c, slots_);
-    auto split = split_along(mesh_, charts_[c], across_[c], chord);
+    auto split = split_along(mesh_, topology_, charts_[c], across_[c], chord);
     if (!split || split->seam_3d > budget) return std::nullopt;
     for (FlatChart& piece : split->pieces)
       if (!piece.kept_original) piece.corner_uv = turned_to_smallest_box(piece.corner_uv);

@@ -29,7 +29,8 @@ struct PackingCutStats {
 
 // charts: faces and texel corner UVs (see FlatChart), changed in place: a cut
 // chart is replaced by its two pieces, each a disk, their UVs those of the
-// chart (turned as a whole to their smallest box, unless kept_original).
+// chart (turned as a whole to their smallest box, unless kept_original);
+// an input polygon (MeshTopology::inside_polygon) goes whole to one piece.
 // Chords are taken greedily, the most padded box texels saved per 3D length
 // first, while they fit the budget and save more than the padding they add;
 // the result does not depend on the thread count.

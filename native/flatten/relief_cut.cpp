@@ -80,6 +80,7 @@ std::vector<int> relief_cut(const Mesh& mesh, const MeshTopology& topology, cons
       return;
     }
     const int e = topology.corner_edge[3 * faces[corner_face(c)] + c % 3];
+    if (!topology.may_cut(e)) return;  // the polygon's outline reaches its vertices
     const double length = edge_length(mesh, topology, e);
     out[a].push_back({b, e, length});
     out[b].push_back({a, e, length});

@@ -18,7 +18,8 @@ namespace atlas {
 // the chart's boundary, one from each group of faces that kept less than half
 // their texel area, starting at the group's interior vertex of lowest
 //   score(v) = sum_f A3D(f) log(A_uv(f) / A_ref(f)) / sum_f A3D(f) over faces f at v;
-// nothing when no such group has an interior vertex.
+// nothing when no such group has an interior vertex. No path runs inside an
+// input polygon (MeshTopology::inside_polygon).
 std::vector<int> relief_cut(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& faces,
                             const RowMatrixX3i& triangles, const RowMatrixX2d& uv);
 

@@ -795,6 +795,25 @@ def quads_stay_whole(pkg):
     return {"charts": [report["charts_before"], report["charts_after"]], "moved": report["refine_faces_moved"]}
 
 
+def scan_quads_stay_whole(pkg):
+    """The tetra scan joined into quads by Tris to Quads (UVs compared, so
+    quads keep one chart): the cuts that open charts (relief cuts, cuts to a
+    disk) run around the quads, so none is split between charts."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    H.make_active(obj)
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="SELECT")
+    bpy.ops.mesh.tris_convert_to_quads(uvs=True)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    quads = sum(len(p.vertices) == 4 for p in obj.data.polygons)
+    report = pkg.defragment(obj)
+    assert quads > 3000 and report["relief_cuts"] > 0, (quads, report["relief_cuts"])
+    assert not any("split between charts" in w for w in report["warnings"]), report["warnings"]
+    return {"quads": quads, "charts": [report["charts_before"], report["charts_after"]],
+            "relief_cuts": report["relief_cuts"]}
+
+
 def _shared_atlas_measures(pkg, names, uv_map):
     """_native.measure of the objects' new UV maps together, each face on the
     page of the new image its material now shows (pages by image name)."""
@@ -981,6 +1000,7 @@ SCENARIOS = {
     "several_objects_one_fails": several_objects_one_fails,
     "shared_material_one_at_a_time": shared_material_one_at_a_time,
     "quads_stay_whole": quads_stay_whole,
+    "scan_quads_stay_whole": scan_quads_stay_whole,
     "one_atlas_for_all_selected": one_atlas_for_all_selected,
     "one_atlas_shared_material": one_atlas_shared_material,
 }
