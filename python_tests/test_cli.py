@@ -346,6 +346,33 @@ def test_a_texture_cut_short_ends_in_one_line(tool_env, tmp_path):
     assert "cannot read the texture" in proc.stderr and "t1.png" in proc.stderr, proc.stderr
 
 
+def test_a_texture_claiming_more_pixels_than_memory_ends_in_one_line(tool_env, tmp_path):
+    """A PNG header claiming 300000 x 300000 pixels (a broken or hostile file)
+    is refused before the layout scales charts to it or decoding fills memory."""
+    import struct
+    import zlib
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
+    header = struct.pack(">IIBBBBB", 300000, 300000, 8, 2, 0, 0, 0)
+    (tmp_path / "t1.png").write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) +
+                                      chunk(b"IDAT", zlib.compress(b"\0" * 1000)) + chunk(b"IEND", b""))
+    proc = subprocess.run([sys.executable, str(CLI), str(path), str(tmp_path / "out")], env=tool_env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "t1.png" in proc.stderr and "300000 x 300000" in proc.stderr, proc.stderr
+
+
+@pytest.mark.parametrize("start, message", [(b"\xff\xfe", "UTF-16"), (b"\x1f\x8b", "gzip-compressed")])
+def test_obj_files_in_other_encodings_are_named(native, tmp_path, start, message):
+    path = tmp_path / "t.obj"
+    path.write_bytes(start + "v 0 0 0\n".encode("utf-16-le"))
+    with pytest.raises(ValueError, match=message):
+        native.read_obj(str(path))
+
+
 def test_out_dir_problems_end_before_the_work_and_inputs_are_never_replaced(tool_env, tmp_path):
     path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd m_defrag_page0_base_color.png\n",
                              textures=("t0.png", "m_defrag_page0_base_color.png"))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import base64
 import io
 import json
+import os
 import struct
 import urllib.parse
 from dataclasses import dataclass, field
@@ -41,6 +42,7 @@ def load_image(source) -> np.ndarray:
     from atlas_defrag import png_files
 
     data = bytes(source) if isinstance(source, (bytes, bytearray)) else Path(source).read_bytes()
+    image_size(data)  # refuses a header claiming more than memory holds
     pixels = png_files.decode_png_or_none(data)
     if pixels is not None:
         return pixels
@@ -55,11 +57,27 @@ def load_image(source) -> np.ndarray:
     return np.ascontiguousarray(pixels[..., None] if pixels.ndim == 2 else pixels)
 
 
+def _refuse_beyond_memory(size: tuple[int, int], name: str):
+    """ValueError when a header claims more pixels than half this machine's
+    memory holds at 4 bytes each: the layout would scale its charts to that
+    page, and decoding would exhaust memory before the file's end showed the
+    claim false."""
+    memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    needed = 4 * size[0] * size[1]
+    if needed > memory / 2:
+        raise ValueError(f"the texture {name} claims {size[0]} x {size[1]} pixels ({needed / 2**30:.1f} GB decoded), "
+                         f"more than half of this machine's {memory / 2**30:.0f} GB of memory")
+
+
 def image_size(source) -> tuple[int, int]:
+    """(width, height) from the header; ValueError when decoding those pixels
+    would take more than half this machine's memory."""
     from PIL import Image
 
     Image.MAX_IMAGE_PIXELS = None
-    with Image.open(io.BytesIO(source) if isinstance(source, (bytes, bytearray)) else source) as img:
+    in_memory = isinstance(source, (bytes, bytearray))
+    with Image.open(io.BytesIO(source) if in_memory else source) as img:
+        _refuse_beyond_memory(img.size, "in the file" if in_memory else str(source))
         return img.size
 
 

@@ -190,12 +190,21 @@ Matrix rows_of(const std::vector<T>& values) {
                                   Matrix::ColsAtCompileTime);
 }
 
+// Encodings that read as text without a face: named, so that the user
+// knows what to convert instead of being told the mesh is empty.
+void refuse_binary_text(std::string_view all, const std::string& path) {
+  if (all.substr(0, 2) == "\xFF\xFE" || all.substr(0, 2) == "\xFE\xFF")
+    throw InputError(path + " is UTF-16 text: save it as UTF-8 or ASCII");
+  if (all.substr(0, 2) == "\x1F\x8B") throw InputError(path + " is gzip-compressed: decompress it first");
+}
+
 }  // namespace
 
 ObjFile read_obj(const std::string& path) {
   const std::string text = file_contents(path);
   Lists lists;
   const std::string_view all(text);
+  refuse_binary_text(all, path);
   // Lines end in \n (a \r before it is a space to read_line); files of old
   // Mac tools end them in \r alone. A UTF-8 byte-order mark is skipped.
   const char line_end = all.find('\n') == std::string_view::npos ? '\r' : '\n';
