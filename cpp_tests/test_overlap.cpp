@@ -115,6 +115,33 @@ TEST(Overlap, ClosedSurfaceIsSplitIntoDisks) {
   EXPECT_EQ(faces, static_cast<size_t>(torus.face_count()));
 }
 
+TEST(Overlap, HalvingAFoldedChartKeepsItsQuadsWhole) {
+  // A torus of quads (two triangles each) mapped as one chart seen from
+  // above: its top and bottom fold onto each other, and a torus cannot be cut
+  // into a disk, so the chart is halved until its pieces flatten.
+  const Mesh shape = atlas::testing::torus(24, 12, 24);
+  RowMatrixX2d uv(3 * static_cast<Eigen::Index>(shape.face_count()), 2);
+  for (int f = 0; f < shape.face_count(); ++f)
+    for (int k = 0; k < 3; ++k)
+      uv.row(3 * f + k) = (shape.positions.row(shape.triangles(f, k)).head<2>() / 6).array() + 0.5;
+  const Mesh mesh = make_mesh(shape.positions, shape.triangles, uv, Eigen::VectorXi::Zero(shape.face_count()),
+                              {PageSize{1024, 1024}});
+  std::vector<int> quad(mesh.face_count());
+  for (int f = 0; f < mesh.face_count(); ++f) quad[f] = f / 2;
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count(), quad);
+  const ChartGraph graph = build_chart_graph(mesh, topology, {});
+  ASSERT_EQ(graph.chart_count(), 1);
+  std::vector<std::vector<int>> chart_faces(1);
+  for (int f = 0; f < mesh.face_count(); ++f) chart_faces[0].push_back(f);
+  FlattenStats stats;
+  const auto pieces = flatten_without_overlap(mesh, topology, graph, chart_faces, {0}, {}, {}, RunControl(), stats);
+  EXPECT_GE(stats.overlap_halved, 1);
+  std::vector<int> piece_of(mesh.face_count(), -1);
+  for (size_t p = 0; p < pieces.size(); ++p)
+    for (int f : pieces[p].faces) piece_of[f] = static_cast<int>(p);
+  for (int f = 0; f < mesh.face_count(); f += 2) EXPECT_EQ(piece_of[f], piece_of[f + 1]) << "quad " << f / 2;
+}
+
 TEST(CutToDisk, AnnulusOpensIntoADisk) {
   const Mesh ring = atlas::testing::annulus(3, 24, 24);
   RowMatrixX3i t = ring.triangles;

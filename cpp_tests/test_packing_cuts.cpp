@@ -6,6 +6,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <numeric>
 #include <vector>
 
 #include "core/topology.hpp"
@@ -127,6 +128,34 @@ TEST(PackingCuts, LShapeIsCutOnceIntoTwoDisksThatPackSmaller) {
   EXPECT_GE(stats.seam_added_3d, kArm - 1e-9);
   EXPECT_LE(stats.seam_added_3d, 1.5 * kArm);
   EXPECT_LT(packed_page_texels(l.charts), 0.8 * packed_page_texels({whole}));
+}
+
+TEST(PackingCuts, PolygonsAcrossTheCutGoWholeToOnePiece) {
+  // The L's triangles paired across the grid's lines, not across the cells'
+  // diagonals: across the lines x = const, or y = const. Cell (i, j) holds
+  // faces 2q = (a, b, c) and 2q + 1 = (a, c, d), q = i kSide + j. A cut along
+  // the grid's lines parts such pairs unless they move whole to one side.
+  for (const bool across_x : {true, false}) {
+    LChart l = l_chart(true);
+    std::vector<int> polygon(l.mesh.face_count());
+    std::iota(polygon.begin(), polygon.end(), 0);
+    for (int q = 0; q < kSide * kSide; ++q) {
+      if (across_x && q + kSide < kSide * kSide) polygon[2 * (q + kSide) + 1] = 2 * q;
+      if (!across_x && (q + 1) % kSide != 0) polygon[2 * (q + 1)] = 2 * q + 1;
+    }
+    l.topology = build_topology(l.mesh.triangles, l.mesh.vertex_count(), polygon);
+    ASSERT_EQ(cut_for_packing(l.mesh, l.topology, options(100.0), l.charts, RunControl{}).cuts, 1);
+    std::vector<int> piece_of(l.mesh.face_count(), -1);
+    for (size_t p = 0; p < l.charts.size(); ++p)
+      for (int f : l.charts[p].faces) piece_of[f] = static_cast<int>(p);
+    for (int f = 0; f < l.mesh.face_count(); ++f) {
+      const int g = polygon[f];
+      if (g != f && piece_of[f] >= 0 && piece_of[g] >= 0) {
+        EXPECT_EQ(piece_of[f], piece_of[g]) << f << " " << g;
+      }
+    }
+    for (const FlatChart& piece : l.charts) EXPECT_TRUE(is_disk(l.mesh, piece));
+  }
 }
 
 TEST(PackingCuts, SolvedPiecesAreTurnedToTheirSmallestBoxAndStayDisks) {

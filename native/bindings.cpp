@@ -796,7 +796,8 @@ uvs (F,3,2) per-corner UVs in page units, face_page (F,) int (-1: untextured,
 UVs pass through), page_sizes (P,2) (width, height) in texels. face_group (F,)
 keeps groups apart. face_polygon (F,) int: the polygon each triangle comes
 from; the border refinements move a polygon's triangles together or not at all
-and the cuts run around polygons, so that each polygon corner keeps one UV. Returns dict(uvs, face_page, page_sizes, report, charts, face_chart
+and the cuts run around polygons, so that each polygon corner keeps one UV.
+Returns dict(uvs, face_page, page_sizes, report, charts, face_chart
 (output chart per face, -1 untextured)); charts
 holds per output chart: faces, flattened (else original UVs kept), energy_initial
 and energy_final (symmetric Dirichlet per unit reference area, 4 = isometric).)");

@@ -359,7 +359,7 @@ def quads_of(scan):
         if used[f] or used[g] or page[f] != page[g] or sign[f] * sign[g] <= 0:
             continue
         edge = ends[c0]
-        if all(np.allclose(corner_uv(scan.uvs, tri, f, v), corner_uv(scan.uvs, tri, g, v)) for v in edge):
+        if all((corner_uv(scan.uvs, tri, f, v) == corner_uv(scan.uvs, tri, g, v)).all() for v in edge):
             used[f] = used[g] = True
             quads.append((f, g, *edge))
     return np.array(quads)

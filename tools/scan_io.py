@@ -42,7 +42,6 @@ def load_image(source) -> np.ndarray:
     from atlas_defrag import png_files
 
     data = bytes(source) if isinstance(source, (bytes, bytearray)) else Path(source).read_bytes()
-    image_size(data)  # refuses a header claiming more than memory holds
     pixels = png_files.decode_png_or_none(data)
     if pixels is not None:
         return pixels
@@ -62,7 +61,10 @@ def _refuse_beyond_memory(size: tuple[int, int], name: str):
     memory holds at 4 bytes each: the layout would scale its charts to that
     page, and decoding would exhaust memory before the file's end showed the
     claim false."""
-    memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    try:
+        memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):  # no sysconf (Windows): the decoder's own MemoryError stands
+        return
     needed = 4 * size[0] * size[1]
     if needed > memory / 2:
         raise ValueError(f"the texture {name} claims {size[0]} x {size[1]} pixels ({needed / 2**30:.1f} GB decoded), "

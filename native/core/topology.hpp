@@ -17,7 +17,7 @@ struct MeshTopology {
   std::vector<int> edge_corners;     // corners whose edge is e (1: border, 2: manifold, >2: non-manifold)
   std::vector<int> vertex_offsets;   // V+1: CSR into vertex_corners
   std::vector<int> vertex_corners;   // corners sitting at vertex v
-  // E, or empty when every face is a polygon of its own: 1 where both faces
+  // E, or empty when build_topology had no face_polygon: 1 where both faces
   // of the edge triangulate one polygon of the input (a quad's diagonal).
   // Each corner of a polygon holds one UV where the mesh came from, so no
   // cut may run along such an edge.

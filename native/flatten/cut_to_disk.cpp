@@ -92,7 +92,8 @@ void split_along(RowMatrixX3i& t, std::vector<int>& vertex_source, const std::ve
 // The corner of a face whose edge and the one before it may both be cut
 // (corner 0 of the first face when no corner has both).
 int slit_corner(const RowMatrixX3i& t, const std::vector<char>& uncut) {
-  for (int c = 0; c < 3 * static_cast<int>(t.rows()) && !uncut.empty(); ++c)
+  if (uncut.empty()) return 0;
+  for (int c = 0; c < 3 * static_cast<int>(t.rows()); ++c)
     if (!uncut[c] && !uncut[next_corner(next_corner(c))]) return c;
   return 0;
 }

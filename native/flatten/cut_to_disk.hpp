@@ -18,8 +18,8 @@ namespace atlas {
 // which the caller must split instead.
 // triangles (F,3) and vertex_source (V) are changed in place.
 // uncut (3F, or empty): 1 at a corner whose edge lies inside a polygon of the
-// input (MeshTopology::inside_polygon); cuts go around such edges wherever
-// another path joins the same loops.
+// input (MeshTopology::inside_polygon). Cuts go around such edges; only when
+// no such path joins the first loop to another is any edge taken.
 bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source, const std::vector<char>& uncut = {});
 
 }  // namespace atlas

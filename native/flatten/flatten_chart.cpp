@@ -578,7 +578,7 @@ std::vector<char> charts_with_handles(const Mesh& mesh, const MeshTopology& topo
                                       [&](int k) { return corner_vertex(local.triangles, k); }),
                       [&](int, int) { ++edges; });
     const long long chi = static_cast<long long>(local.vertices.size()) - edges + local.triangles.rows();
-    out[c] = chi != 1 && !cut_to_disk(local.triangles, local.vertices, uncut_corners(topology, local.faces));
+    out[c] = chi != 1 && !cut_to_disk(local.triangles, local.vertices);  // which edges it cuts cannot matter here
   });
   return out;
 }

@@ -441,7 +441,9 @@ void straighten_cut(const Mesh& mesh, const FlatChart& chart, const std::vector<
 }
 
 // Each input polygon's triangles (MeshTopology::inside_polygon) into the
-// piece that holds most of them, the first of them on a tie.
+// piece that holds most of them, the first of them on a tie: a polygon's
+// corners hold one UV each, and the majority moves the fewest triangles off
+// the cut the chord chose.
 void keep_polygons_whole(const MeshTopology& topology, const FlatChart& chart, const std::vector<int>& across,
                          std::vector<char>& piece) {
   if (topology.inside_polygon.empty()) return;
@@ -476,8 +478,7 @@ std::optional<Split> split_along(const Mesh& mesh, const MeshTopology& topology,
   for (int s = 0; s < 2; ++s) {
     std::vector<char> in_piece(n);
     for (int i = 0; i < n; ++i) in_piece[i] = (*piece)[i] == s;
-    const bool empty = std::find(in_piece.begin(), in_piece.end(), 1) == in_piece.end();
-    if (empty || !piece_is_disk(mesh, chart, across, in_piece)) return std::nullopt;
+    if (!piece_is_disk(mesh, chart, across, in_piece)) return std::nullopt;  // an empty piece is no disk either
     split.pieces[s] = piece_of(chart, in_piece);
   }
   for (int i = 0; i < n; ++i)

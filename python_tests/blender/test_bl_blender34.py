@@ -20,7 +20,8 @@ GROUPS = {
     "smithsonian": ["operator_smithsonian"],
     "meshroom": ["operator_meshroom"],
     "export": ["fbx_round_trip_meshroom", "fbx_round_trip_smithsonian", "obj_round_trip_meshroom", "save_reopen",
-               "several_objects", "several_objects_one_fails", "one_atlas_for_all_selected", "one_atlas_shared_material",
+               "several_objects", "several_objects_one_fails", "one_atlas_for_all_selected",
+               "one_atlas_shared_material",
                "shared_material_one_at_a_time", "quads_stay_whole", "scan_quads_stay_whole"],
 }
 NEEDS_NATIVE = {"light", "tetra", "smithsonian", "meshroom", "export"}
