@@ -61,7 +61,7 @@ def test_obj_material_libraries_found_and_checked(tmp_path):
     assert names == {"scan.obj", "first.mtl", "scan.mtl", "last.mtl"}
     (tmp_path / "spaced.obj").write_bytes(b"mtllib my scan.mtl\n" + OBJ)
     names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "spaced.obj"))}
-    assert names == {"spaced.obj", "my", "scan.mtl", "my scan.mtl"}
+    assert names == {"spaced.obj", "my", "scan.mtl", "my scan.mtl", "spaced.mtl"}  # spaced.mtl: read by default
     (tmp_path / "a.gltf").write_text('{"buffers": [{"uri": "my%20scan.bin"}], "images": [{"uri": "data:x"}]}')
     names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "a.gltf"))}
     assert names == {"a.gltf", "my scan.bin"}
@@ -162,3 +162,79 @@ def test_a_move_that_fails_puts_the_previous_run_back(tmp_path, monkeypatch):
     with pytest.raises(OSError):
         batch._export_and_move([mesh], str(tmp), str(out / "scan.obj"), set(), lambda: None)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_an_output_that_is_an_input_by_another_name_is_refused(tmp_path):
+    """A hard link stands for what a case-insensitive file system does with
+    Scan.obj and scan.obj: two names, one file."""
+    model = tmp_path / "Scan.obj"
+    model.write_bytes(OBJ)
+    os.link(model, tmp_path / "scan.obj")
+    with pytest.raises(batch.BatchError, match="would overwrite the input file"):
+        batch._refuse_overwriting({str(model)}, [str(tmp_path / "scan.obj")])
+    batch._refuse_overwriting({str(model)}, [str(tmp_path / "other.obj")])
+
+
+def test_quoted_and_default_material_libraries_are_inputs(tmp_path):
+    model = tmp_path / "in.obj"
+    model.write_bytes(b'mtllib "my scan.mtl"\n' + OBJ)
+    files = {os.path.basename(p) for p in batch._input_files(str(model))}
+    assert {"my scan.mtl", "in.mtl"} <= files, files  # Blender's importer reads both
+    broken = tmp_path / "b.gltf"
+    broken.write_text('{"buffers": {}}')
+    assert batch._input_files(str(broken)) == {str(broken)}
+
+
+def test_an_mtl_of_another_model_is_never_replaced(tmp_path, monkeypatch):
+    """statue.glb written as statue.obj beside the user's statue.mtl (the
+    library of statue_lowpoly.obj): refused before the work, and the move
+    would not replace it either."""
+    (tmp_path / "statue.mtl").write_bytes(b"newmtl user\nmap_Kd user.png\n")
+    with pytest.raises(batch.BatchError, match="is not the material library of"):
+        batch._refuse_foreign_library(str(tmp_path / "statue.obj"))
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+
+    def export(path, objects):
+        with open(path, "wb") as f:
+            f.write(b"mtllib statue.mtl\nusemtl a\n" + OBJ)
+        with open(os.path.join(os.path.dirname(path), "statue.mtl"), "wb") as f:
+            f.write(b"newmtl a\n")
+
+    monkeypatch.setattr(batch, "export_model", export)
+    mesh = types.SimpleNamespace(type="MESH", data=types.SimpleNamespace(polygons=[0, 1]))
+    with pytest.raises(batch.BatchError):
+        batch._export_and_move([mesh], str(tmp), str(tmp_path / "statue.obj"), set(), lambda: None)
+    assert (tmp_path / "statue.mtl").read_bytes() == b"newmtl user\nmap_Kd user.png\n"
+    assert not (tmp_path / "statue.obj").exists()
+
+
+def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "scan.obj").write_bytes(b"mtllib scan.mtl\n" + OBJ)
+    (out / "scan.mtl").write_bytes(b"newmtl a\n")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+
+    def export(path, objects):
+        with open(path, "wb") as f:
+            f.write(b"mtllib scan.mtl\nusemtl a\n" + OBJ)
+        with open(os.path.join(os.path.dirname(path), "scan.mtl"), "wb") as f:
+            f.write(b"newmtl a\n# new\n")
+
+    real_replace = os.replace
+
+    def replace(src, dst):
+        if str(dst) == str(out / "scan.obj") or (str(src).endswith(".previous_scan.mtl") and
+                                                 str(dst) == str(out / "scan.mtl")):
+            raise OSError(28, "No space left on device")
+        real_replace(src, dst)
+
+    monkeypatch.setattr(batch, "export_model", export)
+    monkeypatch.setattr(batch.os, "replace", replace)
+    mesh = types.SimpleNamespace(type="MESH", data=types.SimpleNamespace(polygons=[0, 1]))
+    with pytest.raises(batch.PreviousFilesKept, match="scan.mtl.previous"):
+        batch._export_and_move([mesh], str(tmp), str(out / "scan.obj"), set(), lambda: None)
+    assert (out / "scan.mtl.previous").read_bytes() == b"newmtl a\n"
+    assert (out / "scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ

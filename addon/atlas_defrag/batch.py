@@ -251,6 +251,7 @@ def run_one(args, cancel=None) -> dict:
     objects = _import_input(src, dst)
     inputs = _input_files(src)
     _refuse_overwriting(inputs, _model_files(dst))
+    _refuse_foreign_library(dst)
     t_import = time.perf_counter() - t0
     meshes = [o for o in objects if o.type == "MESH"]
     if args.texture:
@@ -259,6 +260,7 @@ def run_one(args, cancel=None) -> dict:
     os.makedirs(out_dir, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix=".atlas_defrag_", dir=out_dir)
     report = {"input": src, "output": dst, "objects": [], "warnings": []}
+    keep_scratch = False
     try:
         _defragment_meshes(pkg, args, meshes, tmp, report, cancel)
         _name_images_after(dst, tmp)
@@ -269,8 +271,12 @@ def run_one(args, cancel=None) -> dict:
             report["warnings"].append(
                 f"{', '.join(unnamed)} written beside {os.path.basename(dst)}, but its materials do not name "
                 "them: Blender's OBJ exporter writes only maps wired straight into the shader")
+    except PreviousFilesKept:
+        keep_scratch = True
+        raise
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if not keep_scratch:
+            shutil.rmtree(tmp, ignore_errors=True)
     report["seconds"] = {"import": t_import, "export": time.perf_counter() - t_export,
                          "total": time.perf_counter() - t0}
     report["status"] = "ok"
@@ -291,16 +297,18 @@ def _model_files(dst: str) -> set:
 
 def _input_files(src: str) -> set:
     """src and the files it names that the import reads: an OBJ's MTL
-    libraries, a glTF's buffers and images."""
+    libraries (and the MTL of its own name, which Blender's importer reads
+    too), a glTF's buffers and images."""
     files = {src}
     folder = os.path.dirname(src)
     try:
         if src.lower().endswith(".obj"):
+            files.add(os.path.splitext(src)[0] + ".mtl")
             with open(src, "rb") as f:
                 for line in _lines_starting(f.read(), b"mtllib"):
-                    # Several libraries, or one whose name holds spaces: both readings are inputs.
+                    # Several libraries, or one whose name holds spaces (quoted or not): each reading is an input.
                     names = line.decode("utf-8", "replace").split()[1:] + [_rest_of(line)]
-                    files.update(os.path.join(folder, n) for n in names if n)
+                    files.update(os.path.join(folder, n.strip('"')) for n in names if n.strip('"'))
         elif src.lower().endswith(".gltf"):
             with open(src, "r", encoding="utf-8") as f:
                 gltf = json.load(f)
@@ -308,7 +316,7 @@ def _input_files(src: str) -> set:
                 uri = item.get("uri", "")
                 if uri and not uri.startswith("data:"):
                     files.add(os.path.join(folder, urllib.parse.unquote(uri)))
-    except (OSError, ValueError):
+    except (OSError, ValueError, TypeError, AttributeError):
         pass  # the importer reports what it cannot read
     return files
 
@@ -321,12 +329,36 @@ def _input_files_of_scene() -> set:
 
 
 def _refuse_overwriting(inputs: set, outputs) -> None:
-    """BatchError when an output would replace an input file (model, MTL, texture)."""
+    """BatchError when an output would replace an input file (model, MTL,
+    texture): the same path, or the same file by another name (a hard link,
+    or other letter case where the file system ignores it)."""
     real_inputs = {_real(p): p for p in inputs}
+    identities = {_identity(p): p for p in inputs}
+    identities.pop(None, None)
     for out in outputs:
-        if _real(out) in real_inputs:
-            raise BatchError(f"the output would overwrite the input file {real_inputs[_real(out)]}: "
+        clash = real_inputs.get(_real(out)) or identities.get(_identity(out))
+        if clash:
+            raise BatchError(f"the output would overwrite the input file {clash}: "
                              "choose another output path or folder")
+
+
+def _refuse_foreign_library(dst: str) -> None:
+    """BatchError when the MTL an OBJ output would write exists and is not
+    the library of an earlier output at dst (another model's, say)."""
+    mtl = os.path.splitext(dst)[0] + ".mtl"
+    if dst.lower().endswith(".obj") and os.path.lexists(mtl) and \
+            os.path.basename(mtl) not in _libraries_named_by(dst):
+        raise BatchError(f"{mtl} exists and is not the material library of {dst} (another model's?): "
+                         "choose another output name")
+
+
+def _identity(path: str):
+    """(device, inode) of an existing file, else None."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return st.st_dev, st.st_ino
 
 
 def _name_images_after(dst: str, folder: str) -> None:
@@ -356,16 +388,20 @@ def _name_images_after(dst: str, folder: str) -> None:
         img.filepath = os.path.join(folder, new)
 
 
-def _images_named_by(model: str) -> set:
-    """The files the material libraries of an existing OBJ model name (a
-    previous run's output, which this one replaces)."""
+def _libraries_named_by(model: str) -> set:
+    """The material libraries an existing OBJ model names (a previous run's
+    output, which this one replaces)."""
     if not model.lower().endswith(".obj") or not os.path.isfile(model):
         return set()
+    with open(model, "rb") as f:
+        return {_rest_of(ln) for ln in _lines_starting(f.read(), b"mtllib")} - {""}
+
+
+def _images_named_by(model: str) -> set:
+    """The files the material libraries of an existing OBJ model name."""
     folder = os.path.dirname(model)
     named = set()
-    with open(model, "rb") as f:
-        libs = [_rest_of(ln) for ln in _lines_starting(f.read(), b"mtllib")]
-    for lib in libs:
+    for lib in _libraries_named_by(model):
         try:
             with open(os.path.join(folder, lib), "rb") as f:
                 named |= _map_files(f.read())
@@ -442,29 +478,54 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) ->
     unnamed = _verify_outputs(tmp, os.path.basename(dst), moving,
                               sum(len(o.data.polygons) for o in objects if o.type == "MESH"))
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
-    # Images may replace only those of the run that wrote dst before.
-    replaceable = _images_named_by(dst) | {os.path.basename(p) for p in _model_files(dst)}
+    # Images and the MTL may replace only those of the run that wrote dst before.
+    replaceable = _images_named_by(dst) | _libraries_named_by(dst) | {os.path.basename(dst)}
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
     try:
         for name in moving:
             target = os.path.join(out_dir, name)
             if name in replaceable or name.lower().endswith(".bin"):
-                if os.path.exists(target):
-                    kept.append((os.path.join(tmp, ".previous_" + name), target))
-                    os.replace(target, kept[-1][0])
+                if os.path.lexists(target):
+                    previous = os.path.join(tmp, ".previous_" + name)
+                    os.replace(target, previous)
+                    kept.append((previous, target))
                 os.replace(os.path.join(tmp, name), target)
             else:
                 _move_new(os.path.join(tmp, name), target)
             moved.append(target)
         os.replace(tmp_out, dst)
-    except BaseException:
+    except BaseException as exc:
         for path in moved:
             _remove_quietly(path)
-        for previous, target in kept:  # the previous run's model stays whole
-            os.replace(previous, target)
+        elsewhere = _restore(kept)
+        if elsewhere:
+            raise PreviousFilesKept(f"{exc}; the previous output's files could not all be put back: they are "
+                                    f"kept as {', '.join(elsewhere)}") from exc
         raise
     return unnamed
+
+
+class PreviousFilesKept(BatchError):
+    """A failed run could not put all of the previous run's files back: the
+    scratch folder that may still hold them is left in place."""
+
+
+def _restore(kept) -> list:
+    """Puts the previous run's files back (the previous model stays whole).
+    Returns where those that could not go back are: beside their place, or
+    still in the scratch folder."""
+    elsewhere = []
+    for previous, target in kept:
+        try:
+            os.replace(previous, target)
+        except OSError:
+            try:
+                os.replace(previous, target + ".previous")
+                elsewhere.append(target + ".previous")
+            except OSError:
+                elsewhere.append(previous)
+    return elsewhere
 
 
 def _move_new(src: str, dst: str) -> None:
@@ -686,13 +747,18 @@ def main_single(argv) -> int:
             report = run_one(args, token)
     except Exception as exc:  # every failure: reason on stderr, exit 1 (130 when interrupted)
         cancelled = type(exc).__name__ == "DefragCancelled" or token.cancelled
-        msg = "interrupted (SIGINT): nothing was written" if cancelled else \
+        msg = str(exc) if isinstance(exc, PreviousFilesKept) else \
+            "interrupted (SIGINT): nothing was written" if cancelled else \
             str(exc) if isinstance(exc, BatchError) or type(exc).__name__ == "DefragError" \
             else f"{type(exc).__name__}: {exc}"
         print(f"atlas_defrag: error: {args.input}: {msg}", file=sys.stderr)
-        _write_report(args.report, {"input": os.path.abspath(args.input),
-                                    "output": os.path.abspath(args.output),
-                                    "status": "cancelled" if cancelled else "error", "error": msg})
+        try:
+            _write_report(args.report, {"input": os.path.abspath(args.input),
+                                        "output": os.path.abspath(args.output),
+                                        "status": "cancelled" if cancelled else "error", "error": msg})
+        except OSError as report_exc:
+            print(f"atlas_defrag: error: nor could the report {args.report} be written: {report_exc}",
+                  file=sys.stderr)
         return EXIT_INTERRUPTED if cancelled else 1
     try:
         _write_report(args.report, report)
