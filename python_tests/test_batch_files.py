@@ -238,3 +238,13 @@ def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatc
         batch._export_and_move([mesh], str(tmp), str(out / "scan.obj"), set(), lambda: None)
     assert (out / "scan.mtl.previous").read_bytes() == b"newmtl a\n"
     assert (out / "scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
+
+
+def test_a_report_replaces_only_an_earlier_report(tmp_path):
+    model, out = tmp_path / "in.obj", tmp_path / "out.obj"
+    model.write_bytes(b"mtllib in.mtl\n" + OBJ)
+    (tmp_path / "in.mtl").write_bytes(b"newmtl a\nmap_Kd tex.png\n")
+    (tmp_path / "tex.png").write_bytes(b"\x89PNG pixels")
+    assert "is not a report" in batch._report_path_problem(str(tmp_path / "tex.png"), str(model), str(out))
+    (tmp_path / "r.json").write_text('{"status": "ok"}')
+    assert batch._report_path_problem(str(tmp_path / "r.json"), str(model), str(out)) == ""

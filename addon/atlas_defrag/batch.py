@@ -688,8 +688,10 @@ def _report_path_problem(path, src: str, dst: str) -> str:
     if os.path.isdir(path):
         return f"--report {path} is a folder"
     for other in sorted(_input_files(os.path.abspath(src)) | _model_files(os.path.abspath(dst))):
-        if _real(other) == _real(path):
+        if _real(other) == _real(path) or _identity(other) is not None and _identity(other) == _identity(path):
             return f"--report {path} would overwrite {other}"
+    if os.path.lexists(path) and not _is_report(path):
+        return f"--report {path} exists and is not a report of this entry (a texture?): it would be overwritten"
     folder = os.path.dirname(path)
     probe = folder
     while probe and not os.path.exists(probe):
@@ -699,6 +701,17 @@ def _report_path_problem(path, src: str, dst: str) -> str:
     if not os.access(probe, os.W_OK | os.X_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
         return f"--report {path} is not writable"
     return ""
+
+
+def _is_report(path: str) -> bool:
+    """Whether the file at path is a JSON report (an earlier run's, which a
+    new one may replace)."""
+    try:
+        with open(path, "rb") as f:
+            data = json.loads(f.read(1 << 20))
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and "status" in data
 
 
 class _Interrupt:
