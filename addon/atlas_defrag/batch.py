@@ -668,14 +668,14 @@ def _write_report(path, report):
     if not path:
         return
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    tmp = path + ".tmp"
+    tmp = f"{path}.{os.getpid()}.tmp"
+    f = open(tmp, "x")  # "x": never over a file of that name
     try:
-        with open(tmp, "w") as f:
+        with f:
             json.dump(report, f, indent=2, sort_keys=True)
         os.replace(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+        _remove_quietly(tmp)
         raise
 
 
