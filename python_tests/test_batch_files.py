@@ -1,5 +1,6 @@
 """The batch entry's check of the files an export wrote (no Blender needed):
 a file cut short is caught from its ends, without reading large images whole."""
+import json
 import os
 import struct
 import types
@@ -248,3 +249,14 @@ def test_a_report_replaces_only_an_earlier_report(tmp_path):
     assert "is not a report" in batch._report_path_problem(str(tmp_path / "tex.png"), str(model), str(out))
     (tmp_path / "r.json").write_text('{"status": "ok"}')
     assert batch._report_path_problem(str(tmp_path / "r.json"), str(model), str(out)) == ""
+
+
+def test_the_report_is_written_whole_and_never_over_another_file(tmp_path):
+    report = tmp_path / "r.json"
+    batch._write_report(str(report), {"status": "ok"})
+    assert json.loads(report.read_text()) == {"status": "ok"}
+    clash = tmp_path / f"r.json.{os.getpid()}.tmp"
+    clash.write_text("the user's")
+    with pytest.raises(FileExistsError):
+        batch._write_report(str(report), {"status": "error"})
+    assert clash.read_text() == "the user's" and json.loads(report.read_text()) == {"status": "ok"}
