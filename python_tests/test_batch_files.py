@@ -129,6 +129,22 @@ def test_importer_errors_come_without_their_traceback():
     assert batch._importer_error(dotted) == "struct.error: unpack_from requires a buffer of at least 4 bytes"
 
 
+MESH = types.SimpleNamespace(type="MESH", data=types.SimpleNamespace(polygons=[0, 1]))
+
+
+def fake_export(mtl_name: str, mtl: bytes, images=()):
+    """An export_model stand-in: the OBJ (naming mtl_name and using material
+    a), its MTL and the (name, bytes) images, beside it."""
+    def export(path, objects):
+        folder = os.path.dirname(path)
+        with open(path, "wb") as f:
+            f.write(b"mtllib " + mtl_name.encode() + b"\nusemtl a\n" + OBJ)
+        for name, data in [(mtl_name, mtl)] + list(images):
+            with open(os.path.join(folder, name), "wb") as f:
+                f.write(data)
+    return export
+
+
 def test_a_move_that_fails_puts_the_previous_run_back(tmp_path, monkeypatch):
     """A run over an earlier OBJ output that fails while moving its files in
     leaves the earlier model whole: its MTL and images as they were."""
@@ -141,15 +157,8 @@ def test_a_move_that_fails_puts_the_previous_run_back(tmp_path, monkeypatch):
     tmp = tmp_path / "tmp"
     tmp.mkdir()
 
-    def export(path, objects):
-        folder = os.path.dirname(path)
-        with open(path, "wb") as f:
-            f.write(b"mtllib scan.mtl\nusemtl a\n" + OBJ)
-        with open(os.path.join(folder, "scan.mtl"), "wb") as f:
-            f.write(b"newmtl a\nmap_Kd scan_tex.png\n")
-        with open(os.path.join(folder, "scan_tex.png"), "wb") as f:
-            f.write(png_files.encode_png(np.zeros((2, 2, 3), np.uint8)))
-
+    export = fake_export("scan.mtl", b"newmtl a\nmap_Kd scan_tex.png\n",
+                         [("scan_tex.png", png_files.encode_png(np.zeros((2, 2, 3), np.uint8)))])
     real_replace = os.replace
 
     def replace(src, dst):
@@ -159,9 +168,8 @@ def test_a_move_that_fails_puts_the_previous_run_back(tmp_path, monkeypatch):
 
     monkeypatch.setattr(batch, "export_model", export)
     monkeypatch.setattr(batch.os, "replace", replace)
-    mesh = types.SimpleNamespace(type="MESH", data=types.SimpleNamespace(polygons=[0, 1]))
     with pytest.raises(OSError):
-        batch._export_and_move([mesh], str(tmp), str(out / "scan.obj"), set(), lambda: None)
+        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
@@ -196,16 +204,9 @@ def test_an_mtl_of_another_model_is_never_replaced(tmp_path, monkeypatch):
     tmp = tmp_path / "tmp"
     tmp.mkdir()
 
-    def export(path, objects):
-        with open(path, "wb") as f:
-            f.write(b"mtllib statue.mtl\nusemtl a\n" + OBJ)
-        with open(os.path.join(os.path.dirname(path), "statue.mtl"), "wb") as f:
-            f.write(b"newmtl a\n")
-
-    monkeypatch.setattr(batch, "export_model", export)
-    mesh = types.SimpleNamespace(type="MESH", data=types.SimpleNamespace(polygons=[0, 1]))
+    monkeypatch.setattr(batch, "export_model", fake_export("statue.mtl", b"newmtl a\n"))
     with pytest.raises(batch.BatchError):
-        batch._export_and_move([mesh], str(tmp), str(tmp_path / "statue.obj"), set(), lambda: None)
+        batch._export_and_move([MESH], str(tmp), str(tmp_path / "statue.obj"), set(), lambda: None)
     assert (tmp_path / "statue.mtl").read_bytes() == b"newmtl user\nmap_Kd user.png\n"
     assert not (tmp_path / "statue.obj").exists()
 
@@ -218,12 +219,6 @@ def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatc
     tmp = tmp_path / "tmp"
     tmp.mkdir()
 
-    def export(path, objects):
-        with open(path, "wb") as f:
-            f.write(b"mtllib scan.mtl\nusemtl a\n" + OBJ)
-        with open(os.path.join(os.path.dirname(path), "scan.mtl"), "wb") as f:
-            f.write(b"newmtl a\n# new\n")
-
     real_replace = os.replace
 
     def replace(src, dst):
@@ -232,11 +227,10 @@ def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatc
             raise OSError(28, "No space left on device")
         real_replace(src, dst)
 
-    monkeypatch.setattr(batch, "export_model", export)
+    monkeypatch.setattr(batch, "export_model", fake_export("scan.mtl", b"newmtl a\n# new\n"))
     monkeypatch.setattr(batch.os, "replace", replace)
-    mesh = types.SimpleNamespace(type="MESH", data=types.SimpleNamespace(polygons=[0, 1]))
     with pytest.raises(batch.PreviousFilesKept, match="scan.mtl.previous"):
-        batch._export_and_move([mesh], str(tmp), str(out / "scan.obj"), set(), lambda: None)
+        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None)
     assert (out / "scan.mtl.previous").read_bytes() == b"newmtl a\n"
     assert (out / "scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
 
