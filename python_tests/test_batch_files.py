@@ -80,6 +80,10 @@ def test_obj_material_libraries_found_and_checked(tmp_path):
     # Whole: the images no map names (an occlusion map, which OBJ cannot carry) come back.
     (tmp_path / "last.mtl").write_bytes(b"newmtl b c\nmap_Bump -bm 1.0 n.png\n")
     assert batch._verify_obj_references(str(tmp_path), "scan.obj", images) == ["ao.png"]
+    # Cut at a line end before the last material's map_Kd: whole-looking, but a base colour goes unnamed.
+    (tmp_path / "last.mtl").write_bytes(b"newmtl b c\nKd 1 1 1\n")
+    with pytest.raises(batch.BatchError, match="do not name n.png"):
+        batch._verify_obj_references(str(tmp_path), "scan.obj", images, {"a b.png", "n.png"})
 
 
 @pytest.mark.parametrize("arguments, name", [

@@ -476,7 +476,8 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) ->
     moving = [name for name in sorted(os.listdir(tmp))
               if name != os.path.basename(dst) and (is_obj or name.lower().endswith(".bin"))]
     unnamed = _verify_outputs(tmp, os.path.basename(dst), moving,
-                              sum(len(o.data.polygons) for o in objects if o.type == "MESH"))
+                              sum(len(o.data.polygons) for o in objects if o.type == "MESH"),
+                              _base_colour_files(objects))
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
     # Images and the MTL may replace only those of the run that wrote dst before.
     replaceable = _images_named_by(dst) | _libraries_named_by(dst) | {os.path.basename(dst)}
@@ -552,10 +553,11 @@ def _remove_quietly(path: str) -> None:
         pass
 
 
-def _verify_outputs(folder: str, model: str, others, polygons: int) -> list:
+def _verify_outputs(folder: str, model: str, others, polygons: int, base_colours=frozenset()) -> list:
     """BatchError unless every written file is whole: exporters report success
     on a full disk and leave truncated or empty files. Returns the images
-    written beside an OBJ that its materials do not name."""
+    written beside an OBJ that its materials do not name. base_colours: the
+    files an OBJ's MTL must name (see _base_colour_files)."""
     for name in [model] + list(others):
         path = os.path.join(folder, name)
         problem = _file_problem(path, polygons if name == model else None)
@@ -563,7 +565,24 @@ def _verify_outputs(folder: str, model: str, others, polygons: int) -> list:
             raise BatchError(f"writing {name} failed ({problem}): is the disk full?")
     if not model.lower().endswith(".obj"):
         return []
-    return _verify_obj_references(folder, model, [n for n in others if not n.lower().endswith(".mtl")])
+    return _verify_obj_references(folder, model, [n for n in others if not n.lower().endswith(".mtl")],
+                                  base_colours)
+
+
+def _base_colour_files(objects) -> set:
+    """The image files wired straight into a Principled BSDF's Base Color in
+    the objects' materials: Blender's OBJ exporter always names those in the
+    MTL (map_Kd, by file name with path_mode STRIP)."""
+    files = set()
+    for o in objects:
+        for slot in getattr(o, "material_slots", []):
+            tree = slot.material.node_tree if slot.material and slot.material.use_nodes else None
+            for link in tree.links if tree else []:
+                image = getattr(link.from_node, "image", None)
+                if link.to_node.type == "BSDF_PRINCIPLED" and link.to_socket.name == "Base Color" and \
+                        link.from_node.type == "TEX_IMAGE" and image is not None and image.filepath:
+                    files.add(os.path.basename(image.filepath))
+    return files
 
 
 def _file_problem(path: str, polygons) -> str:
@@ -606,10 +625,11 @@ def _binary_file_problem(path: str, ext: str) -> str:
     return ""
 
 
-def _verify_obj_references(folder: str, model: str, images) -> list:
+def _verify_obj_references(folder: str, model: str, images, base_colours=frozenset()) -> list:
     """BatchError unless the OBJ's material libraries are there and whole:
-    each ends with a line end, and together they define every material the
-    OBJ uses (a cut-short MTL loses its last lines). Returns the images
+    each ends with a line end, together they define every material the OBJ
+    uses and name every file of base_colours (a cut-short MTL loses its last
+    lines, and a material's maps come last in it). Returns the images
     written beside the OBJ that no MTL names: Blender's OBJ exporter writes
     only maps wired straight into the shader (not an occlusion map, nor one
     behind a Mix node). Names the MTL carries over from the input (even
@@ -631,6 +651,10 @@ def _verify_obj_references(folder: str, model: str, images) -> list:
     undefined = sorted(used - defined)
     if undefined:
         raise BatchError(f"writing {model} failed: its material libraries do not define {', '.join(undefined)}: "
+                         "is the disk full?")
+    unnamed = sorted(set(base_colours) - named)
+    if unnamed:
+        raise BatchError(f"writing {model} failed: its material libraries do not name {', '.join(unnamed)}: "
                          "is the disk full?")
     return sorted(set(images) - named)
 
