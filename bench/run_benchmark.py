@@ -548,6 +548,19 @@ def run_model(name: str, path: Path, work: Path, args) -> dict:
 
 
 # ------------------------------------------------------------------ RESULTS.md
+def host_speed_seconds() -> float:
+    """Seconds a fixed single-threaded workload takes (5M additions in the
+    interpreter, median of 3): this host's speed drifts by up to 2x within a
+    day, so runs compare only alongside this figure."""
+    times = []
+    for _ in range(3):
+        start, total = time.perf_counter(), 0
+        for i in range(5_000_000):
+            total += i
+        times.append(time.perf_counter() - start)
+    return sorted(times)[1]
+
+
 def machine() -> dict:
     cpu = platform.processor() or "?"
     try:
@@ -583,7 +596,7 @@ def machine() -> dict:
                  f"sha256 {hashlib.sha256(so.read_bytes()).hexdigest()[:12]}")
     return {"native": built, "cpu": cpu, "cores": os.cpu_count(), "ram_gb": mem, "commit": git("rev-parse", "--short", "HEAD").strip(),
             "dirty": dirty, "blender": blender, "date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"),
-            "python": platform.python_version()}
+            "python": platform.python_version(), "speed": host_speed_seconds()}
 
 
 def _fmt_int(v):
@@ -614,7 +627,9 @@ def write_results(results: list, mach: dict, args, path: Path, started: float) -
     add("")
     add(f"- Date: {mach['date']}; took {(time.time() - started) / 60:.0f} min.")
     add(f"- Machine: {mach['cores']} cores ({mach['cpu']}), {mach['ram_gb']:.0f} GB RAM; {mach['blender']} "
-        f"(Debian), Python {mach['python']}.")
+        f"(Debian), Python {mach['python']}. Host speed: a fixed single-threaded workload (5M additions in "
+        f"Python, `host_speed_seconds`) took {mach['speed']:.2f} s; the host's speed drifts by up to 2x within a "
+        "day, so compare seconds between runs only alongside this figure.")
     dirty = ""
     if mach["dirty"]:
         dirty = (f" The working tree had uncommitted changes (other engineers at work) in: "
