@@ -220,6 +220,7 @@ def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatc
     out.mkdir()
     (out / "scan.obj").write_bytes(b"mtllib scan.mtl\n" + OBJ)
     (out / "scan.mtl").write_bytes(b"newmtl a\n")
+    (out / "scan.mtl.previous").write_bytes(b"the user's")
     tmp = tmp_path / "tmp"
     tmp.mkdir()
 
@@ -233,9 +234,10 @@ def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatc
 
     monkeypatch.setattr(batch, "export_model", fake_export("scan.mtl", b"newmtl a\n# new\n"))
     monkeypatch.setattr(batch.os, "replace", replace)
-    with pytest.raises(batch.PreviousFilesKept, match="scan.mtl.previous"):
+    with pytest.raises(batch.PreviousFilesKept, match="scan.mtl.previous1"):
         batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None)
-    assert (out / "scan.mtl.previous").read_bytes() == b"newmtl a\n"
+    assert (out / "scan.mtl.previous1").read_bytes() == b"newmtl a\n"
+    assert (out / "scan.mtl.previous").read_bytes() == b"the user's"
     assert (out / "scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
 
 

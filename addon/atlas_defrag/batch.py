@@ -521,9 +521,11 @@ def _restore(kept) -> list:
         try:
             os.replace(previous, target)
         except OSError:
+            beside = next((f"{target}.previous{k or ''}" for k in range(100)
+                           if not os.path.lexists(f"{target}.previous{k or ''}")), previous)
             try:
-                os.replace(previous, target + ".previous")
-                elsewhere.append(target + ".previous")
+                os.replace(previous, beside)  # a name no file has: nothing of the user's is replaced
+                elsewhere.append(beside)
             except OSError:
                 elsewhere.append(previous)
     return elsewhere
