@@ -330,16 +330,21 @@ def _input_files_of_scene() -> set:
 
 def _refuse_overwriting(inputs: set, outputs) -> None:
     """BatchError when an output would replace an input file (model, MTL,
-    texture): the same path, or the same file by another name (a hard link,
-    or other letter case where the file system ignores it)."""
-    real_inputs = {_real(p): p for p in inputs}
-    identities = {_identity(p): p for p in inputs}
-    identities.pop(None, None)
+    texture; see _file_among)."""
     for out in outputs:
-        clash = real_inputs.get(_real(out)) or identities.get(_identity(out))
+        clash = _file_among(out, inputs)
         if clash:
             raise BatchError(f"the output would overwrite the input file {clash}: "
                              "choose another output path or folder")
+
+
+def _file_among(path: str, files):
+    """The one of files that path would overwrite: the same path, or the same
+    file by another name (a hard link, or other letter case where the file
+    system ignores it); None if none."""
+    identity = _identity(path)
+    return next((f for f in sorted(files)
+                 if _real(f) == _real(path) or identity is not None and _identity(f) == identity), None)
 
 
 def _refuse_foreign_library(dst: str) -> None:
@@ -371,7 +376,7 @@ def _name_images_after(dst: str, folder: str) -> None:
     import bpy
     stem = os.path.splitext(os.path.basename(dst))[0]
     out_dir = os.path.dirname(dst)
-    owned = _images_named_by(dst)
+    owned = _images_named_by(dst, _libraries_named_by(dst))
     real = _real(folder)
     for img in bpy.data.images:
         path = bpy.path.abspath(img.filepath) if img.filepath else ""
@@ -397,11 +402,11 @@ def _libraries_named_by(model: str) -> set:
         return {_rest_of(ln) for ln in _lines_starting(f.read(), b"mtllib")} - {""}
 
 
-def _images_named_by(model: str) -> set:
-    """The files the material libraries of an existing OBJ model name."""
+def _images_named_by(model: str, libraries: set) -> set:
+    """The files that libraries (model's, from _libraries_named_by) name."""
     folder = os.path.dirname(model)
     named = set()
-    for lib in _libraries_named_by(model):
+    for lib in libraries:
         try:
             with open(os.path.join(folder, lib), "rb") as f:
                 named |= _map_files(f.read())
@@ -480,7 +485,8 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) ->
                               _base_colour_files(objects))
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
     # Images and the MTL may replace only those of the run that wrote dst before.
-    replaceable = _images_named_by(dst) | _libraries_named_by(dst) | {os.path.basename(dst)}
+    libraries = _libraries_named_by(dst)
+    replaceable = _images_named_by(dst, libraries) | libraries
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
     try:
@@ -713,9 +719,9 @@ def _report_path_problem(path, src: str, dst: str) -> str:
     path = os.path.abspath(path)
     if os.path.isdir(path):
         return f"--report {path} is a folder"
-    for other in sorted(_input_files(os.path.abspath(src)) | _model_files(os.path.abspath(dst))):
-        if _real(other) == _real(path) or _identity(other) is not None and _identity(other) == _identity(path):
-            return f"--report {path} would overwrite {other}"
+    other = _file_among(path, _input_files(os.path.abspath(src)) | _model_files(os.path.abspath(dst)))
+    if other:
+        return f"--report {path} would overwrite {other}"
     if os.path.lexists(path) and not _is_report(path):
         return f"--report {path} exists and is not a report of this entry (a texture?): it would be overwritten"
     folder = os.path.dirname(path)
