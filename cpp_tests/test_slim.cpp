@@ -135,6 +135,82 @@ TEST(Slim, MixedResolutionReferenceIsSolvedFlipFree) {
   EXPECT_GT(coarse_area, 2 * fine_area);
 }
 
+// The grid lifted into a bump of height h at its centre, each face's
+// reference its own 3D triangle laid flat: more surface than a plane holds.
+ChartProblem bump(double h) {
+  ChartProblem problem = grid_problem(16, [](const Eigen::Vector2d& xy, int) { return xy; });
+  for (Eigen::Index v = 0; v < problem.positions.rows(); ++v) {
+    const Eigen::Vector2d d = problem.positions.row(v).head<2>().transpose() - Eigen::Vector2d(0.5, 0.5);
+    problem.positions(v, 2) = h * std::exp(-d.squaredNorm() / 0.02);
+  }
+  for (Eigen::Index f = 0; f < problem.triangles.rows(); ++f) {
+    const Eigen::Vector3d p0 = problem.positions.row(problem.triangles(f, 0)).transpose();
+    const Eigen::Vector3d e1 = problem.positions.row(problem.triangles(f, 1)).transpose() - p0;
+    const Eigen::Vector3d e2 = problem.positions.row(problem.triangles(f, 2)).transpose() - p0;
+    const Eigen::Vector3d u = e1.normalized();
+    problem.reference_uv.row(3 * f) << 0, 0;
+    problem.reference_uv.row(3 * f + 1) << e1.norm(), 0;
+    problem.reference_uv.row(3 * f + 2) << e2.dot(u), (e2 - e2.dot(u) * u).norm();
+  }
+  return problem;
+}
+
+double reference_area(const ChartProblem& problem, int f) {
+  const Eigen::Matrix2d edges =
+      problem.reference_uv.middleRows<2>(3 * f + 1).rowwise() - problem.reference_uv.row(3 * f);
+  return std::abs(edges.determinant()) / 2;
+}
+
+// Reference area of the faces the solution shrinks below half their reference area.
+double area_below_half(const ChartSolution& solution, const ChartProblem& problem) {
+  double area = 0;
+  for (int f = 0; f < problem.triangles.rows(); ++f)
+    if (face_jacobian(solution, problem, f).determinant() < 0.5) area += reference_area(problem, f);
+  return area;
+}
+
+TEST(Slim, DensityRepairLiftsSqueezedFaces) {
+  const ChartProblem problem = bump(0.5);
+  SlimOptions none;
+  none.repair_rounds = 0;
+  const ChartSolution plain = parameterize_chart(problem, none, RunControl());
+  const ChartSolution repaired = parameterize_chart(problem, SlimOptions(), RunControl());
+  expect_valid(plain, problem);
+  expect_valid(repaired, problem);
+  EXPECT_FALSE(plain.density_repaired);
+  EXPECT_TRUE(repaired.density_repaired);
+  EXPECT_GT(area_below_half(plain, problem), 0);
+  EXPECT_LT(area_below_half(repaired, problem), 0.5 * area_below_half(plain, problem));
+}
+
+TEST(Slim, DensityRepairSparesChartsThatLoseLittle) {
+  const ChartProblem problem = bump(0.3);
+  SlimOptions none, every;
+  none.repair_rounds = 0;
+  every.repair_share = 0;
+  const ChartSolution plain = parameterize_chart(problem, none, RunControl());
+  const double lost = area_below_half(plain, problem);
+  double area = 0;
+  for (int f = 0; f < problem.triangles.rows(); ++f) area += reference_area(problem, f);
+  ASSERT_GT(lost, 0);
+  ASSERT_LT(lost, SlimOptions().repair_share * area);
+  EXPECT_FALSE(parameterize_chart(problem, SlimOptions(), RunControl()).density_repaired);
+  EXPECT_TRUE(parameterize_chart(problem, every, RunControl()).density_repaired);
+}
+
+// Solved to convergence, the bump's repair must raise the energy.
+TEST(Slim, DensityRepairThatRaisesTheEnergyPastItsBoundIsUndone) {
+  const ChartProblem problem = bump(0.5);
+  SlimOptions none = tight_options(), strict = tight_options();
+  none.repair_rounds = 0;
+  strict.repair_energy_bound = 0;
+  const ChartSolution plain = parameterize_chart(problem, none, RunControl());
+  const ChartSolution undone = parameterize_chart(problem, strict, RunControl());
+  EXPECT_FALSE(undone.density_repaired);
+  EXPECT_TRUE(undone.uv == plain.uv);
+  EXPECT_EQ(undone.energy_final, plain.energy_final);
+}
+
 TEST(Slim, SmoothDeformationConverges) {
   const ChartProblem problem = grid_problem(16, [](const Eigen::Vector2d& xy, int) {
     return Eigen::Vector2d(30 * xy.x() + 4 * std::sin(3 * xy.y()), 20 * xy.y() + 3 * xy.x() * xy.x());

@@ -67,7 +67,7 @@ def test_vertex_uvs_split_at_seams_read_back(scans, tmp_path):
 
 
 def test_cli_on_a_ply_scan_matches_the_obj(scans, scan_path, tool_env, tmp_path):
-    """The same mesh and UVs through PLY and OBJ: the same charts, and texels within 1%. The PLY holds
+    """The same mesh and UVs through PLY and OBJ: the same charts, and texels within 2%. The PLY holds
     the UVs as float32, so the flattening's last digits differ, which may move the packer's pages."""
     write_face_texcoords(tmp_path / "tetra.ply", scans("tetra"))
     outs = []
@@ -79,7 +79,7 @@ def test_cli_on_a_ply_scan_matches_the_obj(scans, scan_path, tool_env, tmp_path)
     assert len(outs[0]) == len(outs[1]) == 2
     assert outs[0][0] == outs[1][0]
     texels = [int(out[1].split("->")[1].split()[0].replace(",", "")) for out in outs]
-    assert abs(texels[1] - texels[0]) <= 0.01 * texels[0], outs
+    assert abs(texels[1] - texels[0]) <= 0.02 * texels[0], outs
     assert (tmp_path / "ply" / "tetra_defrag.obj").exists()
 
 

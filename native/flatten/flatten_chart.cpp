@@ -522,6 +522,7 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
       }
       return {std::nullopt, &FlattenStats::density_lost, loss.culprit};
     }
+    stats.density_repaired += solution.density_repaired;
     FlatChart chart = from_solution(local, solution);
     chart.density_lost_area = loss.lost_area;
     return {std::move(chart)};

@@ -45,6 +45,7 @@ struct FlattenStats {
   int overlap_halved = 0;      // not a split of merged charts: lone charts whose own UVs overlap, cut in two
   int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
   int relief_cuts = 0;         // not a split: slits cut into charts that lost density (relief_cut.hpp)
+  int density_repaired = 0;    // not a split: charts kept with their density repair (SlimOptions::repair_rounds)
 };
 
 // Every counter under the name the report gives it: a new counter is a field
@@ -57,7 +58,7 @@ inline constexpr FlattenCounter kFlattenCounters[] = {
     {"splits_not_disk", &FlattenStats::not_disk},     {"splits_solver", &FlattenStats::solver_failed},
     {"splits_overlap", &FlattenStats::overlapped},    {"splits_density", &FlattenStats::density_lost},
     {"charts_scaffolded", &FlattenStats::scaffolded}, {"overlap_halved", &FlattenStats::overlap_halved},
-    {"relief_cuts", &FlattenStats::relief_cuts},
+    {"relief_cuts", &FlattenStats::relief_cuts},     {"density_repaired", &FlattenStats::density_repaired},
 };
 
 inline FlattenStats& operator+=(FlattenStats& sum, const FlattenStats& more) {

@@ -5,6 +5,9 @@
 // the symbolic Cholesky analysis is done once per chart and every iteration
 // costs little more than one numeric factorization. (SCAF, the fallback for
 // charts whose boundary crosses itself, changes the pattern with its scaffold.)
+// A density repair may follow: faces left squeezed to area ratio r = det J_f
+// below a floor weigh w_f = factor * floor / r times more, E_w = sum_f w_f
+// A_ref(f) psi(J_f), and the solve goes on (SlimOptions::repair_rounds).
 #include "flatten/slim.hpp"
 
 #include <Eigen/LU>
@@ -548,19 +551,18 @@ bool converged(double before, double after, int iterations, const SlimOptions& o
 
 // Minimizes E from x (flip-free, in solver numbering, with E(x) = energy),
 // keeping x flip-free.
+// system holds the pattern of faces (prepare_proxy_system), reused across calls.
 // With a loop given, a step after which the boundary crosses itself is undone
 // and crossed is set: the caller goes on with a scaffold. Returns why it
 // stopped early, if it did; x is the last accepted iterate either way.
-SolveStatus minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int>& loop_dofs,
+SolveStatus minimize_energy(std::vector<ProxyFace>& faces, ProxySystem& system, const std::vector<int>& loop_dofs,
                             const SlimOptions& options, const RunControl& control, Eigen::VectorXd& x,
                             double energy, ChartSolution& solution, bool& crossed) {
-  ProxySystem system;
-  prepare_proxy_system(faces, static_cast<int>(x.size()), system);
   Eigen::VectorXd previous;
   ProgressiveStage stage;
   stage.on = options.progressive_bound > 0;
   if (stage.on) stage.intermediate = faces;
-  for (solution.iterations = 0; solution.iterations < options.max_iterations;) {
+  for (int iterations = 0; iterations < options.max_iterations;) {
     control.throw_if_cancelled();
     if (!loop_dofs.empty()) previous = x;
     const double energy_before = energy;
@@ -580,8 +582,8 @@ SolveStatus minimize_energy(std::vector<ProxyFace>& faces, const std::vector<int
       crossed = true;
       return {};
     }
-    ++solution.iterations;
-    if (converged(energy_before, energy, solution.iterations, options, stage)) return {};
+    ++iterations, ++solution.iterations;
+    if (converged(energy_before, energy, iterations, options, stage)) return {};
   }
   return {};
 }
@@ -641,6 +643,8 @@ SolveStatus minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
       all << triangles, scaffold.triangles;
       order = fill_reducing_order(all, n + 4);
       faces = proxy_faces(triangles, reference, order);
+      for (size_t f = 0; f < chart_face_count; ++f)  // the weights the density repair gave
+        set_face_reference(faces[f].inverse_edges, chart_faces[f].area, faces[f]);
       faces.resize(all.rows());
     }
     const double weight = kScaffoldWeight * energy_before / static_cast<double>(all.rows() - triangles.rows());
@@ -663,6 +667,84 @@ SolveStatus minimize_with_scaffold(const RowMatrixX3i& triangles, const RowMatri
     if (decrease >= 0 && decrease < kScaffoldToleranceFactor * options.relative_tolerance) return {};
   }
   return {};
+}
+
+// One chart's solve as the first solve and the density repair share it: a
+// chart that went into its scaffold goes on inside one.
+struct ChartSolve {
+  ChartSolve(const RowMatrixX3i& t, const RowMatrixX2d& r, const std::vector<int>& o)
+      : triangles(t), reference(r), order(o) {}
+  const RowMatrixX3i& triangles;
+  const RowMatrixX2d& reference;  // 3F x 2, the repaired reference corners
+  const std::vector<int>& order;
+  std::vector<int> loop, loop_dofs;
+  std::vector<ProxyFace> faces;
+  ProxySystem system;
+  Eigen::VectorXd x;
+};
+
+// Minimizes from s.x: plain SLIM until the boundary would cross itself, SCAF
+// from then on. s.x is the last accepted iterate whatever the status.
+SolveStatus solve_from(ChartSolve& s, const SlimOptions& options, const RunControl& control,
+                       ChartSolution& solution) {
+  bool crossed = false;
+  SolveStatus status;
+  if (!solution.scaffolded)
+    status = minimize_energy(s.faces, s.system, s.loop_dofs, options, control, s.x, total_energy(s.faces, s.x),
+                             solution, crossed);
+  if (!status.ok() || !(crossed || solution.scaffolded)) return status;
+  solution.scaffolded = true;
+  RowMatrixX2d uv = from_solver(s.x, s.order);
+  status = minimize_with_scaffold(s.triangles, s.reference, s.faces, s.order, s.loop, options, control, uv, solution);
+  s.x = to_solver(uv, s.order);
+  return status;
+}
+
+// Reference area of the faces that x shrinks below `floor` of it (faces
+// weighted by their reference area).
+double area_below(const std::vector<ProxyFace>& faces, double floor, const Eigen::VectorXd& x) {
+  double area = 0;
+  for (const ProxyFace& face : faces)
+    if (jacobian(face, x).determinant() < floor) area += face.area;
+  return area;
+}
+
+// Each face with area ratio r = det J < floor weighs factor * floor / r times more.
+void weigh_compressed(double floor, double factor, const Eigen::VectorXd& x, std::vector<ProxyFace>& faces) {
+  for (ProxyFace& face : faces)
+    if (const double r = jacobian(face, x).determinant(); r < floor)
+      set_face_reference(face.inverse_edges, factor * floor / r * face.area, face);
+}
+
+// Density repair (SlimOptions::repair_rounds). A round that fails or leaves
+// more area below half is undone and ends the repair; the whole repair is
+// undone when it raises the energy past repair_energy_bound. Returns whether
+// a repair was kept; s.faces end unweighted.
+bool repair_density(ChartSolve& s, const SlimOptions& options, const RunControl& control, ChartSolution& solution) {
+  SlimOptions continued = options;
+  continued.progressive_bound = 0;  // x is near the optimum already
+  const std::vector<ProxyFace> unweighted = s.faces;
+  const Eigen::VectorXd start = s.x;
+  const bool start_scaffolded = solution.scaffolded;
+  double reference_area = 0;
+  for (const ProxyFace& face : s.faces) reference_area += face.area;
+  if (!(area_below(unweighted, 0.5, s.x) > options.repair_share * reference_area)) return false;
+  for (int round = 0; round < options.repair_rounds; ++round) {
+    const double lost = area_below(unweighted, 0.5, s.x);
+    if (lost == 0) break;
+    weigh_compressed(options.repair_floor, options.repair_factor, s.x, s.faces);
+    const Eigen::VectorXd kept = s.x;
+    const bool kept_scaffolded = solution.scaffolded;
+    if (!solve_from(s, continued, control, solution).ok() || area_below(unweighted, 0.5, s.x) > lost) {
+      s.x = kept, solution.scaffolded = kept_scaffolded;
+      break;
+    }
+  }
+  s.faces = unweighted;
+  const double before = total_energy(s.faces, start), after = total_energy(s.faces, s.x);
+  if (after > before && after > options.repair_energy_bound * reference_area)
+    s.x = start, solution.scaffolded = start_scaffolded;
+  return s.x != start;
 }
 
 }  // namespace
@@ -695,19 +777,17 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
   const double initial_energy = total_energy(faces, x);
   if (initial_energy < kInfinity) {
     solution.energy_initial = initial_energy / reference_area;
-    std::vector<int> loop, loop_dofs;
-    for (int c : boundary_corners) loop.push_back(corner_vertex(problem.triangles, c));
+    ChartSolve s(problem.triangles, reference.corners, order);
+    for (int c : boundary_corners) s.loop.push_back(corner_vertex(problem.triangles, c));
     if (options.scaffold_on_crossing)
-      for (int v : loop) loop_dofs.push_back(2 * order[v]);
-    bool crossed = false;
-    solution.status = minimize_energy(faces, loop_dofs, options, control, x, initial_energy, solution, crossed);
-    if (crossed) {
-      solution.scaffolded = true;
-      RowMatrixX2d uv = from_solver(x, order);
-      solution.status = minimize_with_scaffold(problem.triangles, reference.corners, faces, order, loop, options,
-                                               control, uv, solution);
-      x = to_solver(uv, order);
-    }
+      for (int v : s.loop) s.loop_dofs.push_back(2 * order[v]);
+    s.faces = std::move(faces);
+    s.x = std::move(x);
+    prepare_proxy_system(s.faces, static_cast<int>(s.x.size()), s.system);
+    solution.status = solve_from(s, options, control, solution);
+    if (solution.status.ok()) solution.density_repaired = repair_density(s, options, control, solution);
+    faces = std::move(s.faces);
+    x = std::move(s.x);
     solution.energy_final = total_energy(faces, x) / reference_area;
   } else {
     std::ostringstream msg;

@@ -39,6 +39,23 @@ struct SlimOptions {
   // energy from the current map stays below this bound on every face (see
   // slim.cpp); 4 is isometric. 0: the real references from the start.
   double progressive_bound = 48;
+  // Density repair: SLIM balances distortion, it does not bound it, so a few
+  // faces can end squeezed below half their texels. Each face left below
+  // repair_floor of its reference area, at ratio r, then weighs
+  // repair_factor * repair_floor / r times more and the solve goes on from
+  // where it stopped, up to repair_rounds times. 0 rounds: no repair.
+  int repair_rounds = 2;
+  // Only charts with more than this share of their reference area below half
+  // are repaired: below it the repair costs more time than the detail it
+  // saves is worth (bench/README.md). 0: every chart with such a face.
+  double repair_share = 0.01;
+  double repair_floor = 0.55;
+  double repair_factor = 4;
+  // A repair that raises the chart's energy per unit reference area (4 is
+  // isometric) above this and above where it started is undone: the squeeze
+  // then spreads over the chart and costs more detail than it saves
+  // (bench/README.md). 0: undone whenever it raises the energy.
+  double repair_energy_bound = 6;
 };
 
 struct ChartSolution {
@@ -47,6 +64,7 @@ struct ChartSolution {
   double energy_final = 0;     // per unit reference area; 4 is the isometric minimum
   int iterations = 0;
   bool scaffolded = false;     // the boundary crossed itself once and SCAF took over
+  bool density_repaired = false;  // the density repair moved the solution (SlimOptions::repair_rounds)
   // Wall time of the plain SLIM iterations, and of the numeric Cholesky
   // factorizations within them: the benchmark reports their ratio.
   double iteration_seconds = 0, factorize_seconds = 0;
