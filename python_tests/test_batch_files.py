@@ -166,7 +166,7 @@ def test_a_move_that_fails_puts_the_previous_run_back(tmp_path, monkeypatch):
     real_replace = os.replace
 
     def replace(src, dst):
-        if str(dst) == str(out / "scan.obj"):
+        if str(dst) == str(out / "scan.obj") and not os.path.basename(src).startswith(".previous_"):
             raise OSError(28, "No space left on device")
         real_replace(src, dst)
 
@@ -227,7 +227,7 @@ def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatc
     real_replace = os.replace
 
     def replace(src, dst):
-        if str(dst) == str(out / "scan.obj") or (str(src).endswith(".previous_scan.mtl") and
+        if str(src) == str(tmp / "scan.obj") or (str(src).endswith(".previous_scan.mtl") and
                                                  str(dst) == str(out / "scan.mtl")):
             raise OSError(28, "No space left on device")
         real_replace(src, dst)
@@ -239,6 +239,53 @@ def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatc
     assert (out / "scan.mtl.previous1").read_bytes() == b"newmtl a\n"
     assert (out / "scan.mtl.previous").read_bytes() == b"the user's"
     assert (out / "scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
+
+
+class Killed(BaseException):
+    """Stands for a kill: raised where the process would die."""
+
+
+def test_a_run_killed_while_moving_leaves_no_model_beside_images_it_does_not_match(tmp_path, monkeypatch):
+    """Killed after the new image replaced the earlier output's: the earlier
+    model must not be left at OUT with it (an existing OUT means a finished
+    run); the earlier files wait in the scratch folder, and the next run
+    names them."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "scan.obj").write_bytes(b"mtllib scan.mtl\n" + OBJ)
+    (out / "scan.mtl").write_bytes(b"newmtl a\nmap_Kd scan_tex.png\n")
+    (out / "scan_tex.png").write_bytes(b"old pixels")
+    tmp = out / ".atlas_defrag_test"
+    tmp.mkdir()
+    new_png = png_files.encode_png(np.zeros((2, 2, 3), np.uint8))
+    real_replace = os.replace
+
+    def replace(src, dst):
+        real_replace(src, dst)
+        if str(dst) == str(out / "scan_tex.png"):
+            raise Killed()
+
+    monkeypatch.setattr(batch, "export_model", fake_export(
+        "scan.mtl", b"newmtl a\nmap_Kd scan_tex.png\n", [("scan_tex.png", new_png)]))
+    monkeypatch.setattr(batch.os, "replace", replace)
+    monkeypatch.setattr(batch, "_restore", lambda kept: [])  # a killed process cleans nothing up
+    monkeypatch.setattr(batch, "_remove_quietly", lambda path: None)
+    with pytest.raises(Killed):
+        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None)
+    assert not (out / "scan.obj").exists()
+    assert (tmp / ".previous_scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
+    assert (tmp / ".previous_scan_tex.png").read_bytes() == b"old pixels"
+    warnings = batch._interrupted_runs(str(out))
+    assert len(warnings) == 1 and "scan.obj" in warnings[0] and "scan_tex.png" in warnings[0], warnings
+
+
+def test_only_scratch_folders_holding_earlier_files_are_named(tmp_path):
+    (tmp_path / ".atlas_defrag_empty").mkdir()
+    (tmp_path / ".atlas_defrag_new").mkdir()
+    (tmp_path / ".atlas_defrag_new" / "scan.obj").write_bytes(OBJ)
+    (tmp_path / "scan.obj").write_bytes(OBJ)
+    assert batch._interrupted_runs(str(tmp_path)) == []
+    assert batch._interrupted_runs(str(tmp_path / "missing")) == []
 
 
 def test_a_report_replaces_only_an_earlier_report(tmp_path):

@@ -258,8 +258,8 @@ def run_one(args, cancel=None) -> dict:
         _give_missing_textures(pkg, meshes, os.path.abspath(args.texture))
     out_dir = os.path.dirname(dst) or "."
     os.makedirs(out_dir, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".atlas_defrag_", dir=out_dir)
-    report = {"input": src, "output": dst, "objects": [], "warnings": []}
+    report = {"input": src, "output": dst, "objects": [], "warnings": _interrupted_runs(out_dir)}
+    tmp = tempfile.mkdtemp(prefix=_SCRATCH_PREFIX, dir=out_dir)
     keep_scratch = False
     try:
         _defragment_meshes(pkg, args, meshes, tmp, report, cancel)
@@ -281,6 +281,31 @@ def run_one(args, cancel=None) -> dict:
                          "total": time.perf_counter() - t0}
     report["status"] = "ok"
     return report
+
+
+_SCRATCH_PREFIX = ".atlas_defrag_"
+_SET_ASIDE_PREFIX = ".previous_"
+
+
+def _interrupted_runs(out_dir: str) -> list:
+    """Warnings naming the scratch folders in out_dir that hold an earlier
+    output's files set aside by a run that was killed while moving its own
+    in (or that could not put them back): left as they are, for the user."""
+    warnings = []
+    try:
+        folders = sorted(e.path for e in os.scandir(out_dir) if e.name.startswith(_SCRATCH_PREFIX) and e.is_dir())
+    except OSError:
+        return warnings
+    for folder in folders:
+        try:
+            kept = sorted(n for n in os.listdir(folder) if n.startswith(_SET_ASIDE_PREFIX))
+        except OSError:
+            continue
+        if kept:
+            names = ", ".join(n[len(_SET_ASIDE_PREFIX):] for n in kept)
+            warnings.append(f"{folder} holds files of an earlier output that an interrupted run set aside "
+                            f"({names}): left as they are")
+    return warnings
 
 
 def _real(path: str) -> str:
@@ -489,14 +514,21 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) ->
     replaceable = _images_named_by(dst, libraries) | libraries
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
+
+    def set_aside(target: str) -> None:
+        if os.path.lexists(target):
+            previous = os.path.join(tmp, _SET_ASIDE_PREFIX + os.path.basename(target))
+            os.replace(target, previous)
+            kept.append((previous, target))
+
     try:
+        # The earlier model goes first: a run killed midway leaves no model
+        # beside images it does not match (_interrupted_runs names the rest).
+        set_aside(dst)
         for name in moving:
             target = os.path.join(out_dir, name)
             if name in replaceable or name.lower().endswith(".bin"):
-                if os.path.lexists(target):
-                    previous = os.path.join(tmp, ".previous_" + name)
-                    os.replace(target, previous)
-                    kept.append((previous, target))
+                set_aside(target)
                 os.replace(os.path.join(tmp, name), target)
             else:
                 _move_new(os.path.join(tmp, name), target)
