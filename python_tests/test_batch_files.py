@@ -149,14 +149,22 @@ def fake_export(mtl_name: str, mtl: bytes, images=()):
     return export
 
 
-def test_a_move_that_fails_puts_the_previous_run_back(tmp_path, monkeypatch):
-    """A run over an earlier OBJ output that fails while moving its files in
-    leaves the earlier model whole: its MTL and images as they were."""
+def earlier_output(tmp_path, mtl: bytes, files=()):
+    """tmp_path/out holding an earlier OBJ output scan.obj, its MTL and the
+    (name, bytes) files beside it."""
     out = tmp_path / "out"
     out.mkdir()
     (out / "scan.obj").write_bytes(b"mtllib scan.mtl\n" + OBJ)
-    (out / "scan.mtl").write_bytes(b"newmtl a\nmap_Kd scan_tex.png\n")
-    (out / "scan_tex.png").write_bytes(b"old pixels")
+    (out / "scan.mtl").write_bytes(mtl)
+    for name, data in files:
+        (out / name).write_bytes(data)
+    return out
+
+
+def test_a_move_that_fails_puts_the_previous_run_back(tmp_path, monkeypatch):
+    """A run over an earlier OBJ output that fails while moving its files in
+    leaves the earlier model whole: its MTL and images as they were."""
+    out = earlier_output(tmp_path, b"newmtl a\nmap_Kd scan_tex.png\n", [("scan_tex.png", b"old pixels")])
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     tmp = tmp_path / "tmp"
     tmp.mkdir()
@@ -216,11 +224,7 @@ def test_an_mtl_of_another_model_is_never_replaced(tmp_path, monkeypatch):
 
 
 def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatch):
-    out = tmp_path / "out"
-    out.mkdir()
-    (out / "scan.obj").write_bytes(b"mtllib scan.mtl\n" + OBJ)
-    (out / "scan.mtl").write_bytes(b"newmtl a\n")
-    (out / "scan.mtl.previous").write_bytes(b"the user's")
+    out = earlier_output(tmp_path, b"newmtl a\n", [("scan.mtl.previous", b"the user's")])
     tmp = tmp_path / "tmp"
     tmp.mkdir()
 
@@ -250,11 +254,7 @@ def test_a_run_killed_while_moving_leaves_no_model_beside_images_it_does_not_mat
     model must not be left at OUT with it (an existing OUT means a finished
     run); the earlier files wait in the scratch folder, and the next run
     names them."""
-    out = tmp_path / "out"
-    out.mkdir()
-    (out / "scan.obj").write_bytes(b"mtllib scan.mtl\n" + OBJ)
-    (out / "scan.mtl").write_bytes(b"newmtl a\nmap_Kd scan_tex.png\n")
-    (out / "scan_tex.png").write_bytes(b"old pixels")
+    out = earlier_output(tmp_path, b"newmtl a\nmap_Kd scan_tex.png\n", [("scan_tex.png", b"old pixels")])
     tmp = out / ".atlas_defrag_test"
     tmp.mkdir()
     new_png = png_files.encode_png(np.zeros((2, 2, 3), np.uint8))
