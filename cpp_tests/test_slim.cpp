@@ -203,8 +203,11 @@ TEST(Slim, DensityRepairThatRaisesTheEnergyPastItsBoundIsUndone) {
   const ChartProblem problem = bump(0.5);
   SlimOptions none = tight_options(), strict = tight_options();
   none.repair_rounds = 0;
-  strict.repair_energy_bound = 0;
   const ChartSolution plain = parameterize_chart(problem, none, RunControl());
+  const ChartSolution repaired = parameterize_chart(problem, tight_options(), RunControl());
+  ASSERT_TRUE(repaired.density_repaired);
+  ASSERT_GT(repaired.energy_final, plain.energy_final);
+  strict.repair_energy_bound = (plain.energy_final + repaired.energy_final) / 2;
   const ChartSolution undone = parameterize_chart(problem, strict, RunControl());
   EXPECT_FALSE(undone.density_repaired);
   EXPECT_TRUE(undone.uv == plain.uv);

@@ -728,7 +728,11 @@ bool repair_density(ChartSolve& s, const SlimOptions& options, const RunControl&
   const bool start_scaffolded = solution.scaffolded;
   double reference_area = 0;
   for (const ProxyFace& face : s.faces) reference_area += face.area;
-  if (!(area_below(unweighted, 0.5, s.x) > options.repair_share * reference_area)) return false;
+  // A chart already past the bound is left alone: the repair raises the
+  // energy of a solved chart, so it would be undone.
+  if (!(area_below(unweighted, 0.5, s.x) > options.repair_share * reference_area) ||
+      total_energy(unweighted, s.x) > options.repair_energy_bound * reference_area)
+    return false;
   for (int round = 0; round < options.repair_rounds; ++round) {
     const double lost = area_below(unweighted, 0.5, s.x);
     if (lost == 0) break;

@@ -52,9 +52,9 @@ struct SlimOptions {
   double repair_floor = 0.55;
   double repair_factor = 4;
   // A repair that raises the chart's energy per unit reference area (4 is
-  // isometric) above this and above where it started is undone: the squeeze
-  // then spreads over the chart and costs more detail than it saves
-  // (bench/README.md). 0: undone whenever it raises the energy.
+  // isometric) above this and above where it started is undone, and a chart
+  // already above it is not repaired: the squeeze then spreads over the chart
+  // and costs more detail than it saves (bench/README.md). 0: no repair.
   double repair_energy_bound = 6;
 };
 
