@@ -709,11 +709,14 @@ double area_below(const std::vector<ProxyFace>& faces, double floor, const Eigen
   return area;
 }
 
-// Each face with area ratio r = det J < floor weighs factor * floor / r times more.
+// Each face with area ratio r = det J < floor weighs factor * floor / r times
+// more, at most kMaxRepairWeight times: a sliver's ratio can be tiny, and
+// its weight must not swamp the system.
+constexpr double kMaxRepairWeight = 1e4;
 void weigh_compressed(double floor, double factor, const Eigen::VectorXd& x, std::vector<ProxyFace>& faces) {
   for (ProxyFace& face : faces)
     if (const double r = jacobian(face, x).determinant(); r < floor)
-      set_face_reference(face.inverse_edges, factor * floor / r * face.area, face);
+      set_face_reference(face.inverse_edges, std::min(factor * floor / r, kMaxRepairWeight) * face.area, face);
 }
 
 // Density repair (SlimOptions::repair_rounds). A round that fails or leaves
