@@ -724,18 +724,19 @@ void weigh_compressed(double floor, double factor, const Eigen::VectorXd& x, std
 // undone when it raises the energy past repair_energy_bound. Returns whether
 // a repair was kept; s.faces end unweighted.
 bool repair_density(ChartSolve& s, const SlimOptions& options, const RunControl& control, ChartSolution& solution) {
+  double reference_area = 0;
+  for (const ProxyFace& face : s.faces) reference_area += face.area;
+  // A chart already past the bound is left alone: the repair raises the
+  // energy of a solved chart, so it would be undone.
+  if (!(options.repair_floor > 0 && options.repair_factor > 0) ||
+      !(area_below(s.faces, 0.5, s.x) > options.repair_share * reference_area) ||
+      total_energy(s.faces, s.x) > options.repair_energy_bound * reference_area)
+    return false;
   SlimOptions continued = options;
   continued.progressive_bound = 0;  // x is near the optimum already
   const std::vector<ProxyFace> unweighted = s.faces;
   const Eigen::VectorXd start = s.x;
   const bool start_scaffolded = solution.scaffolded;
-  double reference_area = 0;
-  for (const ProxyFace& face : s.faces) reference_area += face.area;
-  // A chart already past the bound is left alone: the repair raises the
-  // energy of a solved chart, so it would be undone.
-  if (!(area_below(unweighted, 0.5, s.x) > options.repair_share * reference_area) ||
-      total_energy(unweighted, s.x) > options.repair_energy_bound * reference_area)
-    return false;
   for (int round = 0; round < options.repair_rounds; ++round) {
     const double lost = area_below(unweighted, 0.5, s.x);
     if (lost == 0) break;

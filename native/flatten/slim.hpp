@@ -49,6 +49,8 @@ struct SlimOptions {
   // are repaired: below it the repair costs more time than the detail it
   // saves is worth (bench/README.md). 0: every chart with such a face.
   double repair_share = 0.01;
+  // The weights above; a floor a little over one half lifts faces clear of
+  // the density rule's line. 0 for either: no repair.
   double repair_floor = 0.55;
   double repair_factor = 4;
   // A repair that raises the chart's energy per unit reference area (4 is
