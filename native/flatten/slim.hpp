@@ -57,7 +57,7 @@ struct SlimOptions {
   // isometric) above this and above where it started is undone, and a chart
   // already above it is not repaired: the squeeze then spreads over the chart
   // and costs more detail than it saves (bench/README.md). 0: no repair.
-  double repair_energy_bound = 6;
+  double repair_energy_bound = 5.5;
 };
 
 struct ChartSolution {
