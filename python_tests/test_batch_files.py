@@ -275,8 +275,11 @@ def test_a_run_killed_while_moving_leaves_no_model_beside_images_it_does_not_mat
     assert not (out / "scan.obj").exists()
     assert (tmp / ".previous_scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
     assert (tmp / ".previous_scan_tex.png").read_bytes() == b"old pixels"
-    warnings = batch._interrupted_runs(str(out))
+    warnings = batch._interrupted_runs(str(out / "scan.obj"))
     assert len(warnings) == 1 and "scan.obj" in warnings[0] and "scan_tex.png" in warnings[0], warnings
+    assert batch._interrupted_runs(str(out / "other.obj")) == []
+    # The next run may replace the MTL left beside the missing model: it is that model's.
+    batch._refuse_foreign_library(str(out / "scan.obj"))
 
 
 def test_only_scratch_folders_holding_earlier_files_are_named(tmp_path):
@@ -284,8 +287,8 @@ def test_only_scratch_folders_holding_earlier_files_are_named(tmp_path):
     (tmp_path / ".atlas_defrag_new").mkdir()
     (tmp_path / ".atlas_defrag_new" / "scan.obj").write_bytes(OBJ)
     (tmp_path / "scan.obj").write_bytes(OBJ)
-    assert batch._interrupted_runs(str(tmp_path)) == []
-    assert batch._interrupted_runs(str(tmp_path / "missing")) == []
+    assert batch._interrupted_runs(str(tmp_path / "scan.obj")) == []
+    assert batch._interrupted_runs(str(tmp_path / "missing" / "scan.obj")) == []
 
 
 def test_a_report_replaces_only_an_earlier_report(tmp_path):

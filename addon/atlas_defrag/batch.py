@@ -258,7 +258,7 @@ def run_one(args, cancel=None) -> dict:
         _give_missing_textures(pkg, meshes, os.path.abspath(args.texture))
     out_dir = os.path.dirname(dst) or "."
     os.makedirs(out_dir, exist_ok=True)
-    report = {"input": src, "output": dst, "objects": [], "warnings": _interrupted_runs(out_dir)}
+    report = {"input": src, "output": dst, "objects": [], "warnings": _interrupted_runs(dst)}
     tmp = tempfile.mkdtemp(prefix=_SCRATCH_PREFIX, dir=out_dir)
     keep_scratch = False
     try:
@@ -287,24 +287,36 @@ _SCRATCH_PREFIX = ".atlas_defrag_"
 _SET_ASIDE_PREFIX = ".previous_"
 
 
-def _interrupted_runs(out_dir: str) -> list:
-    """Warnings naming the scratch folders in out_dir that hold an earlier
-    output's files set aside by a run that was killed while moving its own
-    in (or that could not put them back): left as they are, for the user."""
-    warnings = []
+def _scratch_folders(folder: str) -> list:
+    """The scratch folders runs made in folder (none if it cannot be read)."""
     try:
-        folders = sorted(e.path for e in os.scandir(out_dir) if e.name.startswith(_SCRATCH_PREFIX) and e.is_dir())
+        return sorted(e.path for e in os.scandir(folder) if e.name.startswith(_SCRATCH_PREFIX) and e.is_dir())
     except OSError:
-        return warnings
-    for folder in folders:
+        return []
+
+
+def _set_aside_copies(dst: str) -> list:
+    """The earlier dst that runs killed while moving their files in set aside
+    in their scratch folders, newest first."""
+    name = _SET_ASIDE_PREFIX + os.path.basename(dst)
+    copies = [os.path.join(f, name) for f in _scratch_folders(os.path.dirname(dst) or ".")]
+    return sorted((c for c in copies if os.path.isfile(c)), key=os.path.getmtime, reverse=True)
+
+
+def _interrupted_runs(dst: str) -> list:
+    """Warnings naming the scratch folders that hold an earlier dst set aside
+    by a run that was killed while moving its files in (or could not put
+    them back): left as they are, for the user. Runs into the same folder
+    for other models are not named."""
+    warnings = []
+    for copy in _set_aside_copies(dst):
+        folder = os.path.dirname(copy)
         try:
-            kept = sorted(n for n in os.listdir(folder) if n.startswith(_SET_ASIDE_PREFIX))
+            kept = sorted(n[len(_SET_ASIDE_PREFIX):] for n in os.listdir(folder) if n.startswith(_SET_ASIDE_PREFIX))
         except OSError:
             continue
-        if kept:
-            names = ", ".join(n[len(_SET_ASIDE_PREFIX):] for n in kept)
-            warnings.append(f"{folder} holds files of an earlier output that an interrupted run set aside "
-                            f"({names}): left as they are")
+        warnings.append(f"{folder} holds files of an earlier output that an interrupted run set aside "
+                        f"({', '.join(kept)}): left as they are")
     return warnings
 
 
@@ -420,10 +432,12 @@ def _name_images_after(dst: str, folder: str) -> None:
 
 def _libraries_named_by(model: str) -> set:
     """The material libraries an existing OBJ model names (a previous run's
-    output, which this one replaces)."""
-    if not model.lower().endswith(".obj") or not os.path.isfile(model):
+    output, which this one replaces), or where a run was killed after setting
+    it aside, its copy in that run's scratch folder."""
+    source = model if os.path.isfile(model) else next(iter(_set_aside_copies(model)), None)
+    if not model.lower().endswith(".obj") or source is None:
         return set()
-    with open(model, "rb") as f:
+    with open(source, "rb") as f:
         return {_rest_of(ln) for ln in _lines_starting(f.read(), b"mtllib")} - {""}
 
 
@@ -524,7 +538,9 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) ->
     try:
         # The earlier model goes first: a run killed midway leaves no model
         # beside images it does not match (_interrupted_runs names the rest).
-        set_aside(dst)
+        # A lone model file is replaced in one step instead.
+        if moving:
+            set_aside(dst)
         for name in moving:
             target = os.path.join(out_dir, name)
             if name in replaceable or name.lower().endswith(".bin"):
@@ -537,7 +553,7 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) ->
     except BaseException as exc:
         for path in moved:
             _remove_quietly(path)
-        elsewhere = _restore(kept)
+        elsewhere = _restore(kept[::-1])  # the model goes back last
         if elsewhere:
             raise PreviousFilesKept(f"{exc}; the previous output's files could not all be put back: they are "
                                     f"kept as {', '.join(elsewhere)}") from exc

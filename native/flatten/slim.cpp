@@ -710,19 +710,31 @@ double area_below(const std::vector<ProxyFace>& faces, double floor, const Eigen
 }
 
 // Each face with area ratio r = det J < floor weighs factor * floor / r times
-// more, at most kMaxRepairWeight times: a sliver's ratio can be tiny, and
-// its weight must not swamp the system.
+// more than it did, and at most kMaxRepairWeight times its unweighted
+// weight: a sliver's ratio can be tiny, and its weight must not swamp the
+// system.
 constexpr double kMaxRepairWeight = 1e4;
-void weigh_compressed(double floor, double factor, const Eigen::VectorXd& x, std::vector<ProxyFace>& faces) {
-  for (ProxyFace& face : faces)
-    if (const double r = jacobian(face, x).determinant(); r < floor)
-      set_face_reference(face.inverse_edges, std::min(factor * floor / r, kMaxRepairWeight) * face.area, face);
+void weigh_compressed(double floor, double factor, const Eigen::VectorXd& x, const std::vector<ProxyFace>& unweighted,
+                      std::vector<ProxyFace>& faces) {
+  for (size_t f = 0; f < faces.size(); ++f)
+    if (const double r = jacobian(faces[f], x).determinant(); r > 0 && r < floor)
+      set_face_reference(faces[f].inverse_edges,
+                         std::min(factor * floor / r * faces[f].area, kMaxRepairWeight * unweighted[f].area), faces[f]);
 }
 
-// Density repair (SlimOptions::repair_rounds). A round that fails or leaves
-// more area below half is undone and ends the repair; the whole repair is
-// undone when it raises the energy past repair_energy_bound. Returns whether
-// a repair was kept; s.faces end unweighted.
+// Whether x leaves the chart unusable: a face flipped in round-off, or the
+// boundary crossing itself (what the caller refuses a chart for).
+bool unusable(const ChartSolve& s, const std::vector<ProxyFace>& faces) {
+  if (flipped_faces(faces, s.x) > 0) return true;
+  std::vector<int> loop_dofs;
+  for (int v : s.loop) loop_dofs.push_back(2 * s.order[v]);
+  return loop_crosses(loop_dofs, s.x);
+}
+
+// Density repair (SlimOptions::repair_rounds). A round that fails, leaves
+// more area below half, leaves x unusable or raises the energy past
+// repair_energy_bound (and past the start) is undone and ends the repair.
+// Returns whether a repair was kept; s.faces end unweighted.
 bool repair_density(ChartSolve& s, const SlimOptions& options, const RunControl& control, ChartSolution& solution) {
   double reference_area = 0;
   for (const ProxyFace& face : s.faces) reference_area += face.area;
@@ -736,22 +748,22 @@ bool repair_density(ChartSolve& s, const SlimOptions& options, const RunControl&
   continued.progressive_bound = 0;  // x is near the optimum already
   const std::vector<ProxyFace> unweighted = s.faces;
   const Eigen::VectorXd start = s.x;
-  const bool start_scaffolded = solution.scaffolded;
+  const double start_energy = total_energy(unweighted, start);
   for (int round = 0; round < options.repair_rounds; ++round) {
     const double lost = area_below(unweighted, 0.5, s.x);
     if (lost == 0) break;
-    weigh_compressed(options.repair_floor, options.repair_factor, s.x, s.faces);
+    weigh_compressed(options.repair_floor, options.repair_factor, s.x, unweighted, s.faces);
     const Eigen::VectorXd kept = s.x;
     const bool kept_scaffolded = solution.scaffolded;
-    if (!solve_from(s, continued, control, solution).ok() || area_below(unweighted, 0.5, s.x) > lost) {
+    const bool ok = solve_from(s, continued, control, solution).ok();
+    const double energy = total_energy(unweighted, s.x);
+    if (!ok || area_below(unweighted, 0.5, s.x) > lost || unusable(s, unweighted) ||
+        (energy > start_energy && energy > options.repair_energy_bound * reference_area)) {
       s.x = kept, solution.scaffolded = kept_scaffolded;
       break;
     }
   }
   s.faces = unweighted;
-  const double before = total_energy(s.faces, start), after = total_energy(s.faces, s.x);
-  if (after > before && after > options.repair_energy_bound * reference_area)
-    s.x = start, solution.scaffolded = start_scaffolded;
   return s.x != start;
 }
 

@@ -19,8 +19,8 @@ struct ChartProblem {
 };
 
 struct SlimOptions {
-  // SLIM and SCAF (see below) each get max_iterations; 0 leaves the
-  // initial embedding as it is.
+  // SLIM and SCAF (see below) each get max_iterations, and so does each
+  // round of the density repair; 0 leaves the initial embedding as it is.
   int max_iterations = 60;
   // Stop when (E_k - E_k+1) / E_k falls below: tighter costs time for little
   // (bench/README.md); 0 runs every iteration.
@@ -53,9 +53,9 @@ struct SlimOptions {
   // the density rule's line. 0 for either: no repair.
   double repair_floor = 0.55;
   double repair_factor = 4;
-  // A repair that raises the chart's energy per unit reference area (4 is
-  // isometric) above this and above where it started is undone, and a chart
-  // already above it is not repaired: the squeeze then spreads over the chart
+  // A repair round that raises the chart's energy per unit reference area (4
+  // is isometric) above this and above where the repair started is undone,
+  // and a chart already above it is not repaired: the squeeze then spreads over the chart
   // and costs more detail than it saves (bench/README.md). 0: no repair.
   double repair_energy_bound = 5.5;
 };
@@ -64,7 +64,7 @@ struct ChartSolution {
   RowMatrixX2d uv;             // n x 2 new positions in texels (arbitrary placement)
   double energy_initial = 0;   // per unit reference area, at the initial embedding
   double energy_final = 0;     // per unit reference area; 4 is the isometric minimum
-  int iterations = 0;
+  int iterations = 0;          // every SLIM and SCAF iteration, those of undone repair rounds too
   bool scaffolded = false;     // the boundary crossed itself once and SCAF took over
   bool density_repaired = false;  // the density repair moved the solution (SlimOptions::repair_rounds)
   // Wall time of the plain SLIM iterations, and of the numeric Cholesky
