@@ -77,7 +77,8 @@ def test_cli_on_a_ply_scan_matches_the_obj(scans, scan_path, tool_env, tmp_path)
         assert run.returncode == 0, run.stderr
         outs.append([ln for ln in run.stdout.splitlines() if ln.split()[:1] in (["charts"], ["texels"])])
     assert len(outs[0]) == len(outs[1]) == 2
-    assert outs[0][0] == outs[1][0]
+    # Whether a chart is repaired (over 1% of it below half density) can turn on those digits too.
+    assert outs[0][0].split("; density repairs")[0] == outs[1][0].split("; density repairs")[0]
     texels = [int(out[1].split("->")[1].split()[0].replace(",", "")) for out in outs]
     assert abs(texels[1] - texels[0]) <= 0.02 * texels[0], outs
     assert (tmp_path / "ply" / "tetra_defrag.obj").exists()
