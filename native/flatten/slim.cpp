@@ -677,7 +677,7 @@ struct ChartSolve {
   const RowMatrixX3i& triangles;
   const RowMatrixX2d& reference;  // 3F x 2, the repaired reference corners
   const std::vector<int>& order;
-  std::vector<int> loop, loop_dofs;
+  std::vector<int> loop, loop_dofs;  // the boundary loop's vertices, and their dofs
   std::vector<ProxyFace> faces;
   ProxySystem system;
   Eigen::VectorXd x;
@@ -690,8 +690,8 @@ SolveStatus solve_from(ChartSolve& s, const SlimOptions& options, const RunContr
   bool crossed = false;
   SolveStatus status;
   if (!solution.scaffolded)
-    status = minimize_energy(s.faces, s.system, s.loop_dofs, options, control, s.x, total_energy(s.faces, s.x),
-                             solution, crossed);
+    status = minimize_energy(s.faces, s.system, options.scaffold_on_crossing ? s.loop_dofs : std::vector<int>(),
+                             options, control, s.x, total_energy(s.faces, s.x), solution, crossed);
   if (!status.ok() || !(crossed || solution.scaffolded)) return status;
   solution.scaffolded = true;
   RowMatrixX2d uv = from_solver(s.x, s.order);
@@ -725,43 +725,39 @@ void weigh_compressed(double floor, double factor, const Eigen::VectorXd& x, con
 // Whether x leaves the chart unusable: a face flipped in round-off, or the
 // boundary crossing itself (what the caller refuses a chart for).
 bool unusable(const ChartSolve& s, const std::vector<ProxyFace>& faces) {
-  if (flipped_faces(faces, s.x) > 0) return true;
-  std::vector<int> loop_dofs;
-  for (int v : s.loop) loop_dofs.push_back(2 * s.order[v]);
-  return loop_crosses(loop_dofs, s.x);
+  return flipped_faces(faces, s.x) > 0 || loop_crosses(s.loop_dofs, s.x);
 }
 
 // Density repair (SlimOptions::repair_rounds). A round that fails, leaves
 // more area below half, leaves x unusable or raises the energy past
 // repair_energy_bound (and past the start) is undone and ends the repair.
-// Returns whether a repair was kept; s.faces end unweighted.
-bool repair_density(ChartSolve& s, const SlimOptions& options, const RunControl& control, ChartSolution& solution) {
-  double reference_area = 0;
-  for (const ProxyFace& face : s.faces) reference_area += face.area;
+// Returns whether a repair was kept; s.faces end unweighted. reference_area:
+// the sum of the faces' (unweighted) areas.
+bool repair_density(ChartSolve& s, double reference_area, const SlimOptions& options, const RunControl& control,
+                    ChartSolution& solution) {
+  double lost = area_below(s.faces, 0.5, s.x);
+  const double start_energy = total_energy(s.faces, s.x);
   // A chart already past the bound is left alone: the repair raises the
   // energy of a solved chart, so it would be undone.
-  if (!(options.repair_floor > 0 && options.repair_factor > 0) ||
-      !(area_below(s.faces, 0.5, s.x) > options.repair_share * reference_area) ||
-      total_energy(s.faces, s.x) > options.repair_energy_bound * reference_area)
+  if (!(options.repair_floor > 0 && options.repair_factor > 0) || !(lost > options.repair_share * reference_area) ||
+      start_energy > options.repair_energy_bound * reference_area)
     return false;
   SlimOptions continued = options;
   continued.progressive_bound = 0;  // x is near the optimum already
   const std::vector<ProxyFace> unweighted = s.faces;
   const Eigen::VectorXd start = s.x;
-  const double start_energy = total_energy(unweighted, start);
-  for (int round = 0; round < options.repair_rounds; ++round) {
-    const double lost = area_below(unweighted, 0.5, s.x);
-    if (lost == 0) break;
+  for (int round = 0; round < options.repair_rounds && lost > 0; ++round) {
     weigh_compressed(options.repair_floor, options.repair_factor, s.x, unweighted, s.faces);
     const Eigen::VectorXd kept = s.x;
     const bool kept_scaffolded = solution.scaffolded;
     const bool ok = solve_from(s, continued, control, solution).ok();
-    const double energy = total_energy(unweighted, s.x);
-    if (!ok || area_below(unweighted, 0.5, s.x) > lost || unusable(s, unweighted) ||
+    const double now_lost = area_below(unweighted, 0.5, s.x), energy = total_energy(unweighted, s.x);
+    if (!ok || now_lost > lost || unusable(s, unweighted) ||
         (energy > start_energy && energy > options.repair_energy_bound * reference_area)) {
       s.x = kept, solution.scaffolded = kept_scaffolded;
       break;
     }
+    lost = now_lost;
   }
   s.faces = unweighted;
   return s.x != start;
@@ -799,13 +795,13 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
     solution.energy_initial = initial_energy / reference_area;
     ChartSolve s(problem.triangles, reference.corners, order);
     for (int c : boundary_corners) s.loop.push_back(corner_vertex(problem.triangles, c));
-    if (options.scaffold_on_crossing)
-      for (int v : s.loop) s.loop_dofs.push_back(2 * order[v]);
+    for (int v : s.loop) s.loop_dofs.push_back(2 * order[v]);
     s.faces = std::move(faces);
     s.x = std::move(x);
     prepare_proxy_system(s.faces, static_cast<int>(s.x.size()), s.system);
     solution.status = solve_from(s, options, control, solution);
-    if (solution.status.ok()) solution.density_repaired = repair_density(s, options, control, solution);
+    if (solution.status.ok())
+      solution.density_repaired = repair_density(s, reference_area, options, control, solution);
     faces = std::move(s.faces);
     x = std::move(s.x);
     solution.energy_final = total_energy(faces, x) / reference_area;
