@@ -136,6 +136,12 @@ def test_importer_errors_come_without_their_traceback():
 MESH = types.SimpleNamespace(type="MESH", data=types.SimpleNamespace(polygons=[0, 1]))
 
 
+def replaceable(dst) -> set:
+    """What run_one lets the moves replace at dst: the earlier output's libraries and their images."""
+    libraries = batch._libraries_named_by(str(dst))
+    return libraries | batch._images_named_by(str(dst), libraries)
+
+
 def fake_export(mtl_name: str, mtl: bytes, images=()):
     """An export_model stand-in: the OBJ (naming mtl_name and using material
     a), its MTL and the (name, bytes) images, beside it."""
@@ -181,7 +187,8 @@ def test_a_move_that_fails_puts_the_previous_run_back(tmp_path, monkeypatch):
     monkeypatch.setattr(batch, "export_model", export)
     monkeypatch.setattr(batch.os, "replace", replace)
     with pytest.raises(OSError):
-        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None)
+        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None,
+                               replaceable(out / "scan.obj"))
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
@@ -211,14 +218,16 @@ def test_an_mtl_of_another_model_is_never_replaced(tmp_path, monkeypatch):
     library of statue_lowpoly.obj): refused before the work, and the move
     would not replace it either."""
     (tmp_path / "statue.mtl").write_bytes(b"newmtl user\nmap_Kd user.png\n")
+    statue = str(tmp_path / "statue.obj")
     with pytest.raises(batch.BatchError, match="is not the material library of"):
-        batch._refuse_foreign_library(str(tmp_path / "statue.obj"))
+        batch._refuse_foreign_library(statue, batch._libraries_named_by(statue))
     tmp = tmp_path / "tmp"
     tmp.mkdir()
 
     monkeypatch.setattr(batch, "export_model", fake_export("statue.mtl", b"newmtl a\n"))
     with pytest.raises(batch.BatchError):
-        batch._export_and_move([MESH], str(tmp), str(tmp_path / "statue.obj"), set(), lambda: None)
+        batch._export_and_move([MESH], str(tmp), str(tmp_path / "statue.obj"), set(), lambda: None,
+                               replaceable(tmp_path / "statue.obj"))
     assert (tmp_path / "statue.mtl").read_bytes() == b"newmtl user\nmap_Kd user.png\n"
     assert not (tmp_path / "statue.obj").exists()
 
@@ -239,7 +248,8 @@ def test_previous_files_that_cannot_go_back_are_kept_beside(tmp_path, monkeypatc
     monkeypatch.setattr(batch, "export_model", fake_export("scan.mtl", b"newmtl a\n# new\n"))
     monkeypatch.setattr(batch.os, "replace", replace)
     with pytest.raises(batch.PreviousFilesKept, match="scan.mtl.previous1"):
-        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None)
+        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None,
+                               replaceable(out / "scan.obj"))
     assert (out / "scan.mtl.previous1").read_bytes() == b"newmtl a\n"
     assert (out / "scan.mtl.previous").read_bytes() == b"the user's"
     assert (out / "scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
@@ -271,7 +281,8 @@ def test_a_run_killed_while_moving_leaves_no_model_beside_images_it_does_not_mat
     monkeypatch.setattr(batch, "_restore", lambda kept: [])  # a killed process cleans nothing up
     monkeypatch.setattr(batch, "_remove_quietly", lambda path: None)
     with pytest.raises(Killed):
-        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None)
+        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None,
+                               replaceable(out / "scan.obj"))
     assert not (out / "scan.obj").exists()
     assert (tmp / ".previous_scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
     assert (tmp / ".previous_scan_tex.png").read_bytes() == b"old pixels"
@@ -279,7 +290,7 @@ def test_a_run_killed_while_moving_leaves_no_model_beside_images_it_does_not_mat
     assert len(warnings) == 1 and "scan.obj" in warnings[0] and "scan_tex.png" in warnings[0], warnings
     assert batch._interrupted_runs(str(out / "other.obj")) == []
     # The next run may replace the MTL left beside the missing model: it is that model's.
-    batch._refuse_foreign_library(str(out / "scan.obj"))
+    batch._refuse_foreign_library(str(out / "scan.obj"), batch._libraries_named_by(str(out / "scan.obj")))
 
 
 def test_only_scratch_folders_holding_earlier_files_are_named(tmp_path):

@@ -251,7 +251,9 @@ def run_one(args, cancel=None) -> dict:
     objects = _import_input(src, dst)
     inputs = _input_files(src)
     _refuse_overwriting(inputs, _model_files(dst))
-    _refuse_foreign_library(dst)
+    libraries = _libraries_named_by(dst)  # the earlier output's, read once
+    _refuse_foreign_library(dst, libraries)
+    owned = _images_named_by(dst, libraries)
     t_import = time.perf_counter() - t0
     meshes = [o for o in objects if o.type == "MESH"]
     if args.texture:
@@ -263,10 +265,10 @@ def run_one(args, cancel=None) -> dict:
     keep_scratch = False
     try:
         _defragment_meshes(pkg, args, meshes, tmp, report, cancel)
-        _name_images_after(dst, tmp)
+        _name_images_after(dst, tmp, owned)
         t_export = time.perf_counter()
         unnamed = _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),
-                                   lambda: _stop_if_cancelled(pkg, cancel))
+                                   lambda: _stop_if_cancelled(pkg, cancel), owned | libraries)
         if unnamed:
             report["warnings"].append(
                 f"{', '.join(unnamed)} written beside {os.path.basename(dst)}, but its materials do not name "
@@ -384,12 +386,12 @@ def _file_among(path: str, files):
                  if _real(f) == _real(path) or identity is not None and _identity(f) == identity), None)
 
 
-def _refuse_foreign_library(dst: str) -> None:
+def _refuse_foreign_library(dst: str, libraries: set) -> None:
     """BatchError when the MTL an OBJ output would write exists and is not
-    the library of an earlier output at dst (another model's, say)."""
+    one of libraries, the earlier output's at dst (_libraries_named_by): it
+    is another model's, say."""
     mtl = os.path.splitext(dst)[0] + ".mtl"
-    if dst.lower().endswith(".obj") and os.path.lexists(mtl) and \
-            os.path.basename(mtl) not in _libraries_named_by(dst):
+    if dst.lower().endswith(".obj") and os.path.lexists(mtl) and os.path.basename(mtl) not in libraries:
         raise BatchError(f"{mtl} exists and is not the material library of {dst} (another model's?): "
                          "choose another output name")
 
@@ -403,17 +405,17 @@ def _identity(path: str):
     return st.st_dev, st.st_ino
 
 
-def _name_images_after(dst: str, folder: str) -> None:
+def _name_images_after(dst: str, folder: str, owned: set) -> None:
     """Renames the images saved in folder to '<stem>_<name>' after the model
     dst (and the bpy images pointing at them), so that models written into
     one folder never share an image file: every Meshroom scan names its
     texture texture_1001.png. A name taken in dst's folder by a file that
-    dst's own material library does not name (another model's, whose stem
-    and image name join the same way) gets a number."""
+    dst's own material library does not name (owned: those it does, from
+    _images_named_by; another model's, whose stem and image name join the
+    same way) gets a number."""
     import bpy
     stem = os.path.splitext(os.path.basename(dst))[0]
     out_dir = os.path.dirname(dst)
-    owned = _images_named_by(dst, _libraries_named_by(dst))
     real = _real(folder)
     for img in bpy.data.images:
         path = bpy.path.abspath(img.filepath) if img.filepath else ""
@@ -434,8 +436,10 @@ def _libraries_named_by(model: str) -> set:
     """The material libraries an existing OBJ model names (a previous run's
     output, which this one replaces), or where a run was killed after setting
     it aside, its copy in that run's scratch folder."""
+    if not model.lower().endswith(".obj"):
+        return set()
     source = model if os.path.isfile(model) else next(iter(_set_aside_copies(model)), None)
-    if not model.lower().endswith(".obj") or source is None:
+    if source is None:
         return set()
     with open(source, "rb") as f:
         return {_rest_of(ln) for ln in _lines_starting(f.read(), b"mtllib")} - {""}
@@ -508,11 +512,13 @@ def _stop_if_cancelled(pkg, cancel) -> None:
         raise pkg.DefragCancelled("cancelled")
 
 
-def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) -> list:
+def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, replaceable: set) -> list:
     """Exports into tmp, checks every file there, calls before_moving (which
     may raise), then moves them beside dst: images next to an OBJ (a glTF
-    carries them), the model file last. Returns the images moved beside an
-    OBJ that its materials do not name."""
+    carries them), the model file last. Images and the MTL may replace only
+    the files named in replaceable: the earlier output's at dst (its
+    libraries and their images). Returns the images moved beside an OBJ that
+    its materials do not name."""
     out_dir = os.path.dirname(dst) or "."
     tmp_out = os.path.join(tmp, os.path.basename(dst))
     export_model(tmp_out, objects)
@@ -523,9 +529,6 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving) ->
                               sum(len(o.data.polygons) for o in objects if o.type == "MESH"),
                               _base_colour_files(objects))
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
-    # Images and the MTL may replace only those of the run that wrote dst before.
-    libraries = _libraries_named_by(dst)
-    replaceable = _images_named_by(dst, libraries) | libraries
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
 
