@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -11,7 +12,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from . import compat, png_files
+from . import compat, image_headers, png_files
 from .job import DefragError, ImageMap, JobInput, MeshData, SourcePage, role_sort_key
 
 # Image sources whose pixels are one plain 2D image.
@@ -251,10 +252,59 @@ def _check_image(img, material_name: str):
             "image: only single still images are supported")
     if _plain_png(img):
         return None
+    _refuse_oversized(img, material_name)
     w, h = img.size
     if w <= 0 or h <= 0 or not _loads(img):
         return f"Image '{img.name}' in material '{material_name}' has no pixels (missing file?): skipped"
     return None
+
+
+# bpy hands out an image's pixels as one array whose length is a C int, 4
+# values per pixel: past it Blender 3.4 crashes and bpy 4.5 wraps the length.
+_MAX_PIXEL_VALUES = 2 ** 31 - 1
+# Bytes per pixel while an image is read: Blender's own buffer (4 bytes per
+# pixel, 16 for float images), the float copy bpy hands out (16) and the bytes
+# made of it (4).
+_READ_BYTES = {False: 24, True: 32}
+
+
+def _refuse_oversized(img, material_name: str) -> None:
+    """DefragError when img claims more pixels than bpy can hand out, or than
+    this machine's memory holds while they are read. An image Blender has not
+    loaded is judged by its file's header, before Blender decodes it (asking
+    for img.size would), so that a header claiming far more than its file
+    holds fails here rather than inside Blender."""
+    claim = _claimed_size(img)
+    if claim is None:
+        return
+    w, h, float_pixels = claim
+    where = f"Image '{img.name}' in material '{material_name}' is {w} x {h} pixels"
+    if 4 * w * h > _MAX_PIXEL_VALUES:
+        raise DefragError(f"{where}: more than Blender can hand to Python (4 values per pixel, at most "
+                          f"{_MAX_PIXEL_VALUES:,} values, about 23,170 x 23,170 pixels); scale it down first")
+    needed, memory = _READ_BYTES[float_pixels] * w * h, image_headers.physical_memory()
+    if memory is not None and needed > memory:
+        raise DefragError(f"{where}: reading it takes about {needed / 2**30:.1f} GB, more than this "
+                          f"machine's {memory / 2**30:.0f} GB of memory; scale it down first")
+
+
+def _claimed_size(img) -> Optional[image_headers.Claim]:
+    """img's size without decoding it: Blender's when it holds the pixels or
+    generates them, else the file's header (packed or on disk); None when
+    the header is not one image_headers reads."""
+    import bpy
+
+    if img.source == "GENERATED":
+        return image_headers.Claim(img.generated_width, img.generated_height, bool(img.use_generated_float))
+    if img.has_data:
+        return image_headers.Claim(int(img.size[0]), int(img.size[1]), bool(img.is_float))
+    try:
+        if img.packed_file is not None:
+            return image_headers.claimed_size(io.BytesIO(img.packed_file.data), img.filepath)
+        with open(bpy.path.abspath(img.filepath, library=img.library), "rb") as f:
+            return image_headers.claimed_size(f, img.filepath)
+    except (OSError, ValueError):
+        return None
 
 
 def _loads(img) -> bool:

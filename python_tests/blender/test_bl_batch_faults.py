@@ -6,9 +6,12 @@ Ctrl-C, and a python3 without numpy on PATH."""
 from __future__ import annotations
 
 import hashlib
+import io
+import json
 import os
 import shutil
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -196,6 +199,61 @@ def test_models_whose_image_names_join_alike_keep_their_own(tmp_path):
     for model, blue in (("a.obj", False), ("a_x.obj", True)):
         pixels = png_files.decode_png((out / maps[model][0]).read_bytes())
         assert (pixels[..., 2].max() > 100) == blue, (model, maps[model])
+
+
+def _jpeg_claiming(width: int, height: int) -> bytes:
+    """A 16 x 16 JPEG whose frame header claims width x height pixels."""
+    from PIL import Image
+
+    out = io.BytesIO()
+    Image.new("RGB", (16, 16), (120, 80, 40)).save(out, "JPEG")
+    data = bytearray(out.getvalue())
+    struct.pack_into(">HH", data, data.find(b"\xff\xc0") + 5, height, width)
+    return bytes(data)
+
+
+def _square_glb(path: Path, jpeg: bytes) -> Path:
+    """The square of _square_model as a GLB, its texture packed inside."""
+    blobs = [np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32).tobytes(),
+             np.array([[0.1, 0.1], [0.9, 0.1], [0.9, 0.9], [0.1, 0.9]], np.float32).tobytes(),
+             np.array([0, 1, 2, 0, 2, 3], np.uint32).tobytes(), jpeg]
+    views, body = [], b""
+    for blob in blobs:
+        views.append({"buffer": 0, "byteOffset": len(body), "byteLength": len(blob)})
+        body += blob + bytes(-len(blob) % 4)
+    accessors = [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                  "min": [0, 0, 0], "max": [1, 1, 0]},
+                 {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+                 {"bufferView": 2, "componentType": 5125, "count": 6, "type": "SCALAR"}]
+    gltf = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2,
+                                        "material": 0}]}],
+            "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+            "textures": [{"source": 0}], "images": [{"bufferView": 3, "mimeType": "image/jpeg"}],
+            "buffers": [{"byteLength": len(body)}], "bufferViews": views, "accessors": accessors}
+    text = json.dumps(gltf).encode()
+    text += b" " * (-len(text) % 4)
+    chunks = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(body), b"BIN\0") + body
+    path.write_bytes(b"glTF" + struct.pack("<II", 2, 12 + len(chunks)) + chunks)
+    return path
+
+
+@pytest.mark.parametrize("packed", [False, True])
+def test_a_texture_claiming_more_pixels_than_blender_can_hand_out_is_refused(tmp_path, packed):
+    """A few hundred bytes of JPEG claiming 60000 x 60000 pixels: asking
+    Blender 3.4 for its size crashed it (bpy 4.5 decodes 14 GB and wraps
+    the pixel count). The header is read first and the model refused."""
+    bomb = _jpeg_claiming(60000, 60000)
+    if packed:
+        model = _square_glb(tmp_path / "square.glb", bomb)
+    else:
+        model = _square_model(tmp_path, "square", "tex.jpg", (200, 0, 0))
+        (tmp_path / "tex.jpg").write_bytes(bomb)
+    out = tmp_path / "out" / "square.glb"
+    proc = run_blender(["--python", str(BATCH), "--", str(model), str(out)], timeout=300)
+    assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "is 60000 x 60000 pixels: more than Blender can hand to Python" in proc.stderr, proc.stderr[-2000:]
+    assert _left_in(out.parent) == []
 
 
 def test_an_unwritable_report_path_fails_before_the_work(tmp_path):

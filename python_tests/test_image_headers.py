@@ -1,0 +1,102 @@
+# SPDX-License-Identifier: MIT
+"""image_headers: the size an image file claims, read from its header alone,
+so that the add-on can refuse an image before Blender decodes it."""
+
+from __future__ import annotations
+
+import io
+import struct
+
+import pytest
+from PIL import Image
+
+from atlas_defrag import image_headers
+from atlas_defrag.image_headers import Claim
+
+
+def _saved(fmt: str, size=(300, 200), **kw) -> bytes:
+    out = io.BytesIO()
+    Image.new("RGB", size, (90, 140, 30)).save(out, fmt, **kw)
+    return out.getvalue()
+
+
+def _claim(data: bytes, name: str = "") -> Claim:
+    return image_headers.claimed_size(io.BytesIO(data), name)
+
+
+@pytest.mark.parametrize("fmt, kw, name", [
+    ("PNG", {}, "a.png"),
+    ("JPEG", {}, "a.jpg"),
+    # A progressive frame (SOF2) behind an EXIF segment and a comment.
+    ("JPEG", {"progressive": True, "exif": b"Exif\x00\x00" + bytes(5000), "comment": b"scan"}, "a.jpg"),
+    ("TIFF", {}, "a.tif"),
+    ("BMP", {}, "a.bmp"),
+    ("TGA", {}, "a.tga"),
+])
+def test_the_formats_blender_reads_most_claim_their_size(fmt, kw, name):
+    assert _claim(_saved(fmt, **kw), name) == Claim(300, 200, False)
+
+
+def test_a_tga_is_known_only_by_its_file_name():
+    """A TGA has no signature: any file would otherwise parse as one."""
+    assert _claim(_saved("TGA"), "texture.png") is None
+
+
+def _tiff(order: str, entries) -> bytes:
+    """A TIFF holding only its first directory: (tag, type, value) entries."""
+    ifd = struct.pack(order + "H", len(entries))
+    for tag, kind, value in entries:
+        packed = struct.pack(order + ("H" if kind == 3 else "I"), value).ljust(4, b"\0")
+        ifd += struct.pack(order + "HHI", tag, kind, 1) + packed
+    magic = b"II*\x00" if order == "<" else b"MM\x00*"
+    return magic + struct.pack(order + "I", 8) + ifd + b"\0\0\0\0"
+
+
+@pytest.mark.parametrize("order", ["<", ">"])
+def test_tiff_sizes_are_read_in_either_byte_order_and_either_integer(order):
+    data = _tiff(order, [(254, 4, 0), (256, 3, 40000), (257, 4, 70000)])
+    assert _claim(data) == Claim(40000, 70000, False)
+
+
+def _exr(window) -> bytes:
+    """An OpenEXR header: magic, version, then attributes (name, type, size, value)."""
+    def attribute(name: bytes, kind: bytes, value: bytes) -> bytes:
+        return name + b"\0" + kind + b"\0" + struct.pack("<i", len(value)) + value
+    return (b"\x76\x2f\x31\x01" + struct.pack("<I", 2)
+            + attribute(b"channels", b"chlist", bytes(37))
+            + attribute(b"compression", b"compression", b"\x00")
+            + attribute(b"dataWindow", b"box2i", struct.pack("<iiii", *window)) + b"\0")
+
+
+def test_an_exr_claims_its_data_window_in_floats():
+    assert _claim(_exr((-10, 5, 30009, 20004))) == Claim(30020, 20000, True)
+
+
+def test_a_jpeg_header_claiming_more_than_its_file_holds_is_read_as_claimed():
+    data = bytearray(_saved("JPEG", size=(64, 64)))
+    frame = data.find(b"\xff\xc0")
+    struct.pack_into(">HH", data, frame + 5, 60000, 61000)  # height, width
+    assert _claim(bytes(data)) == Claim(61000, 60000, False)
+
+
+@pytest.mark.parametrize("data", [
+    b"",
+    b"\x89PNG\r\n\x1a\n\x00\x00",       # cut inside its header
+    b"\xff\xd8\xff\xe0\x00\x10JFIF",     # cut before its frame header
+    b"\xff\xd8" + b"\xff" * 100,         # fill bytes to the end
+    b"\xff\xd8\xff\xda\x00\x08" + bytes(8),  # scan data before any frame header
+    b"II*\x00\xff\xff\xff\x7f",          # a directory off the file
+    b"\x76\x2f\x31\x01" + bytes(4) + b"\0",  # an EXR without a data window
+    b"GIF89a" + bytes(20),               # a format not read here
+])
+def test_headers_that_are_cut_short_malformed_or_unknown_claim_nothing(data):
+    assert _claim(data, "texture") is None
+
+
+@pytest.mark.parametrize("name", ["meshroom", "tetra"])
+def test_the_shared_scans_textures_claim_what_pillow_decodes(scan_path, name):
+    files = [p for p in scan_path(name).parent.rglob("*") if p.suffix.lower() in (".png", ".jpg", ".jpeg")]
+    assert files
+    for path in files:
+        with open(path, "rb") as f, Image.open(path) as im:
+            assert image_headers.claimed_size(f, path.name)[:2] == im.size, path
