@@ -1,5 +1,6 @@
 """The command-line entry, tools/defrag_scan.py, run as users run it: on a real
 scan, without Blender, and its output read back from disk."""
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -136,10 +137,14 @@ def test_gltf_primitive_without_indices_reads_its_vertices_in_order(tmp_path):
     ({"buffers": [{"byteLength": 36, "uri": "missing.bin"}]}, "cannot be read"),
     ({"accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "MAT9"}]}, "malformed glTF"),
     ({"scenes": [{}]}, "no triangle mesh"),
+    # The buffer holds the 36 bytes the accessor reads, its view only 24.
+    ({"bufferViews": [{"buffer": 0, "byteLength": 24}]}, "reads 36 bytes of bufferView 0, which holds 24"),
+    ({"buffers": [{"byteLength": 36, "uri": "pipe.bin"}]}, "pipe.bin is not a regular file"),
 ])
 def test_cli_names_what_is_wrong_with_a_bad_gltf(tool_env, tmp_path, changes, message):
     """Bad files end in one line on stderr and exit code 1, not a traceback
-    (and a node hierarchy with a cycle does not hang the reader)."""
+    (and a node hierarchy with a cycle, or a FIFO as buffer, does not hang the reader)."""
+    os.mkfifo(tmp_path / "pipe.bin")
     path = _one_triangle_gltf(tmp_path, "bad.gltf", **changes)
     proc = subprocess.run([sys.executable, str(CLI), str(path), str(tmp_path / "out")], env=tool_env,
                           capture_output=True, text=True, timeout=60)

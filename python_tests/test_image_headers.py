@@ -32,9 +32,29 @@ def _claim(data: bytes, name: str = "") -> Claim:
     ("TIFF", {}, "a.tif"),
     ("BMP", {}, "a.bmp"),
     ("TGA", {}, "a.tga"),
+    ("SGI", {}, "a.rgb"),
+    ("DDS", {}, "a.dds"),
+    ("WEBP", {}, "a.webp"),                   # lossy (VP8)
+    ("WEBP", {"lossless": True}, "a.webp"),   # VP8L
+    ("WEBP", {"exif": b"Exif\x00\x00" + bytes(20)}, "a.webp"),  # extended (VP8X)
+    ("JPEG2000", {}, "a.jp2"),
+    ("JPEG2000", {"no_jp2": True}, "a.j2k"),  # a bare codestream
 ])
-def test_the_formats_blender_reads_most_claim_their_size(fmt, kw, name):
+def test_the_formats_blender_reads_claim_their_size(fmt, kw, name):
     assert _claim(_saved(fmt, **kw), name) == Claim(300, 200, False)
+
+
+def test_radiance_psd_dpx_and_cineon_headers_claim_their_size():
+    """Formats Pillow does not write, their headers made by hand."""
+    hdr = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 200 +X 300\n" + bytes(16)
+    psd = b"8BPS" + struct.pack(">H6xHII", 1, 3, 200, 300) + bytes(16)
+    dpx = b"SDPX" + bytes(768) + struct.pack(">II", 300, 200)
+    dpx_little = b"XPDS" + bytes(768) + struct.pack("<II", 300, 200)
+    cineon = b"\x80\x2a\x5f\xd7" + bytes(196) + struct.pack(">II", 300, 200)
+    assert _claim(hdr) == Claim(300, 200, True)
+    assert _claim(hdr.replace(b"-Y 200 +X 300", b"+X 300 -Y 200")) == Claim(300, 200, True)
+    for data in (psd, dpx, dpx_little, cineon):
+        assert _claim(data) == Claim(300, 200, False), data[:4]
 
 
 def test_a_tga_is_known_only_by_its_file_name():
@@ -77,6 +97,46 @@ def test_a_jpeg_header_claiming_more_than_its_file_holds_is_read_as_claimed():
     frame = data.find(b"\xff\xc0")
     struct.pack_into(">HH", data, frame + 5, 60000, 61000)  # height, width
     assert _claim(bytes(data)) == Claim(61000, 60000, False)
+
+
+def _forged_jpeg(prefix: bytes) -> bytes:
+    """A 64 x 64 JPEG claiming 60000 x 61000 pixels, `prefix` put before its frame header."""
+    data = bytearray(_saved("JPEG", size=(64, 64)))
+    frame = data.find(b"\xff\xc0")
+    struct.pack_into(">HH", data, frame + 5, 60000, 61000)
+    return bytes(data[:frame] + prefix + data[frame:])
+
+
+@pytest.mark.parametrize("prefix", [
+    b"\x00",                          # a junk byte, which libjpeg skips with a warning
+    b"\xff\xfe\x00\x02" * 300,       # 300 empty comments
+])
+def test_a_jpeg_frame_header_is_found_wherever_libjpeg_finds_it(prefix):
+    assert _claim(_forged_jpeg(prefix)) == Claim(61000, 60000, False)
+
+
+def test_a_jpeg_cut_short_is_told_from_a_whole_one():
+    whole = _saved("JPEG", size=(64, 64))
+    assert not image_headers.cut_short(io.BytesIO(whole))
+    assert image_headers.cut_short(io.BytesIO(whole[:-10]))  # cut inside its scan data
+    assert not image_headers.cut_short(io.BytesIO(_saved("PNG")[:40]))  # not a JPEG: not judged here
+
+
+@pytest.mark.parametrize("claim, file_bytes, problem", [
+    (Claim(4096, 4096, False), 2_000_000, ""),
+    (Claim(4096, 4096, False), None, ""),                     # pixels Blender holds: no file to judge
+    (Claim(16000, 16000, False), 3_000, "cannot hold them"),  # 85,000 pixels a byte
+    (Claim(23171, 23171, False), 10 ** 9, "more than Blender can hand to Python"),
+])
+def test_size_problems(claim, file_bytes, problem):
+    found = image_headers.size_problem(claim, file_bytes)
+    assert (problem in found) if problem else found == ""
+
+
+def test_a_claim_beyond_memory_is_a_problem(monkeypatch):
+    monkeypatch.setattr(image_headers, "physical_memory", lambda: 8 * 2 ** 30)
+    assert "more than this machine's 8 GB" in image_headers.size_problem(Claim(20000, 20000, False), 10 ** 9)
+    assert image_headers.size_problem(Claim(16000, 16000, False), 10 ** 9) == ""
 
 
 @pytest.mark.parametrize("data", [

@@ -224,7 +224,11 @@ def _view_values(gltf: dict, buffers: list, view_index: int, offset: int, count:
     binary = _item(buffers, view["buffer"], "buffer")
     start = view.get("byteOffset", 0) + offset
     stride = view.get("byteStride", dtype.itemsize * width)
-    raw = np.frombuffer(binary, dtype=np.uint8, count=stride * (count - 1) + dtype.itemsize * width, offset=start)
+    length = stride * (count - 1) + dtype.itemsize * width
+    if offset + length > view["byteLength"]:
+        raise ValueError(f"an accessor reads {offset + length} bytes of bufferView {view_index}, "
+                         f"which holds {view['byteLength']}")
+    raw = np.frombuffer(binary, dtype=np.uint8, count=length, offset=start)
     rows = np.lib.stride_tricks.as_strided(raw, (count, dtype.itemsize * width), (stride, 1))
     return np.ascontiguousarray(rows).view(dtype).reshape(count, width)
 
@@ -259,7 +263,10 @@ def _uri_bytes(uri: str, folder: Path) -> bytes:
     """A glTF uri: an embedded data: URI, or a file beside the .gltf."""
     if uri.startswith("data:"):
         return base64.b64decode(uri.split(",", 1)[1])
-    return (folder / urllib.parse.unquote(uri)).read_bytes()
+    path = folder / urllib.parse.unquote(uri)
+    if path.exists() and not path.is_file():  # a device would be read without end, a FIFO waited on
+        raise ValueError(f"{path} is not a regular file")
+    return path.read_bytes()
 
 
 class UnreadableTexture(ValueError):

@@ -29,6 +29,7 @@ import os
 import re
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import tempfile
@@ -248,8 +249,9 @@ def run_one(args, cancel=None) -> dict:
     pkg = _package()
     t0 = time.perf_counter()
     src, dst = os.path.abspath(args.input), os.path.abspath(args.output)
-    objects = _import_input(src, dst)
     inputs = _input_files(src)
+    objects = _import_input(src, dst, inputs)
+    inputs |= _input_files_of_scene()  # an OBJ's textures, found through its MTL
     _refuse_overwriting(inputs, _model_files(dst))
     libraries = _libraries_named_by(dst)  # the earlier output's, read once
     _refuse_foreign_library(dst, libraries)
@@ -267,7 +269,7 @@ def run_one(args, cancel=None) -> dict:
         _defragment_meshes(pkg, args, meshes, tmp, report, cancel)
         _name_images_after(dst, tmp, owned)
         t_export = time.perf_counter()
-        unnamed = _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),
+        unnamed = _export_and_move(objects, tmp, dst, inputs,
                                    lambda: _stop_if_cancelled(pkg, cancel), owned | libraries)
         if unnamed:
             report["warnings"].append(
@@ -458,16 +460,63 @@ def _images_named_by(model: str, libraries: set) -> set:
     return named
 
 
-def _import_input(src: str, dst: str):
-    """The objects of src, in an empty scene; refuses what cannot be written."""
+def _import_input(src: str, dst: str, inputs: set):
+    """The objects of src, in an empty scene; refuses what cannot be written,
+    and files to read (inputs, from _input_files) that cannot be read."""
     import bpy
     if not os.path.isfile(src):
         raise BatchError(f"input not found: {src}")
     out_ext = os.path.splitext(dst)[1].lower()
     if out_ext not in OUTPUT_EXTS:
         raise BatchError(f"unsupported output format '{out_ext}' (use {', '.join(OUTPUT_EXTS)})")
+    _refuse_special_files(inputs)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return import_model(src)
+
+
+def _refuse_special_files(inputs: set) -> None:
+    """BatchError when one of inputs, or an image their MTL files name, is a
+    FIFO, a device or a socket (Blender's importers would wait on it for ever
+    or read it without end), or an image whose header claims what it cannot
+    be decoded safely into (image_headers.size_problem): some of Blender's
+    decoders run during the import."""
+    headers = importlib.import_module(_package().__name__ + ".image_headers")
+    files = set(inputs)
+    for mtl in [f for f in inputs if f.lower().endswith(".mtl")]:
+        if _special(mtl):
+            break  # refused below, unread
+        try:
+            with open(mtl, "rb") as f:
+                files |= {os.path.join(os.path.dirname(mtl), name) for name in _map_files(f.read())}
+        except OSError:
+            continue  # missing: the importer does without it
+    for path in sorted(files):
+        if _special(path):
+            raise BatchError(f"{path} is not a regular file (a FIFO, device or socket): "
+                             "the import would wait on it or read it without end")
+        if path.lower().endswith(_NO_IMAGE_EXTS):
+            continue
+        try:
+            with open(path, "rb") as f:
+                claim = headers.claimed_size(f, path)
+                problem = headers.size_problem(claim, os.fstat(f.fileno()).st_size) if claim else ""
+        except OSError:
+            continue
+        if problem:
+            raise BatchError(f"the image {path} claims {problem}: scale it down or repair it first")
+
+
+# The files an import reads that are no images: their bytes may start as an image's signature.
+_NO_IMAGE_EXTS = (".obj", ".mtl", ".gltf", ".glb", ".bin", ".ply")
+
+
+def _special(path: str) -> bool:
+    """Whether path exists and is neither a regular file nor a folder."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
 def _give_missing_textures(pkg, meshes, texture: str) -> None:

@@ -5,14 +5,16 @@ Blender decodes a whole image to answer even Image.size, and a header can
 claim far more pixels than its file holds (a few hundred bytes of JPEG may
 claim 60000 x 60000). Reading the claim first lets the add-on refuse such an
 image before Blender allocates it: past 2^31 pixel values Blender 3.4 crashes
-and bpy 4.5 wraps the pixel count. PNG, JPEG, TIFF, BMP, OpenEXR and TGA
-(known by its file name: it has no signature) are read; for other formats
-the claim is unknown (None) and Blender is left to decode them. No bpy here.
+and bpy 4.5 wraps the pixel count. Every still format Blender reads is read
+here: PNG, JPEG, JPEG 2000, TIFF, BMP, OpenEXR, Radiance HDR, Iris, DDS, PSD,
+WebP, DPX, Cineon, and TGA (known by its file name: it has no signature).
+No bpy here.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import struct
 from typing import BinaryIO, NamedTuple, Optional
 
@@ -20,54 +22,57 @@ from typing import BinaryIO, NamedTuple, Optional
 class Claim(NamedTuple):
     width: int
     height: int
-    float_pixels: bool  # Blender holds the pixels as floats (OpenEXR), not bytes
+    float_pixels: bool  # Blender holds the pixels as floats (OpenEXR, HDR), not bytes
 
 
 # JPEG start-of-frame markers (ITU T.81 table B.1): C0-CF but DHT (C4), JPG (C8) and DAC (CC).
 _JPEG_FRAMES = set(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 # Markers that stand alone, without a length: TEM, RST0-7 and SOI.
 _JPEG_BARE = {0x01, *range(0xD0, 0xD9)}
-# A JPEG whose frame header is not among its first this many segments is taken as unknown.
-_JPEG_MAX_SEGMENTS = 256
-_EXR_MAX_ATTRIBUTES = 256
+_EXR_MAX_ATTRIBUTES = 1024
+# Radiance's resolution line, e.g. "-Y 1024 +X 2048": rows first when Y comes first.
+_HDR_SIZE = re.compile(rb"^[-+]([XY]) (\d+) [-+]([XY]) (\d+)$")
+_HDR_MAX_LINES, _HDR_MAX_LINE = 1024, 4096
 
 
 def claimed_size(f: BinaryIO, file_name: str = "") -> Optional[Claim]:
     """The (width, height) f's header claims, f positioned at the file's
-    start; None when the format is not one read here or the header is cut
-    short or malformed (Blender then decides)."""
-    head = f.read(32)
+    start; None when it is no format read here or its header is cut short or
+    malformed."""
+    head = f.read(1024)
     try:
-        if head.startswith(b"\x89PNG\r\n\x1a\n") and head[12:16] == b"IHDR":
-            return Claim(*struct.unpack(">II", head[16:24]), False)
-        if head.startswith(b"\xff\xd8"):
-            return _jpeg(f)
-        if head[:4] in (b"II*\x00", b"MM\x00*"):
-            return _tiff(f, "<" if head[:2] == b"II" else ">")
-        if head.startswith(b"BM"):
-            width, height = struct.unpack("<ii", head[18:26])
-            return Claim(abs(width), abs(height), False)  # negative height: rows stored top down
-        if head.startswith(b"\x76\x2f\x31\x01"):
-            return _exr(f)
-        if file_name.lower().endswith((".tga", ".targa")):
-            return Claim(*struct.unpack("<HH", head[12:16]), False)
+        reader = _reader(head, file_name)
+        return reader(f, head) if reader is not None else None
     except (struct.error, ValueError, OSError):  # a header cut short, or an offset off the file
         return None
+
+
+def _reader(head: bytes, file_name: str):
+    """The reader of head's format, by its signature; None if none matches."""
+    for signature, reader in _SIGNATURES:
+        if head.startswith(signature):
+            return reader
+    if file_name.lower().endswith((".tga", ".targa")):
+        return lambda f, h: Claim(*struct.unpack("<HH", h[12:16]), False)
     return None
 
 
-def _jpeg(f: BinaryIO) -> Optional[Claim]:
-    """Walks the segments after SOI to the frame header: length(2), precision(1), height(2), width(2)."""
+def _png(f: BinaryIO, head: bytes) -> Optional[Claim]:
+    return Claim(*struct.unpack(">II", head[16:24]), False) if head[12:16] == b"IHDR" else None
+
+
+def _jpeg(f: BinaryIO, head: bytes) -> Optional[Claim]:
+    """Walks the segments after SOI to the frame header: length(2),
+    precision(1), height(2), width(2). Bytes other than 0xFF between
+    segments are skipped, as libjpeg skips them."""
     f.seek(2)
-    for _ in range(_JPEG_MAX_SEGMENTS):
-        if f.read(1) != b"\xff":
-            return None
+    while _to_next_ff(f):
         marker = f.read(1)
         while marker == b"\xff":  # fill bytes may pad a marker
             marker = f.read(1)
         if not marker or marker[0] in (0xD9, 0xDA):  # the end, or scan data before any frame header
             return None
-        if marker[0] in _JPEG_BARE:
+        if marker[0] in _JPEG_BARE or marker[0] == 0:
             continue
         length, = struct.unpack(">H", f.read(2))
         if marker[0] in _JPEG_FRAMES:
@@ -77,8 +82,21 @@ def _jpeg(f: BinaryIO) -> Optional[Claim]:
     return None
 
 
-def _tiff(f: BinaryIO, order: str) -> Optional[Claim]:
+def _to_next_ff(f: BinaryIO, chunk: int = 1 << 16) -> bool:
+    """Moves f just past its next 0xFF byte; False at the end of the file."""
+    while True:
+        data = f.read(chunk)
+        if not data:
+            return False
+        at = data.find(b"\xff")
+        if at >= 0:
+            f.seek(at + 1 - len(data), os.SEEK_CUR)
+            return True
+
+
+def _tiff(f: BinaryIO, head: bytes) -> Optional[Claim]:
     """ImageWidth (256) and ImageLength (257) of the first image file directory."""
+    order = "<" if head[:2] == b"II" else ">"
     f.seek(4)
     offset, = struct.unpack(order + "I", f.read(4))
     f.seek(offset)
@@ -91,7 +109,12 @@ def _tiff(f: BinaryIO, order: str) -> Optional[Claim]:
     return Claim(size[256], size[257], False) if len(size) == 2 else None
 
 
-def _exr(f: BinaryIO) -> Optional[Claim]:
+def _bmp(f: BinaryIO, head: bytes) -> Optional[Claim]:
+    width, height = struct.unpack("<ii", head[18:26])
+    return Claim(abs(width), abs(height), False)  # negative height: rows stored top down
+
+
+def _exr(f: BinaryIO, head: bytes) -> Optional[Claim]:
     """The dataWindow attribute (box2i: x min, y min, x max, y max) of the
     header's name, type, size, value records."""
     f.seek(8)
@@ -116,6 +139,118 @@ def _c_string(f: BinaryIO, limit: int = 256) -> bytes:
             break
         out += c
     return bytes(out)
+
+
+def _hdr(f: BinaryIO, head: bytes) -> Optional[Claim]:
+    """The resolution line after the header's blank line."""
+    f.seek(0)
+    for _ in range(_HDR_MAX_LINES):
+        line = f.readline(_HDR_MAX_LINE)
+        if not line:
+            return None
+        if not line.strip():
+            match = _HDR_SIZE.match(f.readline(_HDR_MAX_LINE).strip())
+            if match is None:
+                return None
+            first, n1, _, n2 = match.groups()
+            rows, columns = (int(n1), int(n2)) if first == b"Y" else (int(n2), int(n1))
+            return Claim(columns, rows, True)
+    return None
+
+
+def _webp(f: BinaryIO, head: bytes) -> Optional[Claim]:
+    """The canvas of a VP8X chunk, or the frame of a lossy (VP8) or lossless (VP8L) one."""
+    if head[8:12] != b"WEBP":
+        return None
+    chunk = head[12:16]
+    if chunk == b"VP8X":
+        w, h = int.from_bytes(head[24:27], "little"), int.from_bytes(head[27:30], "little")
+        return Claim(w + 1, h + 1, False)
+    if chunk == b"VP8 ":
+        w, h = struct.unpack("<HH", head[26:30])
+        return Claim(w & 0x3FFF, h & 0x3FFF, False)
+    if chunk == b"VP8L":
+        bits, = struct.unpack("<I", head[21:25])
+        return Claim((bits & 0x3FFF) + 1, ((bits >> 14) & 0x3FFF) + 1, False)
+    return None
+
+
+def _j2k(f: BinaryIO, head: bytes) -> Optional[Claim]:
+    """A JPEG 2000 codestream's SIZ segment: the image area, less its offset."""
+    xsiz, ysiz, x0, y0 = struct.unpack(">IIII", head[8:24])
+    return Claim(xsiz - x0, ysiz - y0, False)
+
+
+def _jp2(f: BinaryIO, head: bytes) -> Optional[Claim]:
+    """A JP2 file's image header box (ihdr: height, width), inside its jp2h box."""
+    at = head.find(b"ihdr")
+    if at < 0:
+        return None
+    height, width = struct.unpack(">II", head[at + 4:at + 12])
+    return Claim(width, height, False)
+
+
+_SIGNATURES = [
+    (b"\x89PNG\r\n\x1a\n", _png),
+    (b"\xff\xd8", _jpeg),
+    (b"II*\x00", _tiff),
+    (b"MM\x00*", _tiff),
+    (b"BM", _bmp),
+    (b"\x76\x2f\x31\x01", _exr),
+    (b"#?RADIANCE", _hdr),
+    (b"#?RGBE", _hdr),
+    (b"\x01\xda", lambda f, h: Claim(*struct.unpack(">HH", h[6:10]), False)),          # Iris: xsize, ysize
+    (b"DDS ", lambda f, h: Claim(*reversed(struct.unpack("<II", h[12:20])), False)),  # height, width
+    (b"8BPS", lambda f, h: Claim(*reversed(struct.unpack(">II", h[14:22])), False)),  # PSD: height, width
+    (b"RIFF", _webp),
+    (b"SDPX", lambda f, h: Claim(*struct.unpack(">II", h[772:780]), False)),          # pixels, lines
+    (b"XPDS", lambda f, h: Claim(*struct.unpack("<II", h[772:780]), False)),
+    (b"\x80\x2a\x5f\xd7", lambda f, h: Claim(*struct.unpack(">II", h[200:208]), False)),  # Cineon
+    (b"\xff\x4f\xff\x51", _j2k),
+    (b"\x00\x00\x00\x0cjP  \r\n\x87\n", _jp2),
+]
+
+
+def cut_short(f: BinaryIO) -> bool:
+    """Whether f is a JPEG without an end-of-image marker after its first
+    scan: a file cut short, which libjpeg decodes all the same, filling
+    what is missing with grey. Scan data escapes its 0xFF bytes, so FF D9
+    there is the end."""
+    f.seek(0)
+    data = f.read()
+    if not data.startswith(b"\xff\xd8"):
+        return False
+    scan = data.find(b"\xff\xda")
+    return scan >= 0 and data.rfind(b"\xff\xd9") < scan
+
+
+# bpy hands out an image's pixels as one array whose length is a C int, 4
+# values per pixel: past it Blender 3.4 crashes and bpy 4.5 wraps the length.
+MAX_PIXEL_VALUES = 2 ** 31 - 1
+# Bytes per pixel while Blender decodes an image and the add-on reads it:
+# Blender's buffer (4, or 16 for float images), the float copy bpy hands out
+# (16) and the bytes made of it (4).
+_READ_BYTES = {False: 24, True: 32}
+# No format Blender reads packs more pixels than this into one byte of its
+# file (deflate tops out near 1032 bytes a byte, JPEG's Huffman codes near
+# 256 pixels a byte): a header claiming more is forged, or its file cut short.
+_MAX_PIXELS_PER_BYTE = 1 << 16
+
+
+def size_problem(claim: Claim, file_bytes: Optional[int]) -> str:
+    """Why an image claiming `claim`, from a file of file_bytes bytes (None:
+    not from a file), cannot be decoded and read safely; "" when it can."""
+    w, h, float_pixels = claim
+    if 4 * w * h > MAX_PIXEL_VALUES:
+        return (f"{w} x {h} pixels: more than Blender can hand to Python (4 values per pixel, at most "
+                f"{MAX_PIXEL_VALUES:,} values, about 23,170 x 23,170 pixels)")
+    if file_bytes is not None and w * h > _MAX_PIXELS_PER_BYTE * file_bytes:
+        return f"{w} x {h} pixels in {file_bytes:,} bytes, which cannot hold them (a file cut short or forged)"
+    needed, memory = _READ_BYTES[float_pixels] * w * h, physical_memory()
+    if memory is not None and needed > memory:
+        return (f"{w} x {h} pixels: reading them takes about {needed / 2**30:.1f} GB, more than this machine's "
+                f"{memory / 2**30:.0f} GB of memory")
+    return ""
 
 
 def physical_memory() -> Optional[int]:

@@ -252,59 +252,62 @@ def _check_image(img, material_name: str):
             "image: only single still images are supported")
     if _plain_png(img):
         return None
-    _refuse_oversized(img, material_name)
+    problem = _size_problem(img, material_name)
+    if problem:
+        return problem
     w, h = img.size
     if w <= 0 or h <= 0 or not _loads(img):
         return f"Image '{img.name}' in material '{material_name}' has no pixels (missing file?): skipped"
     return None
 
 
-# bpy hands out an image's pixels as one array whose length is a C int, 4
-# values per pixel: past it Blender 3.4 crashes and bpy 4.5 wraps the length.
-_MAX_PIXEL_VALUES = 2 ** 31 - 1
-# Bytes per pixel while an image is read: Blender's own buffer (4 bytes per
-# pixel, 16 for float images), the float copy bpy hands out (16) and the bytes
-# made of it (4).
-_READ_BYTES = {False: 24, True: 32}
-
-
-def _refuse_oversized(img, material_name: str) -> None:
-    """DefragError when img claims more pixels than bpy can hand out, or than
-    this machine's memory holds while they are read. An image Blender has not
-    loaded is judged by its file's header, before Blender decodes it (asking
-    for img.size would), so that a header claiming far more than its file
-    holds fails here rather than inside Blender."""
-    claim = _claimed_size(img)
+def _size_problem(img, material_name: str) -> Optional[str]:
+    """Raises DefragError when img claims more pixels than bpy can hand out,
+    than its file can hold, or than this machine's memory holds while they
+    are read (image_headers.size_problem); a warning when its file has no
+    header image_headers reads (damaged, or no image Blender reads). An image
+    Blender has not loaded is judged by its file's header, before Blender
+    decodes it (asking for img.size would). A missing file is left to Blender."""
+    where = f"Image '{img.name}' in material '{material_name}'"
+    try:
+        claim, file_bytes = _claimed_size(img)
+    except OSError:
+        return None
     if claim is None:
-        return
-    w, h, float_pixels = claim
-    where = f"Image '{img.name}' in material '{material_name}' is {w} x {h} pixels"
-    if 4 * w * h > _MAX_PIXEL_VALUES:
-        raise DefragError(f"{where}: more than Blender can hand to Python (4 values per pixel, at most "
-                          f"{_MAX_PIXEL_VALUES:,} values, about 23,170 x 23,170 pixels); scale it down first")
-    needed, memory = _READ_BYTES[float_pixels] * w * h, image_headers.physical_memory()
-    if memory is not None and needed > memory:
-        raise DefragError(f"{where}: reading it takes about {needed / 2**30:.1f} GB, more than this "
-                          f"machine's {memory / 2**30:.0f} GB of memory; scale it down first")
+        return f"{where} is damaged (cut short?) or no image file Blender reads: skipped"
+    problem = image_headers.size_problem(claim, file_bytes)
+    if problem:
+        raise DefragError(f"{where} claims {problem}; scale it down or repair it first")
+    return None
 
 
-def _claimed_size(img) -> Optional[image_headers.Claim]:
-    """img's size without decoding it: Blender's when it holds the pixels or
-    generates them, else the file's header (packed or on disk); None when
-    the header is not one image_headers reads."""
+def _claimed_size(img) -> Tuple[Optional[image_headers.Claim], Optional[int]]:
+    """(img's size without decoding it, its file's bytes): Blender's size
+    (and None) when it holds the pixels or generates them, else its file's
+    header (packed or on disk; None when image_headers cannot read it).
+    OSError when there is no file to read."""
     import bpy
 
     if img.source == "GENERATED":
-        return image_headers.Claim(img.generated_width, img.generated_height, bool(img.use_generated_float))
+        return image_headers.Claim(img.generated_width, img.generated_height, bool(img.use_generated_float)), None
     if img.has_data:
-        return image_headers.Claim(int(img.size[0]), int(img.size[1]), bool(img.is_float))
-    try:
-        if img.packed_file is not None:
-            return image_headers.claimed_size(io.BytesIO(img.packed_file.data), img.filepath)
-        with open(bpy.path.abspath(img.filepath, library=img.library), "rb") as f:
-            return image_headers.claimed_size(f, img.filepath)
-    except (OSError, ValueError):
-        return None
+        return image_headers.Claim(int(img.size[0]), int(img.size[1]), bool(img.is_float)), None
+    if img.packed_file is not None:
+        data = img.packed_file.data
+        return _sound_claim(io.BytesIO(data), img.filepath), len(data)
+    path = bpy.path.abspath(img.filepath, library=img.library)
+    if not os.path.exists(path):
+        raise FileNotFoundError(path)
+    if not os.path.isfile(path):  # a FIFO or a device: Blender would wait on it, or read it without end
+        return None, None
+    with open(path, "rb") as f:
+        return _sound_claim(f, img.filepath), os.fstat(f.fileno()).st_size
+
+
+def _sound_claim(f, file_name: str) -> Optional[image_headers.Claim]:
+    """The size f's header claims; None when it has none image_headers reads, or f is cut short."""
+    claim = image_headers.claimed_size(f, file_name)
+    return None if claim is None or image_headers.cut_short(f) else claim
 
 
 def _loads(img) -> bool:

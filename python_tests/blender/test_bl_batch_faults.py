@@ -201,15 +201,20 @@ def test_models_whose_image_names_join_alike_keep_their_own(tmp_path):
         assert (pixels[..., 2].max() > 100) == blue, (model, maps[model])
 
 
-def _jpeg_claiming(width: int, height: int) -> bytes:
-    """A 16 x 16 JPEG whose frame header claims width x height pixels."""
+def _claiming(fmt: str, width: int, height: int, junk: bytes = b"") -> bytes:
+    """A 16 x 16 JPEG or DDS whose header claims width x height pixels; junk
+    goes before a JPEG's frame header (libjpeg skips it, with a warning)."""
     from PIL import Image
 
     out = io.BytesIO()
-    Image.new("RGB", (16, 16), (120, 80, 40)).save(out, "JPEG")
+    Image.new("RGB", (16, 16), (120, 80, 40)).save(out, fmt)
     data = bytearray(out.getvalue())
-    struct.pack_into(">HH", data, data.find(b"\xff\xc0") + 5, height, width)
-    return bytes(data)
+    if fmt == "DDS":
+        struct.pack_into("<II", data, 12, height, width)
+        return bytes(data)
+    frame = data.find(b"\xff\xc0")
+    struct.pack_into(">HH", data, frame + 5, height, width)
+    return bytes(data[:frame] + junk + data[frame:])
 
 
 def _square_glb(path: Path, jpeg: bytes) -> Path:
@@ -238,23 +243,59 @@ def _square_glb(path: Path, jpeg: bytes) -> Path:
     return path
 
 
-@pytest.mark.parametrize("packed", [False, True])
-def test_a_texture_claiming_more_pixels_than_blender_can_hand_out_is_refused(tmp_path, packed):
-    """A few hundred bytes of JPEG claiming 60000 x 60000 pixels: asking
-    Blender 3.4 for its size crashed it (bpy 4.5 decodes 14 GB and wraps
-    the pixel count). The header is read first and the model refused."""
-    bomb = _jpeg_claiming(60000, 60000)
+@pytest.mark.parametrize("fmt, junk, packed", [("JPEG", b"", False), ("JPEG", b"\x00", True), ("DDS", b"", False)])
+def test_a_texture_claiming_more_pixels_than_blender_can_hand_out_is_refused(tmp_path, fmt, junk, packed):
+    """A few hundred bytes claiming 60000 x 60000 pixels: asking Blender 3.4
+    for a JPEG's size crashed it (bpy 4.5 decodes 14 GB and wraps the pixel
+    count), and its OBJ importer decodes a DDS at once, until memory runs
+    out. The headers are read first, a junk byte before a JPEG's frame
+    header skipped as libjpeg skips it, and the model refused."""
+    bomb = _claiming(fmt, 60000, 60000, junk)
     if packed:
         model = _square_glb(tmp_path / "square.glb", bomb)
     else:
-        model = _square_model(tmp_path, "square", "tex.jpg", (200, 0, 0))
-        (tmp_path / "tex.jpg").write_bytes(bomb)
+        texture = "tex.jpg" if fmt == "JPEG" else "tex.dds"
+        model = _square_model(tmp_path, "square", texture, (200, 0, 0))
+        (tmp_path / texture).write_bytes(bomb)
     out = tmp_path / "out" / "square.glb"
     proc = run_blender(["--python", str(BATCH), "--", str(model), str(out)], timeout=300)
     assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
-    assert "is 60000 x 60000 pixels: more than Blender can hand to Python" in proc.stderr, proc.stderr[-2000:]
+    assert "claims 60000 x 60000 pixels: more than Blender can hand to Python" in proc.stderr, proc.stderr[-2000:]
     assert _left_in(out.parent) == []
 
+
+def test_a_jpeg_cut_short_is_skipped_not_baked_grey(tmp_path):
+    """libjpeg decodes half a JPEG, the rest grey: the texture is skipped as
+    damaged (the model's only one here, so nothing is left to do)."""
+    from PIL import Image
+
+    model = _square_model(tmp_path, "square", "tex.jpg", (200, 0, 0))
+    whole = io.BytesIO()
+    Image.new("RGB", (256, 256), (200, 0, 0)).save(whole, "JPEG")
+    (tmp_path / "tex.jpg").write_bytes(whole.getvalue()[:-200])
+    out = tmp_path / "out" / "square.glb"
+    proc = run_blender(["--python", str(BATCH), "--", str(model), str(out)], timeout=300)
+    assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "is damaged (cut short?)" in proc.stderr, proc.stderr[-2000:]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("fifo", ["tex.png", "square.mtl"])
+def test_a_fifo_the_import_would_read_is_refused_not_waited_on(tmp_path, fifo):
+    model = _square_model(tmp_path, "square", "tex.png", (200, 0, 0))
+    (tmp_path / fifo).unlink()
+    os.mkfifo(tmp_path / fifo)
+    proc = run_blender(["--python", str(BATCH), "--", str(model), str(tmp_path / "out.glb")], timeout=120)
+    assert proc.returncode == 1 and "is not a regular file (a FIFO" in proc.stderr, proc.stderr[-2000:]
+
+
+def test_an_output_named_as_an_input_texture_is_refused(tmp_path):
+    """The OBJ's texture (PNG bytes) is named tex.glb, and OUT is that file."""
+    model = _square_model(tmp_path, "square", "tex.glb", (200, 0, 0))
+    before = _digest(tmp_path)
+    proc = run_blender(["--python", str(BATCH), "--", str(model), str(tmp_path / "tex.glb")], timeout=300)
+    assert proc.returncode == 1 and "would overwrite the input file" in proc.stderr, proc.stderr[-2000:]
+    assert _digest(tmp_path) == before
 
 def test_an_unwritable_report_path_fails_before_the_work(tmp_path):
     blocker = tmp_path / "file.txt"
