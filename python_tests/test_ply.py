@@ -139,6 +139,24 @@ def test_counts_beyond_the_file_end_at_once():
         ply_io.read(_header("ascii", -1, 0, ["float x"], ["list uchar int vertex_indices"], []))
 
 
+@pytest.mark.parametrize("body, message", [
+    (b"0 0 0 0 0\n1 0 0 1 0\nnan 1 0 1 1\n3 0 1 2 6 0 0 1 0 1 1\n", "vertex position is not a finite number"),
+    (b"0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n3 0 1 2 6 0 0 1 inf 1 1\n", "texture coordinate is not a finite number"),
+    (b"0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 nan\n3 0 1 2 6 0 0 1 0 1 1\n", None),  # per-vertex UVs not read
+])
+def test_values_that_are_no_finite_numbers_are_refused(body, message):
+    """Blender's mesh validation would make zeros of them without a word."""
+    from atlas_defrag import ply_io
+
+    head = _header("ascii", 3, 1, ["float x", "float y", "float z", "float u", "float v"],
+                   ["list uchar int vertex_indices", "list uchar float texcoord"], [])
+    if message is None:
+        assert np.isfinite(ply_io.read(head + body).uvs).all()
+        return
+    with pytest.raises(ValueError, match=message):
+        ply_io.read(head + body)
+
+
 def test_faces_without_two_values_per_corner_are_left_untextured():
     from atlas_defrag import ply_io
 

@@ -306,6 +306,11 @@ def read(data: bytes) -> PlyMesh:
         texnumber[~whole] = -1  # a face without two values per corner has no texture
     elif (per_vertex := _vertex_uvs(vertex)) is not None:
         uvs = per_vertex[triangles]
+    # Blender's mesh validation would turn them into zeros without a word.
+    if not np.isfinite(positions).all():
+        raise ValueError("a vertex position is not a finite number (NaN or infinity)")
+    if uvs is not None and not np.isfinite(uvs).all():
+        raise ValueError("a texture coordinate is not a finite number (NaN or infinity)")
     return PlyMesh(positions, triangles, uvs, texnumber, textures)
 
 
