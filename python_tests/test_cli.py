@@ -1,6 +1,8 @@
 """The command-line entry, tools/defrag_scan.py, run as users run it: on a real
 scan, without Blender, and its output read back from disk."""
 import os
+import re
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -137,6 +139,7 @@ def test_gltf_primitive_without_indices_reads_its_vertices_in_order(tmp_path):
     ({"buffers": [{"byteLength": 36, "uri": "missing.bin"}]}, "cannot be read"),
     ({"accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "MAT9"}]}, "malformed glTF"),
     ({"scenes": [{}]}, "no triangle mesh"),
+    ({"extensionsRequired": ["EXT_nonexistent"]}, "uses EXT_nonexistent, which this reader does not support"),
     # The buffer holds the 36 bytes the accessor reads, its view only 24.
     ({"bufferViews": [{"buffer": 0, "byteLength": 24}]}, "reads 36 bytes of bufferView 0, which holds 24"),
     ({"buffers": [{"byteLength": 36, "uri": "pipe.bin"}]}, "pipe.bin is not a regular file"),
@@ -318,6 +321,25 @@ def test_mtl_textures_are_found_as_writers_name_them(tmp_path, mtl, mtllib, text
     assert [p.name for p in scan.page_images] == [Path(t).name for t in textures]
 
 
+@pytest.mark.parametrize("options, refused", [
+    ("-s 2 2 1", "-s 2 2 1"),
+    ("-o 0.5", "-o 0.5"),
+    ("-s 1e30 1e30 1 -o nan nan 0 -bm 1", "-s 1e30 1e30 1 -o nan nan 0"),
+    ("-o 0 0 0 -s 1 1 -t 0 -bm 0.5 -clamp on", ""),  # the UVs as they are
+])
+def test_a_texture_read_through_moved_or_scaled_uvs_is_refused(tmp_path, options, refused):
+    """Blender's importer reads such a map through a Mapping node; read
+    without it, the scan would be baked from the wrong texels."""
+    import scan_io
+
+    path = _two_material_obj(tmp_path, f"newmtl a\nmap_Kd {options} t0.png\nnewmtl b\nmap_Kd t1.png\n")
+    if not refused:
+        assert scan_io.load(path).face_page.tolist() == [0, 0, 1, 1]
+        return
+    with pytest.raises(ValueError, match=f"material 'a' reads its texture through '{re.escape(refused)}'"):
+        scan_io.load(path)
+
+
 def test_an_obj_may_name_two_material_libraries(tmp_path):
     import scan_io
 
@@ -337,14 +359,23 @@ def test_a_missing_texture_is_named_and_its_faces_left_untextured(tool_env, tmp_
     assert "newmtl untextured" in (tmp_path / "out" / "m_defrag.mtl").read_text()
 
 
-def test_a_texture_cut_short_ends_in_one_line(tool_env, tmp_path):
-    """Its header whole (so the layout runs), its pixels cut short."""
+def _wrong_crc(png: bytes) -> bytes:
+    """The PNG with its pixel data's CRC changed, the data whole."""
+    kind = png.find(b"IDAT")
+    at = kind + 4 + struct.unpack(">I", png[kind - 4:kind])[0]
+    return png[:at] + bytes([png[at] ^ 1]) + png[at + 1:]
+
+
+@pytest.mark.parametrize("damage", [lambda png: png[:len(png) * 2 // 3], _wrong_crc])
+def test_a_texture_cut_short_or_failing_its_crc_ends_in_one_line(tool_env, tmp_path, damage):
+    """Its header whole (so the layout runs), its pixels cut short; or its
+    pixel data whole but its CRC wrong, which Blender refuses too."""
     from atlas_defrag import png_files
 
     path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
     noise = np.random.default_rng(3).integers(0, 256, (64, 64, 3), dtype=np.uint8)
     png = png_files.encode_png(noise)
-    (tmp_path / "t1.png").write_bytes(png[:len(png) * 2 // 3])
+    (tmp_path / "t1.png").write_bytes(damage(png))
     proc = subprocess.run([sys.executable, str(CLI), str(path), str(tmp_path / "out")], env=tool_env,
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr

@@ -46,6 +46,9 @@ def load_image(source) -> np.ndarray:
     if pixels is not None:
         return pixels
     Image.MAX_IMAGE_PIXELS = None  # scans routinely exceed Pillow's bomb guard
+    if data.startswith(png_files.SIGNATURE):
+        with Image.open(io.BytesIO(data)) as png:
+            png.verify()  # the chunks' CRCs, which libpng (so Blender) checks and Pillow's decoding does not
     img = Image.open(io.BytesIO(data))
     if img.mode.startswith("I;16") or img.mode == "I":  # 16-bit grey: Pillow's convert would clip it
         pixels = (np.asarray(img).astype(np.uint32) >> 8).clip(0, 255).astype(np.uint8)[::-1]
@@ -133,6 +136,8 @@ def _texture_path(reference: str, folders: list[Path]) -> Path:
 
 def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, Path]:
     """material name -> its map_Kd file (which may not exist)."""
+    from atlas_defrag import mtl_text
+
     textures: dict[str, Path] = {}
     for mtl in libraries:
         if not mtl.is_file():
@@ -146,6 +151,10 @@ def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, Path]
             if keyword == "newmtl":
                 current = rest
             elif keyword == "map_kd" and current is not None:
+                if mtl_text.uv_transform(rest):
+                    raise ValueError(f"{mtl.name}: material '{current}' reads its texture through "
+                                     f"'{mtl_text.uv_transform(rest)}' (UVs moved or scaled), "
+                                     "which this reader does not apply")
                 textures[current] = _texture_path(rest, [mtl.parent, obj_path.parent])
     return textures
 
@@ -352,6 +361,10 @@ def load_gltf(path: Path) -> Scan:
 # Extensions that change what the accessors or UVs mean: read without them, a
 # scan would come out wrong rather than fail.
 _UNREAD_EXTENSIONS = {"KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_texture_transform"}
+# Extensions a file may require that this reader reads (the glTF
+# specification has a reader refuse a file requiring any other).
+_READ_EXTENSIONS = {"KHR_materials_pbrSpecularGlossiness", "EXT_texture_webp", "KHR_mesh_quantization",
+                    "KHR_materials_unlit"}
 
 
 def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
@@ -362,9 +375,9 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
     if not version.startswith("2"):
         raise ValueError(f"not a glTF 2.0 file (asset version {version or 'missing'})")
     used = set(gltf.get("extensionsRequired", [])) | set(gltf.get("extensionsUsed", []))
-    if used & _UNREAD_EXTENSIONS:
-        raise ValueError(f"uses {', '.join(sorted(used & _UNREAD_EXTENSIONS))}, which this reader does not "
-                         "support")
+    unread = (used & _UNREAD_EXTENSIONS) | (set(gltf.get("extensionsRequired", [])) - _READ_EXTENSIONS)
+    if unread:
+        raise ValueError(f"uses {', '.join(sorted(unread))}, which this reader does not support")
     try:
         scan = _scan_from_gltf(gltf, read_buffers(), path.parent)
         if scan is not None:

@@ -29,6 +29,31 @@ def map_file(arguments: str) -> str:
     return arguments[words[i].start():].strip() if i < len(words) else ""
 
 
+# The options that move, scale or jitter the UVs a map is read through, and
+# their values that leave the UVs alone (a missing value keeps the default).
+_UV_OPTION_IDENTITY = {"-o": 0.0, "-s": 1.0, "-t": 0.0}
+
+
+def uv_transform(arguments: str) -> str:
+    """The options of a map statement that change the UVs it reads through
+    (-o, -s or -t with other values than 0, 1 and 0), as written; "" when
+    there is none."""
+    words = arguments.split()
+    found = []
+    for i, word in enumerate(words[:-1]):  # the last word is the file
+        identity = _UV_OPTION_IDENTITY.get(word.lower())
+        if identity is None:
+            continue
+        values = []
+        for value in words[i + 1:min(i + 4, len(words) - 1)]:
+            if not _is_number(value):
+                break
+            values.append(value)
+        if any(float(v) != identity for v in values):  # NaN differs from everything
+            found.append(" ".join([word] + values))
+    return " ".join(found)
+
+
 def _is_number(word: str) -> bool:
     try:
         float(word)
