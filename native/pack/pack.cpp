@@ -132,6 +132,11 @@ constexpr std::array<Recipe, 8> kRecipes = {{{ChartSize::BoxArea, Rest::Top},
                                             {ChartSize::Perimeter, Rest::Top},
                                             {ChartSize::Perimeter, Rest::Centroid}}};
 constexpr int kRecipesAtOnce = 2;
+// Past this many charts only the first pair of recipes is tried, without a
+// sweep of widths: each try packs every chart again, at a cost that grows
+// faster than the charts, and among thousands of charts the order and the
+// width move the page by little (bench/README.md).
+constexpr size_t kManyCharts = 1000;
 
 // Packs packing.charts on one page with recipes [first, last) of kRecipes and
 // keeps the smallest page, the one of packing.layout included (if any);
@@ -439,6 +444,7 @@ Packing pack_within_limits(const std::vector<const RowMatrixX2d*>& uv, double sc
   if (ratio > 1.0)
     return shrink_to_limits(uv, kAimBelow * scale / std::sqrt(ratio), scale, scale, frame,
                             max_side, limits, control);
+  if (uv.size() > kManyCharts) return packing;
   // A smaller page keeps within the limits too.
   keep_smallest_page(packing, kRecipesAtOnce, static_cast<int>(kRecipes.size()), frame, max_side,
                      control);
