@@ -325,7 +325,7 @@ def test_mtl_textures_are_found_as_writers_name_them(tmp_path, mtl, mtllib, text
     ("-s 2 2 1", "-s 2 2 1"),
     ("-o 0.5", "-o 0.5"),
     ("-s 1e30 1e30 1 -o nan nan 0 -bm 1", "-s 1e30 1e30 1 -o nan nan 0"),
-    ("-o 0 0 0 -s 1 1 -t 0 -bm 0.5 -clamp on", ""),  # the UVs as they are
+    ("-o 0 0 0 -s 1 1 0 -t 0 -bm 0.5 -clamp on", ""),  # the UVs as they are (w moves nothing)
 ])
 def test_a_texture_read_through_moved_or_scaled_uvs_is_refused(tmp_path, options, refused):
     """Blender's importer reads such a map through a Mapping node; read
@@ -357,6 +357,19 @@ def test_a_missing_texture_is_named_and_its_faces_left_untextured(tool_env, tmp_
     assert "warning: texture" in proc.stderr and "gone.png" in proc.stderr and "2 faces" in proc.stderr, proc.stderr
     # The output's MTL defines the material its untextured faces use.
     assert "newmtl untextured" in (tmp_path / "out" / "m_defrag.mtl").read_text()
+
+
+def test_a_png_failing_only_an_ancillary_chunks_crc_is_read(tmp_path):
+    """libpng drops such a chunk and reads the image; so does Blender."""
+    import scan_io
+    from atlas_defrag import png_files
+
+    path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
+    png = png_files.encode_png(np.full((8, 8, 3), 90, np.uint8))
+    text = b"tEXt" + b"Comment\x00scan"
+    chunk = struct.pack(">I", len(text) - 4) + text + b"\x00\x00\x00\x00"  # a wrong CRC
+    (tmp_path / "t1.png").write_bytes(png[:-12] + chunk + png[-12:])
+    assert scan_io.load_image(tmp_path / "t1.png")[0, 0].tolist() == [90, 90, 90]
 
 
 def _wrong_crc(png: bytes) -> bytes:

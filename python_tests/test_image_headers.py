@@ -41,7 +41,7 @@ def _claim(data: bytes, name: str = "") -> Claim:
     ("JPEG2000", {"no_jp2": True}, "a.j2k"),  # a bare codestream
 ])
 def test_the_formats_blender_reads_claim_their_size(fmt, kw, name):
-    assert _claim(_saved(fmt, **kw), name) == Claim(300, 200, False)
+    assert _claim(_saved(fmt, **kw), name)[:3] == (300, 200, False)
 
 
 def test_radiance_psd_dpx_and_cineon_headers_claim_their_size():
@@ -51,31 +51,50 @@ def test_radiance_psd_dpx_and_cineon_headers_claim_their_size():
     dpx = b"SDPX" + bytes(768) + struct.pack(">II", 300, 200)
     dpx_little = b"XPDS" + bytes(768) + struct.pack("<II", 300, 200)
     cineon = b"\x80\x2a\x5f\xd7" + bytes(196) + struct.pack(">II", 300, 200)
+    cineon_little = b"\xd7\x5f\x2a\x80" + bytes(196) + struct.pack("<II", 300, 200)
     assert _claim(hdr) == Claim(300, 200, True)
     assert _claim(hdr.replace(b"-Y 200 +X 300", b"+X 300 -Y 200")) == Claim(300, 200, True)
-    for data in (psd, dpx, dpx_little, cineon):
-        assert _claim(data) == Claim(300, 200, False), data[:4]
+    assert _claim(hdr.replace(b"#?RADIANCE", b"#?")) == Claim(300, 200, True)  # all Blender asks for
+    assert _claim(psd) == Claim(300, 200, False)
+    for data in (dpx, dpx_little, cineon, cineon_little):  # Blender holds them as floats
+        assert _claim(data) == Claim(300, 200, True), data[:4]
 
 
-def test_a_tga_is_known_only_by_its_file_name():
-    """A TGA has no signature: any file would otherwise parse as one."""
-    assert _claim(_saved("TGA"), "texture.png") is None
+def test_a_tga_is_known_by_its_file_name_or_by_its_header_as_blender_knows_it():
+    """A TGA has no signature: Blender goes by its colour-map type, image
+    type and pixel depth, whatever the file is named."""
+    assert _claim(_saved("TGA"), "texture.png")[:2] == (300, 200)
+    assert _claim(b"\x00\x07" + bytes(30), "texture.png") is None  # image type 7: none
 
 
-def _tiff(order: str, entries) -> bytes:
-    """A TIFF holding only its first directory: (tag, type, value) entries."""
-    ifd = struct.pack(order + "H", len(entries))
+def test_sixteen_bit_files_are_held_as_floats():
+    out = io.BytesIO()
+    Image.new("I;16", (30, 20)).save(out, "PNG")
+    assert _claim(out.getvalue()) == Claim(30, 20, True)
+    out = io.BytesIO()
+    Image.new("I;16", (30, 20)).save(out, "TIFF")
+    assert _claim(out.getvalue())[:3] == (30, 20, True)
+
+
+def _tiff(order: str, entries, big: bool = False) -> bytes:
+    """A TIFF (or BigTIFF) holding only its first directory: (tag, type, value) entries."""
+    word, value_size = ("Q", 8) if big else ("I", 4)
+    ifd = struct.pack(order + ("Q" if big else "H"), len(entries))
     for tag, kind, value in entries:
-        packed = struct.pack(order + ("H" if kind == 3 else "I"), value).ljust(4, b"\0")
-        ifd += struct.pack(order + "HHI", tag, kind, 1) + packed
+        packed = struct.pack(order + ("H" if kind == 3 else "I"), value).ljust(value_size, b"\0")
+        ifd += struct.pack(order + "HH" + word, tag, kind, 1) + packed
+    if big:
+        magic = (b"II+\x00" if order == "<" else b"MM\x00+") + struct.pack(order + "HH", 8, 0)
+        return magic + struct.pack(order + "Q", 16) + ifd + bytes(8)
     magic = b"II*\x00" if order == "<" else b"MM\x00*"
     return magic + struct.pack(order + "I", 8) + ifd + b"\0\0\0\0"
 
 
 @pytest.mark.parametrize("order", ["<", ">"])
-def test_tiff_sizes_are_read_in_either_byte_order_and_either_integer(order):
-    data = _tiff(order, [(254, 4, 0), (256, 3, 40000), (257, 4, 70000)])
-    assert _claim(data) == Claim(40000, 70000, False)
+@pytest.mark.parametrize("big", [False, True])
+def test_tiff_sizes_are_read_in_either_byte_order_and_either_integer(order, big):
+    data = _tiff(order, [(254, 4, 0), (256, 3, 40000), (257, 4, 70000)], big)
+    assert _claim(data)[:3] == (40000, 70000, False)
 
 
 def _exr(window) -> bytes:
@@ -89,7 +108,7 @@ def _exr(window) -> bytes:
 
 
 def test_an_exr_claims_its_data_window_in_floats():
-    assert _claim(_exr((-10, 5, 30009, 20004))) == Claim(30020, 20000, True)
+    assert _claim(_exr((-10, 5, 30009, 20004)))[:3] == (30020, 20000, True)
 
 
 def test_a_jpeg_header_claiming_more_than_its_file_holds_is_read_as_claimed():
@@ -115,11 +134,31 @@ def test_a_jpeg_frame_header_is_found_wherever_libjpeg_finds_it(prefix):
     assert _claim(_forged_jpeg(prefix)) == Claim(61000, 60000, False)
 
 
+def test_a_jpeg_of_more_segments_than_real_files_hold_claims_nothing():
+    assert _claim(_forged_jpeg(b"\xff\xfe\x00\x02" * 70000)) is None
+
+
 def test_a_jpeg_cut_short_is_told_from_a_whole_one():
     whole = _saved("JPEG", size=(64, 64))
     assert not image_headers.cut_short(io.BytesIO(whole))
     assert image_headers.cut_short(io.BytesIO(whole[:-10]))  # cut inside its scan data
     assert not image_headers.cut_short(io.BytesIO(_saved("PNG")[:40]))  # not a JPEG: not judged here
+    # An EXIF thumbnail (a whole JPEG inside an APP1 segment) does not hide the cut.
+    thumbnail = b"Exif\x00\x00\xff\xd8\xff\xda\x00\x02\x00\xff\xd9"
+    app1 = b"\xff\xe1" + struct.pack(">H", len(thumbnail) + 2) + thumbnail
+    assert image_headers.cut_short(io.BytesIO(whole[:2] + app1 + whole[2:-10]))
+    assert not image_headers.cut_short(io.BytesIO(whole[:2] + app1 + whole[2:]))
+
+
+def test_formats_that_pack_flat_images_tightly_are_not_taken_for_forged():
+    """A flat lossless WebP is a few dozen bytes at any size (as a black
+    metallic map may be); a JPEG of that size cannot be."""
+    out = io.BytesIO()
+    Image.new("RGB", (2048, 2048), (0, 0, 0)).save(out, "WEBP", lossless=True, method=0)
+    assert len(out.getvalue()) < 100
+    assert image_headers.size_problem(_claim(out.getvalue()), len(out.getvalue())) == ""
+    forged = _claim(_forged_jpeg(b""))
+    assert "cannot hold them" in image_headers.size_problem(forged._replace(width=2048, height=2048), 50)
 
 
 @pytest.mark.parametrize("claim, file_bytes, problem", [

@@ -157,6 +157,15 @@ def test_values_that_are_no_finite_numbers_are_refused(body, message):
         ply_io.read(head + body)
 
 
+def test_a_vertex_no_face_uses_may_be_no_number():
+    """Point-cloud tools leave such vertices; the mesh never reads them."""
+    from atlas_defrag import ply_io
+
+    head = _header("ascii", 4, 1, ["float x", "float y", "float z"], ["list uchar int vertex_indices"], [])
+    mesh = ply_io.read(head + b"0 0 0\n1 0 0\n1 1 0\nnan nan nan\n3 0 1 2\n")
+    assert mesh.triangles.tolist() == [[0, 1, 2]]
+
+
 def test_faces_without_two_values_per_corner_are_left_untextured():
     from atlas_defrag import ply_io
 

@@ -46,9 +46,8 @@ def load_image(source) -> np.ndarray:
     if pixels is not None:
         return pixels
     Image.MAX_IMAGE_PIXELS = None  # scans routinely exceed Pillow's bomb guard
-    if data.startswith(png_files.SIGNATURE):
-        with Image.open(io.BytesIO(data)) as png:
-            png.verify()  # the chunks' CRCs, which libpng (so Blender) checks and Pillow's decoding does not
+    if data.startswith(png_files.SIGNATURE) and not png_files.critical_crcs_hold(data):
+        raise ValueError("a critical chunk of the PNG fails its CRC (libpng, so Blender, refuses it)")
     img = Image.open(io.BytesIO(data))
     if img.mode.startswith("I;16") or img.mode == "I":  # 16-bit grey: Pillow's convert would clip it
         pixels = (np.asarray(img).astype(np.uint32) >> 8).clip(0, 255).astype(np.uint8)[::-1]

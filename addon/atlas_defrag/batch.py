@@ -269,7 +269,7 @@ def run_one(args, cancel=None) -> dict:
         _defragment_meshes(pkg, args, meshes, tmp, report, cancel)
         _name_images_after(dst, tmp, owned)
         t_export = time.perf_counter()
-        unnamed = _export_and_move(objects, tmp, dst, inputs,
+        unnamed = _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),  # --texture's too
                                    lambda: _stop_if_cancelled(pkg, cancel), owned | libraries)
         if unnamed:
             report["warnings"].append(

@@ -22,13 +22,19 @@ from typing import BinaryIO, NamedTuple, Optional
 class Claim(NamedTuple):
     width: int
     height: int
-    float_pixels: bool  # Blender holds the pixels as floats (OpenEXR, HDR), not bytes
+    float_pixels: bool  # Blender holds the pixels as floats (OpenEXR, HDR, 16-bit files), not bytes
+    # The format packs at most _MAX_PIXELS_PER_BYTE pixels into a byte of its
+    # file; lossless WebP, JPEG 2000, TIFF and OpenEXR may pack a flat image tighter.
+    bounded: bool = True
 
 
 # JPEG start-of-frame markers (ITU T.81 table B.1): C0-CF but DHT (C4), JPG (C8) and DAC (CC).
 _JPEG_FRAMES = set(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 # Markers that stand alone, without a length: TEM, RST0-7 and SOI.
 _JPEG_BARE = {0x01, *range(0xD0, 0xD9)}
+# Segments walked before a frame header or scan is given up on: real files
+# hold tens; a forged one of millions of empty segments would take minutes.
+_JPEG_MAX_SEGMENTS = 1 << 16
 _EXR_MAX_ATTRIBUTES = 1024
 # Radiance's resolution line, e.g. "-Y 1024 +X 2048": rows first when Y comes first.
 _HDR_SIZE = re.compile(rb"^[-+]([XY]) (\d+) [-+]([XY]) (\d+)$")
@@ -52,61 +58,93 @@ def _reader(head: bytes, file_name: str):
     for signature, reader in _SIGNATURES:
         if head.startswith(signature):
             return reader
-    if file_name.lower().endswith((".tga", ".targa")):
+    if file_name.lower().endswith((".tga", ".targa")) or _looks_like_tga(head):
         return lambda f, h: Claim(*struct.unpack("<HH", h[12:16]), False)
     return None
 
 
+def _looks_like_tga(head: bytes) -> bool:
+    """TGA has no signature: Blender takes a file for one by its colour-map
+    type, image type and pixel depth; so does this."""
+    return (len(head) >= 18 and head[1] in (0, 1) and head[2] in (1, 2, 3, 9, 10, 11)
+            and head[16] in (8, 15, 16, 24, 32))
+
+
 def _png(f: BinaryIO, head: bytes) -> Optional[Claim]:
-    return Claim(*struct.unpack(">II", head[16:24]), False) if head[12:16] == b"IHDR" else None
+    """IHDR: width, height, bit depth (16: Blender holds floats)."""
+    return Claim(*struct.unpack(">II", head[16:24]), head[24] == 16) if head[12:16] == b"IHDR" else None
 
 
 def _jpeg(f: BinaryIO, head: bytes) -> Optional[Claim]:
-    """Walks the segments after SOI to the frame header: length(2),
-    precision(1), height(2), width(2). Bytes other than 0xFF between
-    segments are skipped, as libjpeg skips them."""
-    f.seek(2)
-    while _to_next_ff(f):
-        marker = f.read(1)
-        while marker == b"\xff":  # fill bytes may pad a marker
-            marker = f.read(1)
-        if not marker or marker[0] in (0xD9, 0xDA):  # the end, or scan data before any frame header
-            return None
-        if marker[0] in _JPEG_BARE or marker[0] == 0:
-            continue
-        length, = struct.unpack(">H", f.read(2))
-        if marker[0] in _JPEG_FRAMES:
+    """The frame header: length(2), precision(1), height(2), width(2)."""
+    for marker in _jpeg_markers(f):
+        if marker in _JPEG_FRAMES:
             height, width = struct.unpack(">xHH", f.read(5))
             return Claim(width, height, False)
-        f.seek(length - 2, os.SEEK_CUR)
+        if marker == 0xDA:  # scan data before any frame header
+            return None
     return None
 
 
-def _to_next_ff(f: BinaryIO, chunk: int = 1 << 16) -> bool:
-    """Moves f just past its next 0xFF byte; False at the end of the file."""
-    while True:
+def _jpeg_markers(f: BinaryIO):
+    """The markers of the segments after SOI, f left after each one's length
+    (the caller may read the segment; the walk skips it). Bytes other than
+    0xFF between segments are skipped, as libjpeg skips them."""
+    f.seek(2)
+    for _ in range(_JPEG_MAX_SEGMENTS):
+        if not _to_next_ff(f):
+            return
+        marker = f.read(1)
+        while marker == b"\xff":  # fill bytes may pad a marker
+            marker = f.read(1)
+        if not marker or marker[0] == 0xD9:
+            return
+        if marker[0] in _JPEG_BARE or marker[0] == 0:
+            continue
+        length, = struct.unpack(">H", f.read(2))
+        start = f.tell()
+        yield marker[0]
+        f.seek(start + length - 2)
+
+
+def _to_next_ff(f: BinaryIO, chunk: int = 4096) -> bool:
+    """Moves f just past its next 0xFF byte (most often the next one); False at the end of the file."""
+    byte = f.read(1)
+    while byte and byte != b"\xff":
         data = f.read(chunk)
-        if not data:
-            return False
         at = data.find(b"\xff")
         if at >= 0:
             f.seek(at + 1 - len(data), os.SEEK_CUR)
             return True
+        byte = data[-1:]
+    return byte == b"\xff"
 
 
 def _tiff(f: BinaryIO, head: bytes) -> Optional[Claim]:
-    """ImageWidth (256) and ImageLength (257) of the first image file directory."""
+    """ImageWidth (256), ImageLength (257) and BitsPerSample (258) of the
+    first image file directory; BigTIFF's directory has 8-byte counts and
+    values."""
     order = "<" if head[:2] == b"II" else ">"
-    f.seek(4)
-    offset, = struct.unpack(order + "I", f.read(4))
+    big = head[2:4] in (b"+\x00", b"\x00+")
+    f.seek(8 if big else 4)
+    offset, = struct.unpack(order + ("Q" if big else "I"), f.read(8 if big else 4))
     f.seek(offset)
-    count, = struct.unpack(order + "H", f.read(2))
+    count, = struct.unpack(order + ("Q" if big else "H"), f.read(8 if big else 2))
+    entry = struct.Struct(order + ("HHQ8s" if big else "HHI4s"))
     size = {}
-    for _ in range(count):
-        tag, kind, _n, value = struct.unpack(order + "HHI4s", f.read(12))
-        if tag in (256, 257):
-            size[tag] = struct.unpack(order + ("H" if kind == 3 else "I"), value[:2 if kind == 3 else 4])[0]
-    return Claim(size[256], size[257], False) if len(size) == 2 else None
+    for _ in range(min(count, 4096)):
+        tag, kind, n, value = entry.unpack(f.read(entry.size))
+        if tag in (256, 257, 258):
+            code = {3: "H", 4: "I", 16: "Q"}.get(kind, "I")
+            if n * struct.calcsize(code) > len(value):  # BitsPerSample per channel: the values lie elsewhere
+                at = f.tell()
+                f.seek(struct.unpack(order + ("Q" if big else "I"), value)[0])
+                value = f.read(struct.calcsize(code))
+                f.seek(at)
+            size[tag] = struct.unpack(order + code, value[:struct.calcsize(code)])[0]
+    if 256 not in size or 257 not in size:
+        return None
+    return Claim(size[256], size[257], size.get(258, 8) > 8, bounded=False)
 
 
 def _bmp(f: BinaryIO, head: bytes) -> Optional[Claim]:
@@ -125,7 +163,7 @@ def _exr(f: BinaryIO, head: bytes) -> Optional[Claim]:
         size, = struct.unpack("<i", f.read(4))
         if name == b"dataWindow" and kind == b"box2i":
             x0, y0, x1, y1 = struct.unpack("<iiii", f.read(16))
-            return Claim(x1 - x0 + 1, y1 - y0 + 1, True)
+            return Claim(x1 - x0 + 1, y1 - y0 + 1, True, bounded=False)
         f.seek(size, os.SEEK_CUR)
     return None
 
@@ -165,29 +203,31 @@ def _webp(f: BinaryIO, head: bytes) -> Optional[Claim]:
     chunk = head[12:16]
     if chunk == b"VP8X":
         w, h = int.from_bytes(head[24:27], "little"), int.from_bytes(head[27:30], "little")
-        return Claim(w + 1, h + 1, False)
+        return Claim(w + 1, h + 1, False, bounded=False)
     if chunk == b"VP8 ":
         w, h = struct.unpack("<HH", head[26:30])
-        return Claim(w & 0x3FFF, h & 0x3FFF, False)
+        return Claim(w & 0x3FFF, h & 0x3FFF, False, bounded=False)
     if chunk == b"VP8L":
         bits, = struct.unpack("<I", head[21:25])
-        return Claim((bits & 0x3FFF) + 1, ((bits >> 14) & 0x3FFF) + 1, False)
+        return Claim((bits & 0x3FFF) + 1, ((bits >> 14) & 0x3FFF) + 1, False, bounded=False)
     return None
 
 
 def _j2k(f: BinaryIO, head: bytes) -> Optional[Claim]:
     """A JPEG 2000 codestream's SIZ segment: the image area, less its offset."""
     xsiz, ysiz, x0, y0 = struct.unpack(">IIII", head[8:24])
-    return Claim(xsiz - x0, ysiz - y0, False)
+    return Claim(xsiz - x0, ysiz - y0, False, bounded=False)
 
 
 def _jp2(f: BinaryIO, head: bytes) -> Optional[Claim]:
     """A JP2 file's image header box (ihdr: height, width), inside its jp2h box."""
-    at = head.find(b"ihdr")
+    f.seek(0)
+    data = f.read(1 << 16)
+    at = data.find(b"ihdr")
     if at < 0:
         return None
-    height, width = struct.unpack(">II", head[at + 4:at + 12])
-    return Claim(width, height, False)
+    height, width = struct.unpack(">II", data[at + 4:at + 12])
+    return Claim(width, height, False, bounded=False)
 
 
 _SIGNATURES = [
@@ -195,17 +235,19 @@ _SIGNATURES = [
     (b"\xff\xd8", _jpeg),
     (b"II*\x00", _tiff),
     (b"MM\x00*", _tiff),
+    (b"II+\x00", _tiff),  # BigTIFF
+    (b"MM\x00+", _tiff),
     (b"BM", _bmp),
     (b"\x76\x2f\x31\x01", _exr),
-    (b"#?RADIANCE", _hdr),
-    (b"#?RGBE", _hdr),
+    (b"#?", _hdr),  # Radiance: Blender asks for no more than this
     (b"\x01\xda", lambda f, h: Claim(*struct.unpack(">HH", h[6:10]), False)),          # Iris: xsize, ysize
     (b"DDS ", lambda f, h: Claim(*reversed(struct.unpack("<II", h[12:20])), False)),  # height, width
     (b"8BPS", lambda f, h: Claim(*reversed(struct.unpack(">II", h[14:22])), False)),  # PSD: height, width
     (b"RIFF", _webp),
-    (b"SDPX", lambda f, h: Claim(*struct.unpack(">II", h[772:780]), False)),          # pixels, lines
-    (b"XPDS", lambda f, h: Claim(*struct.unpack("<II", h[772:780]), False)),
-    (b"\x80\x2a\x5f\xd7", lambda f, h: Claim(*struct.unpack(">II", h[200:208]), False)),  # Cineon
+    (b"SDPX", lambda f, h: Claim(*struct.unpack(">II", h[772:780]), True)),           # pixels, lines
+    (b"XPDS", lambda f, h: Claim(*struct.unpack("<II", h[772:780]), True)),
+    (b"\x80\x2a\x5f\xd7", lambda f, h: Claim(*struct.unpack(">II", h[200:208]), True)),  # Cineon
+    (b"\xd7\x5f\x2a\x80", lambda f, h: Claim(*struct.unpack("<II", h[200:208]), True)),
     (b"\xff\x4f\xff\x51", _j2k),
     (b"\x00\x00\x00\x0cjP  \r\n\x87\n", _jp2),
 ]
@@ -215,13 +257,16 @@ def cut_short(f: BinaryIO) -> bool:
     """Whether f is a JPEG without an end-of-image marker after its first
     scan: a file cut short, which libjpeg decodes all the same, filling
     what is missing with grey. Scan data escapes its 0xFF bytes, so FF D9
-    there is the end."""
+    there is the end. The scan is found by walking the segments: an EXIF
+    thumbnail's scan and end marker lie inside one of them."""
     f.seek(0)
-    data = f.read()
-    if not data.startswith(b"\xff\xd8"):
+    if f.read(2) != b"\xff\xd8":
         return False
-    scan = data.find(b"\xff\xda")
-    return scan >= 0 and data.rfind(b"\xff\xd9") < scan
+    scan = next((f.tell() for marker in _jpeg_markers(f) if marker == 0xDA), None)
+    if scan is None:
+        return False
+    f.seek(scan)
+    return f.read().rfind(b"\xff\xd9") < 0
 
 
 # bpy hands out an image's pixels as one array whose length is a C int, 4
@@ -231,20 +276,21 @@ MAX_PIXEL_VALUES = 2 ** 31 - 1
 # Blender's buffer (4, or 16 for float images), the float copy bpy hands out
 # (16) and the bytes made of it (4).
 _READ_BYTES = {False: 24, True: 32}
-# No format Blender reads packs more pixels than this into one byte of its
-# file (deflate tops out near 1032 bytes a byte, JPEG's Huffman codes near
-# 256 pixels a byte): a header claiming more is forged, or its file cut short.
+# The formats that say Claim.bounded pack at most this many pixels into a
+# byte of their file (deflate tops out near 1032 bytes a byte, JPEG's Huffman
+# codes near 256 pixels a byte, run lengths far below): a header claiming
+# more is forged, or its file cut short.
 _MAX_PIXELS_PER_BYTE = 1 << 16
 
 
 def size_problem(claim: Claim, file_bytes: Optional[int]) -> str:
     """Why an image claiming `claim`, from a file of file_bytes bytes (None:
     not from a file), cannot be decoded and read safely; "" when it can."""
-    w, h, float_pixels = claim
+    w, h, float_pixels = claim.width, claim.height, claim.float_pixels
     if 4 * w * h > MAX_PIXEL_VALUES:
         return (f"{w} x {h} pixels: more than Blender can hand to Python (4 values per pixel, at most "
                 f"{MAX_PIXEL_VALUES:,} values, about 23,170 x 23,170 pixels)")
-    if file_bytes is not None and w * h > _MAX_PIXELS_PER_BYTE * file_bytes:
+    if claim.bounded and file_bytes is not None and w * h > _MAX_PIXELS_PER_BYTE * file_bytes:
         return f"{w} x {h} pixels in {file_bytes:,} bytes, which cannot hold them (a file cut short or forged)"
     needed, memory = _READ_BYTES[float_pixels] * w * h, physical_memory()
     if memory is not None and needed > memory:

@@ -36,8 +36,8 @@ _UV_OPTION_IDENTITY = {"-o": 0.0, "-s": 1.0, "-t": 0.0}
 
 def uv_transform(arguments: str) -> str:
     """The options of a map statement that change the UVs it reads through
-    (-o, -s or -t with other values than 0, 1 and 0), as written; "" when
-    there is none."""
+    (-o, -s or -t with u or v values other than 0, 1 and 0), as written; ""
+    when there is none."""
     words = arguments.split()
     found = []
     for i, word in enumerate(words[:-1]):  # the last word is the file
@@ -49,7 +49,7 @@ def uv_transform(arguments: str) -> str:
             if not _is_number(value):
                 break
             values.append(value)
-        if any(float(v) != identity for v in values):  # NaN differs from everything
+        if any(float(v) != identity for v in values[:2]):  # u and v (w moves nothing); NaN differs from all
             found.append(" ".join([word] + values))
     return " ".join(found)
 

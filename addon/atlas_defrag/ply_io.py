@@ -307,7 +307,8 @@ def read(data: bytes) -> PlyMesh:
     elif (per_vertex := _vertex_uvs(vertex)) is not None:
         uvs = per_vertex[triangles]
     # Blender's mesh validation would turn them into zeros without a word.
-    if not np.isfinite(positions).all():
+    # A vertex no face uses (a point cloud's, say) goes unread.
+    if not np.isfinite(positions[triangles]).all():
         raise ValueError("a vertex position is not a finite number (NaN or infinity)")
     if uvs is not None and not np.isfinite(uvs).all():
         raise ValueError("a texture coordinate is not a finite number (NaN or infinity)")

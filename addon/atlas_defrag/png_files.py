@@ -176,6 +176,21 @@ def _crc_holds(data, pos: int, length: int) -> bool:
     return zlib.crc32(data[pos + 4:pos + 8 + length]) & 0xFFFFFFFF == stored
 
 
+def critical_crcs_hold(data: bytes) -> bool:
+    """Whether every critical chunk of a PNG file's bytes (its type's first
+    letter upper case: IHDR, PLTE, IDAT, IEND) passes its CRC, as libpng
+    requires; ancillary chunks failing theirs libpng only drops."""
+    pos, view = 8, memoryview(data)
+    while pos + 12 <= len(data):
+        length = struct.unpack(">I", data[pos:pos + 4])[0]
+        if pos + 12 + length > len(data):
+            return True  # cut short: the decoder says so
+        if 65 <= data[pos + 4] <= 90 and not _crc_holds(view, pos, length):
+            return False
+        pos += 12 + length
+    return True
+
+
 def _image_data(data: bytes) -> bytes:
     """The joined IDAT chunks, their CRCs checked (libpng refuses a file whose
     critical chunks fail theirs, and Blender with it). A tRNS chunk (one
