@@ -35,7 +35,7 @@ REPO = HERE.parent
 sys.path.insert(0, str(HERE))
 
 from profile_stages import LARGE, SCANS, replace_section  # noqa: E402
-from run_benchmark import _SPAWN  # noqa: E402
+from run_benchmark import _SPAWN, host_speed_seconds  # noqa: E402
 
 SECTION = "## Whole process"
 # Issue 13's targets: seconds, and for the large scan peak memory in GB.
@@ -103,7 +103,8 @@ def git_head(checkout: Path) -> str:
                           text=True).stdout.strip()
 
 
-def section(results: dict, builds: dict, runs: int) -> list:
+def section(results: dict, builds: dict, runs: int, speeds: tuple) -> list:
+    """The section's lines; speeds: host_speed_seconds before and after the runs."""
     names = list(builds)
     heads = {name: git_head(checkout) for name, (checkout, _) in builds.items()}
     lines = [SECTION, "",
@@ -112,7 +113,9 @@ def section(results: dict, builds: dict, runs: int) -> list:
              f"start to exit and peak memory, medians of {runs} runs"
              + (", the builds alternating run by run" if len(names) > 1 else "") + "; "
              + ", ".join(f"{name}: commit `{heads[name]}`" for name in names)
-             + ". Targets: issue 13.", ""]
+             + f". Host speed (`run_benchmark.host_speed_seconds`, lower is faster; the host drifts by up to 2x "
+             f"within a day, so a target met here may be missed in a slow hour): {speeds[0]:.2f} s before, "
+             f"{speeds[1]:.2f} s after. Targets: issue 13.", ""]
     header = "| job | target | " + " | ".join(f"{n}: s | {n}: GB" for n in names)
     lines += [header + (" | ratio |" if len(names) > 1 else " |") + " met? |",
               "|---|---:|" + "---:|---:|" * len(names) + ("---:|" if len(names) > 1 else "") + "---|"]
@@ -144,7 +147,9 @@ def main(argv=None) -> int:
             builds["base"] = (args.base.resolve(), commands(args.base.resolve(), out / "base"))
         builds["this"] = (REPO, commands(REPO, out / "this"))
         labels = [label for label in builds["this"][1] if args.large or "large" not in label]
-        lines = section(measure(labels, builds, args.runs), builds, args.runs)
+        before = host_speed_seconds()
+        results = measure(labels, builds, args.runs)
+        lines = section(results, builds, args.runs, (before, host_speed_seconds()))
     print("\n".join(lines))
     replace_section(args.results, lines, SECTION)
     return 0
