@@ -216,6 +216,8 @@ PipelineOptions pipeline_options(const py::object& obj) {
     else if (key == "max_chart_faces") o.aggregate.max_chart_faces = option_value<int>(value, key, "0 (no cap) or >= 1");
     else if (key == "partial_merges") o.aggregate.partial_merges = bool_option(value, key);
     else if (key == "relief_cuts") o.relief_cuts = option_value<int>(value, key, "0 (split at once) .. 8");
+    else if (key == "density_loss_budget")  // percent of the surface, a share in the core
+      o.density_loss_budget = option_value<double>(value, key, "0..0.8 (percent of the surface)") / 100;
     else if (key == "refine_min_area_ratio") o.refine.min_area_ratio = option_value<double>(value, key, "0..1");
     else if (key == "packing_cut_seam") o.packing_cut_seam = option_value<double>(value, key, "0 (no cut) .. 10");
     else if (key == "fit_cut_seam") o.fit_cut_seam = option_value<double>(value, key, "0 (never) .. 10");
@@ -250,6 +252,8 @@ PipelineOptions pipeline_options(const py::object& obj) {
   if (!(o.refine.min_area_ratio >= 0 && o.refine.min_area_ratio <= 1))
     throw py::value_error("refine_min_area_ratio must be in [0, 1] (0: no seam refinement)");
   if (o.relief_cuts < 0 || o.relief_cuts > 8) throw py::value_error("relief_cuts must be 0 (split at once) .. 8");
+  if (!(o.density_loss_budget >= 0 && o.density_loss_budget <= 0.008))
+    throw py::value_error("density_loss_budget must be 0..0.8 (percent of the surface)");
   if (!(o.packing_cut_seam >= 0 && o.packing_cut_seam <= 10))
     throw py::value_error("packing_cut_seam must be 0 (no cut) .. 10");
   if (!(o.fit_cut_seam >= 0 && o.fit_cut_seam <= 10)) throw py::value_error("fit_cut_seam must be 0 (never) .. 10");

@@ -57,12 +57,11 @@ ChartGraph without_merges_of_handles(const Mesh& mesh, const MeshTopology& topol
 // flattened allowing kStrictDensityLoss of its surface below half density, or
 // kDensityAllowance of the whole surface (which spares splitting small
 // pieces, closed scan debris above all). While the whole surface then loses
-// more than kDensityBudget, the aggregated charts that lost most beyond the
-// rule are flattened again under it without the allowance, then under a half
-// and a quarter of it. The budget leaves the output guarantee (under 1% of
-// the surface) a fifth of it for what the estimate misses.
+// more than its budget (PipelineOptions::density_loss_budget), the aggregated
+// charts that lost most beyond the rule are flattened again under it without
+// the allowance, then under a half and a quarter of it. A budget of 0 has no
+// allowance and a last round allowing no loss at all.
 constexpr double kStrictDensityLoss = 0.02;
-constexpr double kDensityBudget = 0.008;
 constexpr double kDensityAllowance = 2e-4;
 
 // Faces of aggregated chart c: the faces of its original charts.
@@ -111,9 +110,10 @@ void flatten_charts(const Mesh& mesh, const MeshTopology& topology, const ChartG
 }
 
 // The aggregated charts to flatten again under the rule `level`: those whose
-// loss exceeds it, most excess first, until the rest of the loss fits the
-// budget. Empty when it fits already.
-std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<FlatChart>>& pieces, double level) {
+// loss exceeds it, most excess first, until the rest of the loss fits
+// `budget` (a share of the surface). Empty when it fits already.
+std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<FlatChart>>& pieces, double level,
+                             double budget) {
   double lost = 0, area = 0;
   std::vector<std::pair<double, int>> excess;
   for (size_t c = 0; c < pieces.size(); ++c) {
@@ -128,7 +128,7 @@ std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<Fla
   std::sort(excess.rbegin(), excess.rend());
   std::vector<int> out;
   for (const auto& [amount, c] : excess) {
-    if (lost <= kDensityBudget * area) break;
+    if (lost <= budget * area) break;
     lost -= amount;
     out.push_back(c);
   }
@@ -138,7 +138,7 @@ std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<Fla
 // Every aggregated chart flattened (split where it must be), largest first
 // so the long ones start early.
 std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                                   const Aggregation& aggregation, const SlimOptions& slim, int relief_cuts,
+                                   const Aggregation& aggregation, const PipelineOptions& options,
                                    const RunControl& control, PipelineReport& report) {
   const auto chart_faces = faces_by_chart(graph.face_chart, graph.chart_count());
   std::vector<int> order(aggregation.chart_count());
@@ -151,13 +151,17 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
   double area = 0;
   for (int f = 0; f < mesh.face_count(); ++f)
     if (graph.face_chart[f] >= 0) area += mesh.area_3d(f);
+  const double budget = options.density_loss_budget;
+  const double allowance = budget > 0 ? kDensityAllowance * area : 0.0;
   flatten_charts(mesh, topology, graph, chart_faces, aggregation, order,
-                 {slim, kStrictDensityLoss, kDensityAllowance * area, relief_cuts}, control, pieces, stats);
-  for (double level = kStrictDensityLoss; level >= kStrictDensityLoss / 4; level /= 2) {
-    std::vector<int> again = over_budget(mesh, pieces, level);
+                 {options.slim, kStrictDensityLoss, allowance, options.relief_cuts}, control, pieces, stats);
+  std::vector<double> levels = {kStrictDensityLoss, kStrictDensityLoss / 2, kStrictDensityLoss / 4};
+  if (budget == 0) levels.push_back(0.0);
+  for (double level : levels) {
+    std::vector<int> again = over_budget(mesh, pieces, level, budget);
     std::sort(again.begin(), again.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
-    flatten_charts(mesh, topology, graph, chart_faces, aggregation, again, {slim, level, 0, relief_cuts}, control,
-                   pieces, stats);
+    flatten_charts(mesh, topology, graph, chart_faces, aggregation, again,
+                   {options.slim, level, 0, options.relief_cuts}, control, pieces, stats);
     report.density_reflattened += static_cast<int>(again.size());
   }
   std::vector<FlatChart> out;
@@ -566,7 +570,7 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   ChartGraph flat_graph = graph;
   flat_graph.self_seam = aggregation.kept_seam;
   std::vector<FlatChart> charts =
-      flatten_all(mesh, topology, flat_graph, aggregation, options.slim, options.relief_cuts, control, report);
+      flatten_all(mesh, topology, flat_graph, aggregation, options, control, report);
   clock.lap("flatten");
   refine_charts(welded, mesh, topology, flat_graph.self_seam, face_group, Polygons(face_polygon), options.refine,
                 charts, report);

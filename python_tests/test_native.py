@@ -133,6 +133,21 @@ def test_density_loss_target(native, tetra_result):
     assert m["map"]["density_loss_area_share"] < 0.01
 
 
+def test_no_density_loss_budget_leaves_no_face_below_half_density(native, scans, tetra_result):
+    # The default budget leaves tetra some squeezed surface, which a budget of
+    # 0 splits and slits away: more charts, no face below half its density.
+    scan, default = tetra_result
+    strict = native.defragment(*args(scan), options={"density_loss_budget": 0})
+    loss = {}
+    for name, result in (("default", default), ("strict", strict)):
+        m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
+        assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
+        loss[name] = m["map"]["density_loss_area_share"]
+    assert loss["default"] > 0 and loss["strict"] == 0
+    assert strict["report"]["charts_after"] > default["report"]["charts_after"]
+    assert strict["report"]["density_reflattened"] > 0
+
+
 def test_bake_keeps_colours(native, scans, tetra_result):
     import scan_io
 

@@ -49,6 +49,11 @@ SCHEMA: Tuple[Option, ...] = (
     Option("weighting", str, "3d", "Weighting", "Seam length that decides which charts merge first",
            choices=(Choice("uv", "UV", "Merge by seam length measured in the texture"),
                     Choice("3d", "3D", "Merge by seam length measured on the surface"))),
+    Option("density_loss_budget", float, 0.8, "Density Loss Budget",
+           "Percent of the surface that may keep less than half its source texel density where flattening "
+           "squeezes it (0: none; charts are split or slit until no face loses half its density, which costs "
+           "more charts, seams and time)",
+           low=0.0, high=0.8),
     Option("padding", int, 4, "Padding", "Empty texels kept around every chart", low=0, high=64,
            unit="texels"),
     Option("padding_follows_page", bool, True, "Padding Follows Page Size",
