@@ -263,6 +263,7 @@ def run_one(args, cancel=None) -> dict:
     out_dir = os.path.dirname(dst) or "."
     os.makedirs(out_dir, exist_ok=True)
     report = {"input": src, "output": dst, "objects": [], "warnings": _interrupted_runs(dst)}
+    report["warnings"] += _faces_the_import_dropped(src, objects)
     tmp = tempfile.mkdtemp(prefix=_SCRATCH_PREFIX, dir=out_dir)
     keep_scratch = False
     try:
@@ -285,6 +286,22 @@ def run_one(args, cancel=None) -> dict:
                          "total": time.perf_counter() - t0}
     report["status"] = "ok"
     return report
+
+
+def _faces_the_import_dropped(src: str, objects) -> list:
+    """A warning when Blender's OBJ importer made fewer faces than the file
+    has: it skips a face naming a vertex the file lacks (printing only that it
+    did) and drops repeated or degenerate ones, and the output lacks them all."""
+    if not src.lower().endswith(".obj"):
+        return []
+    with open(src, "rb") as f:
+        data = f.read()
+    in_file = data.count(b"\nf ") + data.startswith(b"f ")
+    made = sum(len(o.data.polygons) for o in objects if o.type == "MESH")
+    if made >= in_file:
+        return []
+    return [f"Blender's OBJ importer made {made} of the {in_file} faces of {os.path.basename(src)}: it skips "
+            "faces naming vertices the file lacks and drops repeated or degenerate ones; the output lacks them too"]
 
 
 _SCRATCH_PREFIX = ".atlas_defrag_"

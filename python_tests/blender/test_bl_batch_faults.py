@@ -201,6 +201,20 @@ def test_models_whose_image_names_join_alike_keep_their_own(tmp_path):
         assert (pixels[..., 2].max() > 100) == blue, (model, maps[model])
 
 
+def test_faces_the_obj_import_drops_are_named_in_a_warning(tmp_path):
+    """Blender's OBJ importer skips a face naming a vertex the file lacks:
+    the run goes on, and says how many faces the output lacks."""
+    model = _square_model(tmp_path, "square", "tex.png", (200, 0, 0))
+    model.write_text(model.read_text() + "f 1/1 2/2 9/3\n")
+    report = tmp_path / "report.json"
+    out = tmp_path / "out" / "square.glb"
+    proc = run_blender(["--python", str(BATCH), "--", str(model), str(out), "--report", str(report)], timeout=300)
+    assert proc.returncode == 0 and out.exists(), proc.stdout[-2000:] + proc.stderr[-2000:]
+    expected = "OBJ importer made 2 of the 3 faces of square.obj"
+    assert expected in proc.stderr, proc.stderr[-2000:]
+    assert any(expected in w for w in json.loads(report.read_text())["warnings"])
+
+
 def _claiming(fmt: str, width: int, height: int, junk: bytes = b"") -> bytes:
     """A 16 x 16 JPEG or DDS whose header claims width x height pixels; junk
     goes before a JPEG's frame header (libjpeg skips it, with a warning)."""
