@@ -235,6 +235,8 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         if option.automatic and getattr(self, _automatic_name(option)):
             return 0
         value = getattr(self, option.name)
+        if option.kind is float:  # Blender keeps it in single precision: 0.8 reads 0.800000011920929
+            return float(f"{value:.7g}")
         return value.lower() if option.choices else value
 
     def _settings(self, obj=None) -> api.Settings:
