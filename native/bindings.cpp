@@ -855,7 +855,7 @@ naming the line on malformed input.)");
         py::arg("triangles"), py::arg("uvs"), py::arg("face_material"), py::arg("materials"),
         R"(Writes a Wavefront OBJ file: `mtllib library`, positions (V,3), one vt per face corner
 of uvs (F,3,2), and faces grouped by face_material (F,) in ascending order, each group
-after `usemtl materials[m]`. Numbers as %.9g.)");
+after `usemtl materials[m]`. Positions exactly (shortest round trip), UVs as %.9g.)");
 
   m.def("png_rows", &png_rows_py, py::arg("scanlines"), py::arg("width"), py::arg("height"),
         py::arg("channels"),

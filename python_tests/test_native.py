@@ -272,6 +272,20 @@ def test_wrapping_indices_are_refused(native):
         native.write_obj("/nonexistent/x.obj", "x.mtl", positions, wrapping, uvs, face_page, ["m"])
 
 
+def test_write_obj_keeps_positions_exactly(native, tmp_path):
+    """A scan in map coordinates (UTM metres) loses millimetres at 9 digits;
+    float32 positions (from a GLB) come back as the same floats."""
+    positions, triangles, uvs, face_page, _ = tiny()
+    positions = positions * 0.012 + [499999.522105, 4000000.061197, 102.144552]
+    positions[3] = np.float32([0.1, -0.25188452, 17.02988])
+    path = tmp_path / "x.obj"
+    native.write_obj(str(path), "x.mtl", positions, triangles, uvs, face_page, ["m"])
+    written = [[float(v) for v in line.split()[1:]] for line in path.read_text().splitlines() if line.startswith("v ")]
+    assert np.array_equal(np.array(written[:3]), positions[:3])
+    assert np.array_equal(np.float32(written[3]), positions[3])  # read as float32, as a GLB held them
+    assert "v 0.1 " in path.read_text()  # the float32 0.1 in its own shortest digits
+
+
 def test_uvs_far_beyond_any_page_are_refused(native):
     positions, triangles, uvs, face_page, sizes = tiny()
     far = uvs.copy()

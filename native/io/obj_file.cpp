@@ -154,9 +154,21 @@ class TextOut {
     buffer_.append(s);
     return flush_if_full();
   }
-  TextOut& number(double value) {  // %.9g
+  TextOut& number(double value) {  // %.9g: a float32's digits
     char digits[32];
     const auto end = std::to_chars(digits, digits + sizeof digits, value, std::chars_format::general, 9).ptr;
+    buffer_.append(digits, end);
+    return *this;
+  }
+  // The shortest digits that read back as the same number: positions of a
+  // scan in map coordinates (UTM northings near 4e6 m) need more than nine.
+  // A value a float32 holds (from a GLB) is written as that float, short.
+  TextOut& exact(double value) {
+    char digits[32];
+    const float single = static_cast<float>(value);
+    const auto end = static_cast<double>(single) == value
+                         ? std::to_chars(digits, digits + sizeof digits, single).ptr
+                         : std::to_chars(digits, digits + sizeof digits, value).ptr;
     buffer_.append(digits, end);
     return *this;
   }
@@ -244,7 +256,7 @@ void write_obj(const std::string& path, const std::string& library, const RowMat
   TextOut out(path);
   out.text("mtllib ").text(library).text("\n");
   for (Eigen::Index v = 0; v < positions.rows(); ++v)
-    out.text("v ").number(positions(v, 0)).text(" ").number(positions(v, 1)).text(" ").number(positions(v, 2)).text("\n");
+    out.text("v ").exact(positions(v, 0)).text(" ").exact(positions(v, 1)).text(" ").exact(positions(v, 2)).text("\n");
   for (Eigen::Index c = 0; c < corner_uv.rows(); ++c)
     out.text("vt ").number(corner_uv(c, 0)).text(" ").number(corner_uv(c, 1)).text("\n");
   for (size_t m = 0; m < materials.size(); ++m) {

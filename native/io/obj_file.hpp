@@ -31,9 +31,9 @@ ObjFile read_obj(const std::string& path);
 // Writes positions (V x 3), one `vt` per face corner (corner_uv, 3F x 2) and
 // the faces, grouped by material in ascending order, each group after
 // `usemtl materials[m]` (face_material, F, indexes materials), after a line
-// `mtllib library`. Numbers keep 9 significant digits (%.9g): float32 UVs
-// and positions survive the round trip. Throws InputError if the file
-// cannot be written.
+// `mtllib library`. Positions are written exactly (the shortest digits that
+// read back as the same double), UVs with 9 significant digits (%.9g, what
+// a float32 holds). Throws InputError if the file cannot be written.
 void write_obj(const std::string& path, const std::string& library, const RowMatrixX3d& positions,
                const RowMatrixX3i& triangles, const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_material,
                const std::vector<std::string>& materials);
