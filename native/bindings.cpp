@@ -848,8 +848,8 @@ as bake.)");
         R"(Reads a Wavefront OBJ file: dict(positions (V,3) float64, texcoords (T,2) float64,
 triangles (F,3) int32 0-based, texcoord_index (F,3) int32 (-1 on a face without UVs),
 face_material (F,) int32 into materials (-1: none), materials (usemtl names),
-material_libraries (mtllib names)). Polygons are fan-triangulated. ValueError
-naming the line on malformed input.)");
+material_libraries (mtllib names)). Convex polygons are fan-triangulated, others
+clipped into ears in their plane. ValueError naming the line on malformed input.)");
 
   m.def("write_obj", &write_obj_py, py::arg("path"), py::arg("library"), py::arg("positions"),
         py::arg("triangles"), py::arg("uvs"), py::arg("face_material"), py::arg("materials"),

@@ -50,6 +50,27 @@ def test_obj_reader_triangulates_polygons_and_resolves_relative_indices(native, 
     assert obj["positions"].shape == (4, 3) and obj["texcoords"][2].tolist() == [1.0, 1.0]
 
 
+def test_obj_reader_clips_a_concave_polygon_into_ears(native, tmp_path):
+    """An arrow-tail hexagon, tilted out of every axis plane, notched at
+    (1, 0.5): a fan from (2, 2), its first corner, would cover the notch and
+    fold over (Blender's limited dissolve writes such n-gons)."""
+    outline = np.array([[0, -0.2], [2, -1], [1, 0.5], [2, 2], [0, 1.2], [-1, 0.5]], float)
+    outline = np.roll(outline, -3, axis=0)
+    tilt = np.array([[0.8, 0.0, 0.6], [0.36, 0.8, -0.48]])
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in outline @ tilt]
+    lines += [f"vt {u / 4 + 0.3:.6f} {v / 4 + 0.3:.6f}" for u, v in outline]
+    path = tmp_path / "concave.obj"
+    path.write_text("\n".join(lines) + "\nf 1/1 2/2 3/3 4/4 5/5 6/6\n")
+    obj = native.read_obj(str(path))
+    corners = obj["texcoords"][obj["texcoord_index"]]
+    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    areas = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    x, y = outline[:, 0], outline[:, 1]
+    polygon_area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))) / 16
+    assert len(areas) == 4 and (areas > 0).all()
+    assert abs(areas.sum() - polygon_area) < 1e-9
+
+
 def test_obj_reader_names_the_line_of_a_bad_index_or_number(native, tmp_path):
     import pytest
 

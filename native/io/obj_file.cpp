@@ -8,6 +8,9 @@
 #include <string_view>
 #include <unordered_map>
 
+#include "core/ear_clipping.hpp"
+#include "core/geometry.hpp"
+
 namespace atlas::obj {
 namespace {
 
@@ -100,7 +103,42 @@ struct Lists {
   ObjFile out;
 };
 
-// A `f` line: corners v, v/vt, v//vn or v/vt/vn, as a fan of triangles.
+// The corners of a polygon seen along its Newell normal (the normal of its
+// area), so that it turns counter-clockwise; empty when it has no area.
+std::vector<Eigen::Vector2d> projected(const std::vector<double>& positions, const std::vector<int>& vertex) {
+  auto at = [&](int v) { return Eigen::Vector3d(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]); };
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < vertex.size(); ++i) normal += at(vertex[i]).cross(at(vertex[(i + 1) % vertex.size()]));
+  if (!(normal.norm() > 0) || !normal.allFinite()) return {};
+  const Eigen::Vector3d u = normal.unitOrthogonal();
+  const Eigen::Vector3d v = normal.normalized().cross(u);
+  std::vector<Eigen::Vector2d> points;
+  for (int k : vertex) points.emplace_back(u.dot(at(k)), v.dot(at(k)));
+  return points;
+}
+
+// Corner triples of a polygon: a fan when it is convex (every triangle
+// inside it), else ear clipping in its plane, where a fan from a reflex
+// corner would cover ground outside the polygon and fold its UVs over; a fan
+// again when clipping fails (a polygon crossing itself has no right answer).
+std::vector<Eigen::Vector3i> polygon_triangles(const std::vector<double>& positions, const std::vector<int>& vertex) {
+  const int n = static_cast<int>(vertex.size());
+  std::vector<Eigen::Vector3i> triangles;
+  const std::vector<Eigen::Vector2d> points = projected(positions, vertex);
+  if (!points.empty()) {
+    bool convex = true;
+    for (int i = 0; i < n && convex; ++i)
+      convex = signed_area(points[i], points[(i + 1) % n], points[(i + 2) % n]) >= 0;
+    std::vector<int> order(n);
+    for (int i = 0; i < n; ++i) order[i] = i;
+    if (!convex && clip_ears(points, order, triangles)) return triangles;
+    triangles.clear();
+  }
+  for (int i = 1; i + 1 < n; ++i) triangles.emplace_back(0, i, i + 1);
+  return triangles;
+}
+
+// A `f` line: corners v, v/vt, v//vn or v/vt/vn, as triangles (polygon_triangles).
 void read_face(Words& words, Lists& lists) {
   std::vector<int>& vertex = lists.face_vertices;
   std::vector<int>& texcoord = lists.face_texcoords;
@@ -116,13 +154,15 @@ void read_face(Words& words, Lists& lists) {
     if (uv.empty()) textured = false;
     else texcoord.push_back(element_index(uv, texcoords, "texture coordinate", words));
   }
-  for (size_t i = 1; i + 1 < vertex.size(); ++i) {
-    for (const size_t k : {size_t(0), i, i + 1}) {
+  auto add = [&](const Eigen::Vector3i& triangle) {
+    for (const int k : triangle) {
       lists.corners.push_back(vertex[k]);
       lists.corner_texcoords.push_back(textured ? texcoord[k] : -1);
     }
     lists.face_material.push_back(lists.material);
-  }
+  };
+  if (vertex.size() == 3) return add({0, 1, 2});
+  for (const Eigen::Vector3i& triangle : polygon_triangles(lists.positions, vertex)) add(triangle);
 }
 
 void read_line(std::string_view line, int number, Lists& lists) {

@@ -1,6 +1,6 @@
 // Wavefront OBJ geometry as plain arrays, read and written for the
 // command-line entry (the add-on goes through Blender). Only what a textured scan needs:
-// positions, texture coordinates, faces (fan-triangulated) and the material
+// positions, texture coordinates, faces (triangulated) and the material
 // each face uses; normals, groups, lines and points are skipped.
 #pragma once
 #include <string>
@@ -21,8 +21,9 @@ struct ObjFile {
   std::vector<std::string> material_libraries; // mtllib arguments, in file order
 };
 
-// Reads the file. Polygons become fans (0, i, i + 1); a face of fewer than
-// three corners is dropped. Negative indices count back from the last
+// Reads the file. Convex polygons become fans (0, i, i + 1), others are
+// clipped into ears in their plane (a fan again if that fails: a polygon
+// crossing itself); a face of fewer than three corners is dropped. Negative indices count back from the last
 // element defined before the face, as the format says. Throws InputError
 // naming the line for a malformed number or an index outside the file's
 // elements, and for a file that cannot be read.
