@@ -215,6 +215,15 @@ def test_faces_the_obj_import_drops_are_named_in_a_warning(tmp_path):
     assert any(expected in w for w in json.loads(report.read_text())["warnings"])
 
 
+def test_positions_blender_rounds_are_named_in_a_warning(tmp_path):
+    """A 4 cm square at UTM northings: Blender's float32 steps by 0.25-0.5 m there."""
+    model = _square_model(tmp_path, "square", "tex.png", (200, 0, 0))
+    far = model.read_text().replace("v 0 0 0", "v 500000 4000000 0").replace("v 1 0 0", "v 500000.04 4000000 0")
+    model.write_text(far.replace("v 1 1 0", "v 500000.04 4000000.04 0").replace("v 0 1 0", "v 500000 4000000.04 0"))
+    proc = run_blender(["--python", str(BATCH), "--", str(model), str(tmp_path / "out.glb")], timeout=300)
+    assert "Blender's single precision steps by" in proc.stderr, proc.stdout[-2000:] + proc.stderr[-2000:]
+
+
 def _claiming(fmt: str, width: int, height: int, junk: bytes = b"") -> bytes:
     """A 16 x 16 JPEG or DDS whose header claims width x height pixels; junk
     goes before a JPEG's frame header (libjpeg skips it, with a warning)."""
