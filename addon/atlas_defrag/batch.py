@@ -263,7 +263,7 @@ def run_one(args, cancel=None) -> dict:
     out_dir = os.path.dirname(dst) or "."
     os.makedirs(out_dir, exist_ok=True)
     report = {"input": src, "output": dst, "objects": [], "warnings": _interrupted_runs(dst)}
-    report["warnings"] += _faces_the_import_dropped(src, objects) + _positions_rounded_by_blender(objects)
+    report["warnings"] += _faces_the_import_dropped(src, objects)
     tmp = tempfile.mkdtemp(prefix=_SCRATCH_PREFIX, dir=out_dir)
     keep_scratch = False
     try:
@@ -288,6 +288,11 @@ def run_one(args, cancel=None) -> dict:
     return report
 
 
+def _obj_face_lines(data: bytes) -> int:
+    """The `f` lines of an OBJ file's bytes."""
+    return data.count(b"\nf ") + data.startswith(b"f ")
+
+
 def _faces_the_import_dropped(src: str, objects) -> list:
     """A warning when Blender's OBJ importer made fewer faces than the file
     has: it skips a face naming a vertex the file lacks (printing only that it
@@ -296,37 +301,12 @@ def _faces_the_import_dropped(src: str, objects) -> list:
         return []
     with open(src, "rb") as f:
         data = f.read()
-    in_file = data.count(b"\nf ") + data.startswith(b"f ")
+    in_file = _obj_face_lines(data)
     made = sum(len(o.data.polygons) for o in objects if o.type == "MESH")
     if made >= in_file:
         return []
     return [f"Blender's OBJ importer made {made} of the {in_file} faces of {os.path.basename(src)}: it skips "
             "faces naming vertices the file lacks and drops repeated or degenerate ones; the output lacks them too"]
-
-
-def _positions_rounded_by_blender(objects) -> list:
-    """A warning per mesh whose positions lie so far from its origin that
-    Blender's single-precision coordinates step by more than a hundredth of
-    its typical edge (a scan in map coordinates, UTM northings near 4e6 m):
-    the import has rounded the shape already, and the output keeps it so."""
-    import numpy as np
-    warnings = []
-    for o in objects:
-        if o.type != "MESH" or len(o.data.edges) == 0:
-            continue
-        co = np.empty(3 * len(o.data.vertices), np.float32)
-        o.data.vertices.foreach_get("co", co)
-        co = co.reshape(-1, 3).astype(np.float64)
-        ends = np.empty(2 * len(o.data.edges), np.int32)
-        o.data.edges.foreach_get("vertices", ends)
-        ends = ends.reshape(-1, 2)
-        edge = float(np.median(np.linalg.norm(co[ends[:, 0]] - co[ends[:, 1]], axis=1)))
-        step = float(np.abs(co).max()) * 2.0 ** -23  # a float32's spacing there
-        if step > 0.01 * edge:
-            warnings.append(f"{o.name}: positions reach {np.abs(co).max():.6g} from the origin, where Blender's "
-                            f"single precision steps by {step:.3g}, over a hundredth of the median edge "
-                            f"({edge:.3g}): the import rounded the shape; move the scan near the origin first")
-    return warnings
 
 
 _SCRATCH_PREFIX = ".atlas_defrag_"
@@ -754,7 +734,7 @@ def _file_problem(path: str, polygons) -> str:
     if ext == ".mtl" and b"newmtl" not in data:
         return "no material in it"
     if ext == ".obj" and polygons is not None:
-        faces = data.count(b"\nf ") + data.startswith(b"f ")
+        faces = _obj_face_lines(data)
         if faces != polygons or not data.endswith(b"\n"):
             return f"{faces} of {polygons} faces"
     return ""

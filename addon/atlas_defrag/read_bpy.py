@@ -491,6 +491,7 @@ def _read(obj, me, uv_name: str) -> ReadResult:
     render_uv = _render_uv_name(me)
     warnings: List[str] = []
     geo = _read_geometry(obj, me, me.uv_layers[uv_name])
+    warnings += _rounded_by_single_precision(obj, geo)
     materials = _analyse_slots(obj, uv_name, render_uv, warnings)
     n_slots = len(obj.material_slots)
     pages = _source_pages(materials, _used_slots(geo.tri_material, n_slots))
@@ -506,6 +507,23 @@ def _read(obj, me, uv_name: str) -> ReadResult:
         job=job, mesh_name=obj.data.name, uv_map=uv_name, render_uv=render_uv, n_loops=geo.n_loops, tri_loops=geo.tri_loops,
         tri_polygons=geo.tri_polygons, slot_of_face=slot_of_face.astype(np.int32),
         materials=list(materials.values()), signature=mesh_signature(obj, me), warnings=warnings)
+
+
+def _rounded_by_single_precision(obj, geo: _Geometry) -> List[str]:
+    """A warning when the mesh lies so far from its origin that Blender's
+    single-precision coordinates step by more than a hundredth of its median
+    edge (a scan in map coordinates, UTM northings near 4e6 m): the import
+    has rounded the shape already, and the result keeps it so. Each
+    triangle's first edge stands for the edges."""
+    t = geo.triangles
+    edge = float(np.median(np.linalg.norm(geo.positions[t[:, 0]] - geo.positions[t[:, 1]], axis=1)))
+    far = float(np.abs(geo.positions).max())
+    step = far * 2.0 ** -23  # a float32's spacing there
+    if step <= 0.01 * edge:
+        return []
+    return [f"{obj.name}: positions reach {far:.6g} from the origin, where Blender's single precision steps by "
+            f"{step:.3g}, over a hundredth of the median edge ({edge:.3g}): the import rounded the shape; "
+            "move the scan near the origin first"]
 
 
 def _read_geometry(obj, me, layer) -> _Geometry:

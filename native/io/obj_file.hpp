@@ -23,8 +23,9 @@ struct ObjFile {
 
 // Reads the file. Convex polygons become fans (0, i, i + 1), others are
 // clipped into ears in their plane (a fan again if that fails: a polygon
-// crossing itself); a face of fewer than three corners is dropped. Negative indices count back from the last
-// element defined before the face, as the format says. Throws InputError
+// crossing itself); a face of fewer than three corners is dropped. Negative
+// indices count back from the last element defined before the face, as the
+// format says. Throws InputError
 // naming the line for a malformed number or an index outside the file's
 // elements, and for a file that cannot be read.
 ObjFile read_obj(const std::string& path);
