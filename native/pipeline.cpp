@@ -153,15 +153,19 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
     if (graph.face_chart[f] >= 0) area += mesh.area_3d(f);
   const double budget = options.density_loss_budget;
   const double allowance = budget > 0 ? kDensityAllowance * area : 0.0;
+  // A chart losing more than the budget would be flattened again or split
+  // below: the density repair, which changes no seam, goes first.
+  SlimOptions slim = options.slim;
+  slim.repair_share = std::min(slim.repair_share, budget);
   flatten_charts(mesh, topology, graph, chart_faces, aggregation, order,
-                 {options.slim, kStrictDensityLoss, allowance, options.relief_cuts}, control, pieces, stats);
+                 {slim, kStrictDensityLoss, allowance, options.relief_cuts}, control, pieces, stats);
   std::vector<double> levels = {kStrictDensityLoss, kStrictDensityLoss / 2, kStrictDensityLoss / 4};
   if (budget == 0) levels.push_back(0.0);
   for (double level : levels) {
     std::vector<int> again = over_budget(mesh, pieces, level, budget);
     std::sort(again.begin(), again.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
     flatten_charts(mesh, topology, graph, chart_faces, aggregation, again,
-                   {options.slim, level, 0, options.relief_cuts}, control, pieces, stats);
+                   {slim, level, 0, options.relief_cuts}, control, pieces, stats);
     report.density_reflattened += static_cast<int>(again.size());
   }
   std::vector<FlatChart> out;

@@ -21,8 +21,9 @@ struct PipelineOptions {
   // FlattenOptions::relief_cuts); 0: split at once.
   int relief_cuts = FlattenOptions().relief_cuts;
   // Share of the surface that may end below half its texel density (the
-  // flattening's estimate); charts that lose most are flattened again under
-  // stricter rules until the rest fits. The output guarantee is under 1%:
+  // flattening's estimate); charts that lose more are first repaired (see
+  // SlimOptions::repair_share), then those that lose most are flattened
+  // again under stricter rules until the rest fits. The output guarantee is under 1%:
   // the default leaves a fifth of it for what the estimate misses. 0: no
   // loss anywhere, for more charts, seams and time.
   double density_loss_budget = 0.008;

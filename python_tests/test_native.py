@@ -135,7 +135,9 @@ def test_density_loss_target(native, tetra_result):
 
 def test_no_density_loss_budget_leaves_no_face_below_half_density(native, scans, tetra_result):
     # The default budget leaves tetra some squeezed surface, which a budget of
-    # 0 splits and slits away: more charts, no face below half its density.
+    # 0 repairs, then splits and slits away: more charts, no face below half
+    # its density. Repairing every chart that loses any surface first keeps
+    # the splits few (41 charts when only those losing over 1% were repaired).
     scan, default = tetra_result
     strict = native.defragment(*args(scan), options={"density_loss_budget": 0})
     loss = {}
@@ -144,7 +146,8 @@ def test_no_density_loss_budget_leaves_no_face_below_half_density(native, scans,
         assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
         loss[name] = m["map"]["density_loss_area_share"]
     assert loss["default"] > 0 and loss["strict"] == 0
-    assert strict["report"]["charts_after"] > default["report"]["charts_after"]
+    charts = default["report"]["charts_after"]
+    assert charts < strict["report"]["charts_after"] <= 1.5 * charts
     assert strict["report"]["density_reflattened"] > 0
 
 
@@ -509,11 +512,11 @@ def test_a_dense_atlas_is_cut_to_stay_near_its_texels(native, scans):
 
 
 def test_cuts_to_fit_that_pack_no_better_are_undone(native, scans):
-    # The Smithsonian scan's charts on 512^2 pages with 4 texels of padding
-    # come out at 1.24x the input's texels; the cuts the fit rule finds there
-    # save nothing once packed, so the result is the uncut one.
+    # The Smithsonian scan's charts on 384^2 pages with 4 texels of padding
+    # come out at 1.4x the input's texels; the cuts the fit rule finds there
+    # (22 for a seam of 1) pack worse, so the result is the uncut one.
     scan = scans("smithsonian")
-    dense = args(scan)[:4] + (np.full_like(np.asarray(scan.page_sizes), 512),)
+    dense = args(scan)[:4] + (np.full_like(np.asarray(scan.page_sizes), 384),)
     options = {"padding_follows_page": False}
     tried = native.defragment(*dense, options=options)
     uncut = native.defragment(*dense, options={**options, "fit_cut_seam": 0})

@@ -47,7 +47,8 @@ struct SlimOptions {
   int repair_rounds = 2;
   // Only charts with more than this share of their reference area below half
   // are repaired: below it the repair costs more time than the detail it
-  // saves is worth (bench/README.md). 0: every chart with such a face.
+  // saves is worth (bench/README.md). 0: every chart with such a face. The
+  // pipeline lowers it to the density loss budget (PipelineOptions).
   double repair_share = 0.01;
   // The weights above; a floor a little over one half lifts faces clear of
   // the density rule's line. 0 for either: no repair.
