@@ -63,6 +63,10 @@ ChartGraph without_merges_of_handles(const Mesh& mesh, const MeshTopology& topol
 // allowance and a last round allowing no loss at all.
 constexpr double kStrictDensityLoss = 0.02;
 constexpr double kDensityAllowance = 2e-4;
+// Repair rounds when no loss is allowed: each round lifts the faces still
+// squeezed, and every face a round lifts is one less reason to cut or split
+// (bench/README.md, session 23).
+constexpr int kNoLossRepairRounds = 6;
 
 // Faces of aggregated chart c: the faces of its original charts.
 size_t faces_in_aggregate(const Aggregation& aggregation, const std::vector<std::vector<int>>& chart_faces, int c) {
@@ -157,6 +161,7 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
   // below: the density repair, which changes no seam, goes first.
   SlimOptions slim = options.slim;
   slim.repair_share = std::min(slim.repair_share, budget);
+  if (budget == 0) slim.repair_rounds = std::max(slim.repair_rounds, kNoLossRepairRounds);
   flatten_charts(mesh, topology, graph, chart_faces, aggregation, order,
                  {slim, kStrictDensityLoss, allowance, options.relief_cuts}, control, pieces, stats);
   std::vector<double> levels = {kStrictDensityLoss, kStrictDensityLoss / 2, kStrictDensityLoss / 4};

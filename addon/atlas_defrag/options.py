@@ -51,8 +51,8 @@ SCHEMA: Tuple[Option, ...] = (
                     Choice("3d", "3D", "Merge by seam length measured on the surface"))),
     Option("density_loss_budget", float, 0.8, "Density Loss Budget",
            "Percent of the surface that may keep less than half its source texel density where flattening "
-           "squeezes it (0: none; charts are split or slit until no face loses half its density, which costs "
-           "more charts, seams and time)",
+           "squeezes it (0: none; squeezed faces are repaired, and charts split or slit where that is not enough, "
+           "for a few more charts and up to twice the layout time)",
            low=0.0, high=0.8),
     Option("padding", int, 4, "Padding", "Empty texels kept around every chart", low=0, high=64,
            unit="texels"),
