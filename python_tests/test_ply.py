@@ -202,3 +202,54 @@ def test_cli_names_a_ply_without_texture(tool_env, tmp_path):
     run = subprocess.run([sys.executable, str(CLI), str(path), str(tmp_path / "out")],
                          capture_output=True, text=True, timeout=60, env=tool_env)
     assert run.returncode == 1 and "no face uses an image texture" in run.stderr
+
+
+def _coloured_square(fmt):
+    """Two triangles whose four vertices carry uchar colours (alpha on none),
+    with per-vertex UVs, in ASCII or binary."""
+    props = ["float x", "float y", "float z", "float s", "float t", "uchar red", "uchar green", "uchar blue"]
+    rows = [(0, 0, 0, 0, 0, 255, 0, 0), (1, 0, 0, 1, 0, 0, 255, 0), (1, 1, 0, 1, 1, 0, 0, 255),
+            (0, 1, 0, 0, 1, 128, 128, 128)]
+    head = _header(fmt, 4, 2, props, ["list uchar int vertex_indices"], [])
+    if fmt == "ascii":
+        return head + b"".join(" ".join(map(str, r)).encode() + b"\n" for r in rows) + b"3 0 1 2\n3 0 2 3\n"
+    vertex = np.array([r[:5] for r in rows], "<f4")
+    colour = np.array([r[5:] for r in rows], "u1")
+    body = b"".join(v.tobytes() + c.tobytes() for v, c in zip(vertex, colour))
+    faces = np.array([[3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0], [3, 0, 0, 0, 0, 2, 0, 0, 0, 3, 0, 0, 0]], "u1")
+    return head + body + faces.tobytes()
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian"])
+def test_vertex_colours_are_read_at_their_types_scale(fmt, tmp_path):
+    """uchar colours come out in 0..1 whether ASCII (read as floats) or
+    binary, alpha 1 when the file has none; the command line, which does not
+    write them, says so."""
+    import scan_io
+    from atlas_defrag import ply_io
+
+    data = _coloured_square(fmt)
+    mesh = ply_io.read(data)
+    expected = np.array([[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [128, 128, 128, 255]]) / 255
+    assert np.allclose(mesh.colours, expected)
+    (tmp_path / "square.ply").write_bytes(data)
+    assert any("vertex colours" in w for w in scan_io.load(tmp_path / "square.ply").warnings)
+
+
+def test_a_sixteen_bit_map_is_named_in_a_warning(scans, scan_path, tmp_path):
+    """The command line reads and writes 8 bits a channel: a 16-bit PNG is rounded, and it says so."""
+    import shutil
+
+    from PIL import Image
+
+    import scan_io
+
+    source = Path(scan_path("tetra"))
+    shutil.copytree(source.parent, tmp_path / "tetra")
+    texture = next((tmp_path / "tetra" / "textures").glob("*.jpg"))
+    pixels = np.asarray(Image.open(texture).convert("L")).astype(np.uint16) * 257
+    Image.fromarray(pixels).save(texture, "PNG")  # a 16-bit grey PNG under the old name
+    assert scan_io._png_bit_depth(texture) == 16
+    warnings = scan_io.load(tmp_path / "tetra" / source.name).warnings
+    assert any("16 bits" in w and texture.name in w for w in warnings), warnings
+    assert not any("16 bits" in w for w in scan_io.load(source).warnings)

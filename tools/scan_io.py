@@ -85,18 +85,49 @@ def image_size(source) -> tuple[int, int]:
         return img.size
 
 
+# The command line writes positions, UVs and the baked maps; in Blender
+# the mesh keeps its other attributes.
+_VERTEX_COLOURS = ("the mesh has vertex colours, which the command line does not write "
+                   "(in Blender they stay on the mesh)")
+
+
 def load(path) -> Scan:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".obj":
-        return load_obj(path)
-    if suffix == ".glb" or (suffix == ".gltf" and _starts_as_glb(path)):
-        return load_glb(path)
-    if suffix == ".gltf":
-        return load_gltf(path)
-    if suffix == ".ply":
-        return load_ply(path)
-    raise ValueError(f"unsupported scan format: {path.suffix} (OBJ, glTF, GLB or PLY)")
+        scan = load_obj(path)
+    elif suffix == ".glb" or (suffix == ".gltf" and _starts_as_glb(path)):
+        scan = load_glb(path)
+    elif suffix == ".gltf":
+        scan = load_gltf(path)
+    elif suffix == ".ply":
+        scan = load_ply(path)
+    else:
+        raise ValueError(f"unsupported scan format: {path.suffix} (OBJ, glTF, GLB or PLY)")
+    scan.warnings += _sixteen_bit_warnings(scan)
+    return scan
+
+
+def _png_bit_depth(source) -> int | None:
+    """The bit depth in a PNG's header; None for any other file."""
+    if isinstance(source, (bytes, bytearray)):
+        head = bytes(source[:26])
+    else:
+        with open(source, "rb") as f:
+            head = f.read(26)
+    return head[24] if len(head) == 26 and head.startswith(b"\x89PNG\r\n\x1a\n") else None
+
+
+def _sixteen_bit_warnings(scan: Scan) -> list:
+    """Maps whose PNG holds 16 bits a channel: decoded to 8 here, as they
+    will be written."""
+    out = []
+    for page, maps in enumerate(scan.maps):
+        for role, source in maps.items():
+            if _png_bit_depth(source) == 16:
+                name = source.name if isinstance(source, Path) else f"page {page}"
+                out.append(f"the {role} map {name} has 16 bits a channel: it is read and written with 8")
+    return out
 
 
 def _starts_as_glb(path: Path) -> bool:
@@ -208,6 +239,8 @@ def load_ply(path: Path) -> Scan:
     uvs = mesh.uvs if mesh.uvs is not None else np.zeros((len(mesh.triangles), 3, 2))
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
     warnings = [f"texture {name} not found: its faces are left untextured" for name in missing]
+    if mesh.colours is not None:
+        warnings.append(_VERTEX_COLOURS)
     return Scan(mesh.positions, mesh.triangles.astype(np.int32), uvs, face_page, sizes, pages,
                 [{"base_color": p} for p in pages], files=[path] + pages, warnings=warnings)
 
@@ -391,6 +424,9 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
         raise ValueError(f"malformed glTF ({type(exc).__name__}: {exc})") from exc
     if scan is None:
         raise ValueError("no triangle mesh in the file")
+    if any(name.startswith("COLOR_") for mesh in gltf.get("meshes", []) for prim in mesh.get("primitives", [])
+           for name in prim.get("attributes", {})):
+        scan.warnings.append(_VERTEX_COLOURS)
     return scan
 
 

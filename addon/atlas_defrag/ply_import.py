@@ -19,7 +19,8 @@ from . import ply_io
 
 
 def _mesh(name: str, mesh: ply_io.PlyMesh):
-    """One triangle per face, the UVs (when the file has any) in map 'UVMap'."""
+    """One triangle per face, the UVs (when the file has any) in map 'UVMap',
+    vertex colours (when it has any) in the colour attribute 'Col'."""
     me = bpy.data.meshes.new(name)
     count = len(mesh.triangles)
     me.vertices.add(len(mesh.positions))
@@ -32,6 +33,9 @@ def _mesh(name: str, mesh: ply_io.PlyMesh):
     me.loops.foreach_set("vertex_index", mesh.triangles.astype(np.int32).ravel())
     if mesh.uvs is not None:
         me.uv_layers.new(name="UVMap").data.foreach_set("uv", mesh.uvs.astype(np.float32).ravel())
+    if mesh.colours is not None:
+        colours = me.color_attributes.new(name="Col", type="BYTE_COLOR", domain="POINT")
+        colours.data.foreach_set("color_srgb", mesh.colours.ravel())
     me.update(calc_edges=True)
     return me
 

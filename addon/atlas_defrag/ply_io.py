@@ -46,6 +46,7 @@ class PlyMesh:
     texnumber: np.ndarray     # (F,) int64, index into textures (0 when the file gives none;
                               # -1 where a face's texcoord list is not two values per corner)
     textures: list            # file names from the header, as written
+    colours: np.ndarray = None  # (V, 4) float32 sRGB in 0..1 (alpha 1 when absent); None: no vertex colours
 
 
 def _type(name: str) -> str:
@@ -281,6 +282,21 @@ def _vertex_uvs(vertex: dict):
     return None
 
 
+def _vertex_colours(vertex: dict, types: dict):
+    """red, green, blue (and alpha) as MeshLab and scanner apps write them:
+    integers at their declared type's full scale (ASCII values arrive as
+    floats), floats in 0..1. types: property name -> numpy type code."""
+    if not all(c in vertex for c in ("red", "green", "blue")):
+        return None
+    out = np.ones((len(vertex["red"]), 4), np.float32)
+    for k, c in enumerate(("red", "green", "blue", "alpha")):
+        if c in vertex:
+            kind = np.dtype(types[c])
+            scale = np.iinfo(kind).max if kind.kind in "iu" else 1.0
+            out[:, k] = np.clip(vertex[c] / scale, 0.0, 1.0)
+    return out
+
+
 def read(data: bytes) -> PlyMesh:
     """The mesh of a PLY file's bytes; ValueError saying what is wrong otherwise."""
     fmt, elements, textures, body = parse_header(data)
@@ -312,7 +328,8 @@ def read(data: bytes) -> PlyMesh:
         raise ValueError("a vertex position is not a finite number (NaN or infinity)")
     if uvs is not None and not np.isfinite(uvs).all():
         raise ValueError("a texture coordinate is not a finite number (NaN or infinity)")
-    return PlyMesh(positions, triangles, uvs, texnumber, textures)
+    types = {p.name: p.type for e in elements if e.name == "vertex" for p in e.properties}
+    return PlyMesh(positions, triangles, uvs, texnumber, textures, _vertex_colours(vertex, types))
 
 
 def _face_uvs(texcoord, corner_counts: np.ndarray, corners: np.ndarray, polygon: np.ndarray):

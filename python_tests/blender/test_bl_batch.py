@@ -174,6 +174,39 @@ def test_batch_ply_with_texture_comment(tmp_path, runner):
 
 
 @pytest.mark.parametrize("runner", ["blender34", "bpy45"])
+def test_batch_ply_keeps_its_vertex_colours(tmp_path, runner):
+    """A PLY's vertex colours stay on the mesh and reach the GLB (as linear
+    values, glTF's colour space): 24 vertices of distinct colours."""
+    import numpy as np
+
+    import scan_io
+
+    src = (H.ASSIMP / "PLY" / "cube_uv.ply").read_text().splitlines()
+    body = src.index("end_header") + 1
+    colours = np.array([[10 * i, 255 - 10 * i, 128] for i in range(24)])
+    lines = src[:body] + [f"{row} {r} {g} {b}" for row, (r, g, b) in zip(src[body:body + 24], colours)]
+    lines += src[body + 24:]
+    at = lines.index("property float t") + 1
+    lines[at:at] = ["property uchar red", "property uchar green", "property uchar blue"]
+    lines.insert(2, "comment TextureFile tex.jpg")
+    (tmp_path / "cube.ply").write_text("\n".join(lines) + "\n")
+    (tmp_path / "tex.jpg").write_bytes((H.ASSIMP / "OBJ" / "SpiderTex.jpg").read_bytes())
+    out = tmp_path / "out" / "cube.glb"
+    proc = (blender34_batch if runner == "blender34" else bpy45_batch)(tmp_path / "cube.ply", out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    data = out.read_bytes()
+    n = int.from_bytes(data[12:16], "little")
+    gltf, buffers = json.loads(data[20:20 + n]), [data[20 + n + 8:]]
+    linear = np.where(colours / 255 <= 0.04045, colours / 255 / 12.92, ((colours / 255 + 0.055) / 1.055) ** 2.4)
+    found = []
+    for name, accessor in gltf["meshes"][0]["primitives"][0]["attributes"].items():
+        rgb = scan_io._accessor(gltf, buffers, accessor)[:, :3] if name.startswith("COLOR_") else None
+        if rgb is not None and np.abs(rgb[:, None, :] - linear[None]).max(axis=2).min(axis=1).max() < 2 / 255:
+            found.append(len(np.unique(np.round(rgb, 3), axis=0)))
+    assert found and found[0] == 24, gltf["meshes"][0]["primitives"][0]["attributes"]
+
+
+@pytest.mark.parametrize("runner", ["blender34", "bpy45"])
 def test_batch_openmvs_ply_keeps_its_face_uvs(tmp_path, runner):
     """Per-face UVs reach the job: the tetra scan's charts merge as from its OBJ."""
     textured = H.openmvs_style_ply(tmp_path / "scan.ply")
