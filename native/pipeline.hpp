@@ -23,9 +23,9 @@ struct PipelineOptions {
   // Share of the surface that may end below half its texel density (the
   // flattening's estimate); charts that lose more are first repaired (see
   // SlimOptions::repair_share), then those that lose most are flattened
-  // again under stricter rules until the rest fits. The output guarantee is under 1%:
-  // the default leaves a fifth of it for what the estimate misses. 0: no
-  // loss anywhere, for more charts, seams and time.
+  // again under stricter rules until the rest fits. The output guarantee
+  // is under 1%: the default leaves a fifth of it for what the estimate
+  // misses. 0: no loss anywhere, for a few more charts and more time.
   double density_loss_budget = 0.008;
   // Seam that cuts making charts pack tighter may add (packing_cuts.hpp), as
   // 3D length / sqrt(area), the unit of seam_after; 0: no cut. Off by

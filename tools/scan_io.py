@@ -110,12 +110,14 @@ def load(path) -> Scan:
 
 def _png_bit_depth(source) -> int | None:
     """The bit depth in a PNG's header; None for any other file."""
+    from atlas_defrag import png_files
+
     if isinstance(source, (bytes, bytearray)):
         head = bytes(source[:26])
     else:
         with open(source, "rb") as f:
             head = f.read(26)
-    return head[24] if len(head) == 26 and head.startswith(b"\x89PNG\r\n\x1a\n") else None
+    return head[24] if len(head) == 26 and head.startswith(png_files.SIGNATURE) else None
 
 
 def _sixteen_bit_warnings(scan: Scan) -> list:
