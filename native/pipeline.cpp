@@ -60,8 +60,8 @@ ChartGraph without_merges_of_handles(const Mesh& mesh, const MeshTopology& topol
 // more than its budget (PipelineOptions::density_loss_budget), the aggregated
 // charts that lost most beyond the rule are flattened again under it without
 // the allowance, then under a half and a quarter of it. A budget of 0 has no
-// allowance, flattens every chart allowing no loss at all from the start,
-// and keeps a last round at that level.
+// allowance and allows no loss at all, from the first flattening to the one
+// round after it.
 constexpr double kStrictDensityLoss = 0.02;
 constexpr double kDensityAllowance = 2e-4;
 // Repair rounds when no loss is allowed: each round lifts the faces still
@@ -163,13 +163,13 @@ std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topolog
   SlimOptions slim = options.slim;
   slim.repair_share = std::min(slim.repair_share, budget);
   if (budget == 0) slim.repair_rounds = std::max(slim.repair_rounds, kNoLossRepairRounds);
-  // With no budget every chart that loses anything is flattened again at
-  // level 0 below: solving it under the looser rule first is wasted.
+  // With no budget the first flattening already allows no loss: under the
+  // looser rule every chart that lost any would be solved twice.
   const double first_level = budget == 0 ? 0.0 : kStrictDensityLoss;
   flatten_charts(mesh, topology, graph, chart_faces, aggregation, order,
                  {slim, first_level, allowance, options.relief_cuts}, control, pieces, stats);
-  std::vector<double> levels = {kStrictDensityLoss, kStrictDensityLoss / 2, kStrictDensityLoss / 4};
-  if (budget == 0) levels.push_back(0.0);
+  const std::vector<double> levels = budget == 0 ? std::vector<double>{0.0}
+      : std::vector<double>{kStrictDensityLoss, kStrictDensityLoss / 2, kStrictDensityLoss / 4};
   for (double level : levels) {
     std::vector<int> again = over_budget(mesh, pieces, level, budget);
     std::sort(again.begin(), again.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <numeric>
 #include <sstream>
 #include <string_view>
 #include <unordered_map>
@@ -129,10 +130,12 @@ std::vector<Eigen::Vector3i> polygon_triangles(const std::vector<double>& positi
     bool convex = true;
     for (int i = 0; i < n && convex; ++i)
       convex = signed_area(points[i], points[(i + 1) % n], points[(i + 2) % n]) >= 0;
-    std::vector<int> order(n);
-    for (int i = 0; i < n; ++i) order[i] = i;
-    if (!convex && clip_ears(points, order, triangles)) return triangles;
-    triangles.clear();
+    if (!convex) {
+      std::vector<int> order(n);
+      std::iota(order.begin(), order.end(), 0);
+      if (clip_ears(points, order, triangles)) return triangles;
+      triangles.clear();
+    }
   }
   for (int i = 1; i + 1 < n; ++i) triangles.emplace_back(0, i, i + 1);
   return triangles;
