@@ -108,27 +108,20 @@ def load(path) -> Scan:
     return scan
 
 
-def _png_bit_depth(source) -> int | None:
-    """The bit depth in a PNG's header; None for any other file."""
-    from atlas_defrag import png_files
-
-    if isinstance(source, (bytes, bytearray)):
-        head = bytes(source[:26])
-    else:
-        with open(source, "rb") as f:
-            head = f.read(26)
-    return head[24] if len(head) == 26 and head.startswith(png_files.SIGNATURE) else None
-
-
 def _sixteen_bit_warnings(scan: Scan) -> list:
-    """Maps whose PNG holds 16 bits a channel: decoded to 8 here, as they
-    will be written."""
+    """Maps with more than 8 bits a channel (16-bit PNG or TIFF, OpenEXR,
+    HDR; image_headers' float_pixels, as Blender holds them): decoded to 8
+    here, as they will be written."""
+    from atlas_defrag import image_headers
+
     out = []
     for page, maps in enumerate(scan.maps):
         for role, source in maps.items():
-            if _png_bit_depth(source) == 16:
+            with io.BytesIO(source) if isinstance(source, (bytes, bytearray)) else open(source, "rb") as f:
+                claim = image_headers.claimed_size(f, str(source) if isinstance(source, Path) else "")
+            if claim is not None and claim.float_pixels:
                 name = source.name if isinstance(source, Path) else f"page {page}"
-                out.append(f"the {role} map {name} has 16 bits a channel: it is read and written with 8")
+                out.append(f"the {role} map {name} has 16 bits a channel or more: it is read and written with 8")
     return out
 
 
