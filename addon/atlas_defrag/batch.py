@@ -219,12 +219,31 @@ def export_model(path: str, objects) -> None:
         if ext == ".gltf":
             _allow_embedded_gltf()
         kw = dict(filepath=path, export_format="GLB" if ext == ".glb" else "GLTF_EMBEDDED",
-                  use_selection=True)
-        if "use_selection" not in _operator_properties(bpy.ops.export_scene.gltf):
-            kw.pop("use_selection")
+                  use_selection=True, export_normals=not _shaded_flat(objects))
+        known = _operator_properties(bpy.ops.export_scene.gltf)
+        kw = {k: v for k, v in kw.items() if k in known or k in ("filepath", "export_format")}
         bpy.ops.export_scene.gltf(**kw)
     else:
         raise BatchError(f"unsupported output format '{ext}' (use {', '.join(OUTPUT_EXTS)})")
+
+
+def _shaded_flat(objects) -> bool:
+    """True when every object with geometry is a mesh whose faces all shade flat (none
+    smooth, no custom normals). glTF clients must then compute flat normals
+    themselves (glTF 2.0, 3.7.2.1), so writing none looks the same, and the
+    corners of a face no longer differ by normal: scans without normals (as
+    Meshroom writes them) export fewer vertices, faster."""
+    import numpy as np
+    meshes = [o for o in objects if o.type == "MESH"]
+    if not meshes or any(o.type in ("CURVE", "SURFACE", "FONT", "META") for o in objects):
+        return False
+    for o in meshes:
+        me = o.data
+        smooth = np.zeros(len(me.polygons), dtype=bool)
+        me.polygons.foreach_get("use_smooth", smooth)
+        if me.has_custom_normals or smooth.any():
+            return False
+    return True
 
 
 def _allow_embedded_gltf() -> None:

@@ -100,6 +100,20 @@ def test_batch45_obj_to_glb_and_back(tmp_path):
     assert gltf["meshes"]
 
 
+@pytest.mark.parametrize("runner", ["blender34", "bpy45"])
+def test_batch_glb_of_a_scan_without_normals_writes_none(tmp_path, runner):
+    """Meshroom's OBJ has no normals, so Blender shades it flat: the GLB then
+    carries no NORMAL (glTF clients compute flat normals), whereas tetra's
+    OBJ has normals and keeps them."""
+    batch = blender34_batch if runner == "blender34" else bpy45_batch
+    for model, has_normals in (("meshroom", False), ("tetra", True)):
+        out = tmp_path / f"{model}.glb"
+        proc = batch(H.model_path(model), out)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        attributes = _check_glb(out)["meshes"][0]["primitives"][0]["attributes"]
+        assert ("NORMAL" in attributes) == has_normals, (model, attributes)
+
+
 def test_batch45_glb_to_obj(tmp_path):
     out = tmp_path / "box.obj"
     proc = bpy45_batch(BOX_GLB, out)
