@@ -32,23 +32,11 @@ bool pairs_with_next(const Eigen::SparseMatrix<double>& a, int k) {
 
 }  // namespace
 
-// Elimination tree and column counts of L (Eigen's analyzePattern_preordered):
-// row k of L holds every node reached from the rows i < k of A(:, k) by
-// walking up the tree; the first row to reach a node without a parent is its parent.
-void PairCholesky::analyze(const Eigen::SparseMatrix<double>& a) {
+// The layout of L from the column counts (Eigen's analyzePattern_preordered).
+void PairCholesky::analyze(const Eigen::SparseMatrix<double>& a, const EliminationTree& tree) {
   const int n = static_cast<int>(a.rows());
-  parent_.assign(n, -1);
-  std::vector<int> tags(n, -1), counts(n, 0);
-  for (int k = 0; k < n; ++k) {
-    tags[k] = k;
-    const ColumnRows rows = column_rows(a, k);
-    for (const int* row = rows.begin; row != rows.end; ++row)
-      for (int i = *row; i < k && tags[i] != k; i = parent_[i]) {
-        if (parent_[i] == -1) parent_[i] = k;
-        ++counts[i];
-        tags[i] = k;
-      }
-  }
+  parent_ = tree.parent;
+  const std::vector<int>& counts = tree.counts;
   column_start_.assign(n + 1, 0);
   long long entries = 0;
   for (int k = 0; k < n; ++k) {

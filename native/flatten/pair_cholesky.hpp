@@ -13,14 +13,17 @@
 #include <Eigen/SparseCore>
 #include <vector>
 
+#include "flatten/elimination_tree.hpp"
+
 namespace atlas {
 
 class PairCholesky {
  public:
   // a: n x n, compressed, column-major, upper triangle stored (the lower one
-  // is ignored), diagonal stored. Computes the elimination tree and the
+  // is ignored), diagonal stored; tree: its elimination_tree. Finds the
   // pattern of L; factorize then takes any matrix with this pattern.
-  void analyze(const Eigen::SparseMatrix<double>& a);
+  void analyze(const Eigen::SparseMatrix<double>& a, const EliminationTree& tree);
+  void analyze(const Eigen::SparseMatrix<double>& a) { analyze(a, elimination_tree(a)); }
   // Numeric factorization of a (same pattern as in analyze). False when a is
   // not positive definite at working precision (a pivot <= 0).
   bool factorize(const Eigen::SparseMatrix<double>& a);

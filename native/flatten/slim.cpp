@@ -24,7 +24,7 @@
 #include "core/geometry.hpp"
 #include "core/segment_crossing.hpp"
 #include "flatten/disk_boundary.hpp"
-#include "flatten/pair_cholesky.hpp"
+#include "flatten/sparse_cholesky.hpp"
 #include "flatten/reference_triangles.hpp"
 #include "flatten/scaffold_triangulation.hpp"
 #include "flatten/symmetric_dirichlet.hpp"
@@ -75,7 +75,7 @@ Eigen::Matrix2d jacobian(const ProxyFace& face, const Eigen::VectorXd& x) {
 struct ProxySystem {
   Eigen::SparseMatrix<double> matrix;
   std::vector<int> diagonal_slots;
-  PairCholesky solver;
+  SparseCholesky solver;
   Eigen::VectorXd rhs, solution;
   double factorize_seconds = 0;  // in numeric factorizations, summed
 };
