@@ -478,3 +478,59 @@ def test_obj_reader_takes_every_line_end_and_a_byte_order_mark(native, tmp_path,
     path.write_bytes((start + line_end.join(lines) + line_end).encode("utf-8"))
     obj = native.read_obj(str(path))
     assert obj["positions"].shape == (3, 3) and obj["triangles"].tolist() == [[0, 1, 2], [2, 1, 0]]
+
+
+def _glb_with_more_instances(source: Path, target: Path, transforms: list) -> None:
+    """source (a GLB of one mesh node) with one more node per transform (glTF
+    node fields: translation, scale) drawing the same mesh."""
+    import json
+
+    data = source.read_bytes()
+    json_len = struct.unpack_from("<I", data, 12)[0]
+    gltf, binary_chunk = json.loads(data[20:20 + json_len]), data[20 + json_len:]
+    mesh = next(n["mesh"] for n in gltf["nodes"] if "mesh" in n)
+    for fields in transforms:
+        gltf["scenes"][gltf.get("scene", 0)]["nodes"].append(len(gltf["nodes"]))
+        gltf["nodes"].append(dict(mesh=mesh, **fields))
+    text = json.dumps(gltf).encode()
+    text += b" " * (-len(text) % 4)
+    target.write_bytes(struct.pack("<III", 0x46546C67, 2, 20 + len(text) + len(binary_chunk))
+                       + struct.pack("<II", len(text), 0x4E4F534A) + text + binary_chunk)
+
+
+def test_cli_lays_a_mesh_drawn_by_several_nodes_out_once(native, scans, scan_path, tool_env, tmp_path):
+    """Two more nodes draw the Smithsonian mesh, one of them mirrored: every
+    instance takes the first one's new UVs (as they share UVs in the file),
+    and the page and the metrics are those of one instance."""
+    import scan_io
+
+    source = tmp_path / "three.glb"
+    _glb_with_more_instances(scan_path("smithsonian"), source,
+                             [{"translation": [0.5, 0, 0]}, {"scale": [-1, 1, 1], "translation": [0, 0.5, 0]}])
+    run = subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path / "out"), "--metrics"],
+                         capture_output=True, text=True, timeout=300, env=tool_env)
+    assert run.returncode == 0, run.stderr
+    one = len(scans("smithsonian").triangles)
+    assert f"{3 * one} faces ({2 * one} of them in further instances" in run.stdout
+    assert "2367 -> " in run.stdout
+    assert re.search(r"texels shared by two triangles \d+ -> 0\n", run.stdout)
+    texels = int(re.search(r"texels +[\d,]+ -> ([\d,]+)", run.stdout).group(1).replace(",", ""))
+    assert texels < 4096 * 1024, "the instances were laid out side by side"
+
+    # Each instance's corners repeat the first's UVs, in reverse order where one
+    # of them mirrors: the same relation in the file read and in the file written.
+    read, written = scan_io.load(source), scan_io.load(tmp_path / "out" / "three_defrag.obj")
+    blocks = [slice(k * one, (k + 1) * one) for k in range(3)]
+    reversed_blocks = 0
+    for block in blocks[1:]:
+        turned = not np.array_equal(read.uvs[block], read.uvs[blocks[0]])
+        reversed_blocks += turned
+        expected = read.uvs[blocks[0]][:, ::-1] if turned else read.uvs[blocks[0]]
+        assert np.array_equal(read.uvs[block], expected)
+        expected = written.uvs[blocks[0]][:, ::-1] if turned else written.uvs[blocks[0]]
+        assert np.array_equal(written.uvs[block], expected)
+    assert reversed_blocks > 0  # the mirrored instance is among them, or is the first
+    first = blocks[0]
+    m = native.measure(written.positions, written.triangles[first], read.uvs[first], read.face_page[first],
+                       read.page_sizes, written.uvs[first], written.face_page[first], written.page_sizes)
+    assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0

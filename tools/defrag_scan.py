@@ -214,20 +214,21 @@ def run_job(args, scan):
     return inp, result, old
 
 
-def write_checked(args, scan, inp, result, old):
+def write_checked(args, scan, laid, rows, inp, result, old):
     """Writes the files, never over one the scan was read from, none left
-    when writing fails; the metrics (measured natively without the GIL,
-    beside the writing) or (None, None)."""
+    when writing fails; the metrics of the faces laid out (measured natively
+    without the GIL, beside the writing) or (None, None). laid, rows: see
+    Scan.first_instances; every face is written with its source's new UVs."""
     maps = page_maps(result)
     outputs = output_files(args.output, f"{args.input.stem}_defrag", maps)
     replaced = overwritten_input(outputs, scan.files)
     if replaced:
         raise Failed(f"writing would replace the input file {replaced}: choose another OUT_DIR")
     with ThreadPoolExecutor(max_workers=1) as pool:
-        measured = pool.submit(quality, scan, inp, result, old.result()) if args.metrics else None
+        measured = pool.submit(quality, laid, inp, result, old.result()) if args.metrics else None
         try:
             args.output.mkdir(parents=True, exist_ok=True)
-            write_obj(outputs[0], scan, result.uvs, result.face_page, maps)
+            write_obj(outputs[0], scan, result.uvs.reshape(-1, 2)[rows], result.face_page[rows[:, 0] // 3], maps)
         except OSError as exc:
             for path in outputs:  # no OBJ left naming a PNG that was not written
                 if path.is_file():
@@ -242,12 +243,15 @@ def main(argv=None) -> int:
     try:
         scan = load_checked(args)
         t_load = time.perf_counter() - t0
-        inp, result, old = run_job(args, scan)
-        m, fidelity = write_checked(args, scan, inp, result, old)
+        laid, rows = scan.first_instances()  # a mesh several nodes draw is laid out once
+        inp, result, old = run_job(args, laid)
+        m, fidelity = write_checked(args, scan, laid, rows, inp, result, old)
     except Failed as exc:
         print(f"defrag_scan: error: {exc}", file=sys.stderr)
         return 1
-    print(f"{args.input.name}: {len(scan.triangles)} faces")
+    repeated = scan.instances_repeated()
+    print(f"{args.input.name}: {len(scan.triangles)} faces" + (
+        f" ({repeated} of them in further instances of a mesh, laid out once with its first)" if repeated else ""))
     print_report(result, m, fidelity, t_load)
     print(f"  written to    {args.output}")
     return 0

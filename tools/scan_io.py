@@ -30,6 +30,31 @@ class Scan:
     maps: list = field(default_factory=list)         # per page: {role: Path or bytes}
     files: list = field(default_factory=list)        # every file read (model, MTL, buffers, textures)
     warnings: list = field(default_factory=list)     # what was read otherwise than asked (textures missing)
+    # (F, 3) int64 or None: per face corner, the corner (3 * face + k) whose
+    # UVs it repeats, its own where it repeats none. A glTF mesh drawn by
+    # several nodes is read once per node; its later instances repeat the
+    # first, whose UVs they share in the file and so must share in the output.
+    corner_source: np.ndarray = None
+
+    def instances_repeated(self) -> int:
+        """How many faces repeat another's UVs (later instances of a mesh)."""
+        if self.corner_source is None:
+            return 0
+        return int((self.corner_source[:, 0] // 3 != np.arange(len(self.triangles))).sum())
+
+    def first_instances(self) -> tuple["Scan", np.ndarray]:
+        """(scan of the faces that repeat none, (F, 3) rows into its corners
+        (3 * its face + k) giving every corner of this scan its source):
+        `new_uvs.reshape(-1, 2)[rows]` lays every instance out as the first."""
+        faces = np.arange(len(self.triangles))
+        source = faces[:, None] * 3 + np.arange(3) if self.corner_source is None else self.corner_source
+        kept = np.flatnonzero(source[:, 0] // 3 == faces)
+        position = np.full(len(faces), -1, dtype=np.int64)
+        position[kept] = np.arange(len(kept))
+        rows = position[source // 3] * 3 + source % 3
+        first = Scan(self.positions, self.triangles[kept], self.uvs[kept], self.face_page[kept], self.page_sizes,
+                     self.page_images, self.maps, self.files, self.warnings)
+        return first, rows
 
 
 def load_image(source) -> np.ndarray:
@@ -481,16 +506,19 @@ def _material_maps(gltf: dict, buffers: list, folder: Path, material: dict) -> d
 def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
     """The scan, or None when no node holds a triangle primitive."""
     positions, tris, uvs, face_page = [], [], [], []
-    page_of, maps = {}, []
-    base = 0
+    page_of, maps, sources = {}, [], []
+    first_corners = {}  # mesh index -> (corners of its first instance, whether that one mirrors)
+    base = faces = 0
     for mesh_index, world in _node_matrices(gltf):
+        mirrors = np.linalg.det(world[:3, :3]) < 0
+        start = faces
         for prim in _item(gltf["meshes"], mesh_index, "mesh")["primitives"]:
             if prim.get("mode", _TRIANGLES) not in (_TRIANGLES, _STRIP, _FAN):
                 continue  # points and lines
             pos = _accessor(gltf, buffers, prim["attributes"]["POSITION"]).astype(np.float64)
             pos = pos @ world[:3, :3].T + world[:3, 3]
             idx = _primitive_triangles(gltf, buffers, prim, len(pos))
-            if np.linalg.det(world[:3, :3]) < 0:  # a mirroring transform turns the winding round
+            if mirrors:  # a mirroring transform turns the winding round
                 idx = idx[:, ::-1]
             material = _item(gltf["materials"], prim["material"], "material") if "material" in prim else {}
             slot = _colour_texture(material) or {}
@@ -511,9 +539,23 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
             tris.append(idx + base)
             face_page.append(np.full(len(idx), page, dtype=np.int32))
             base += len(pos)
+            faces += len(idx)
+        sources.append(_instance_corners(first_corners, mesh_index, start, faces, mirrors))
     if not tris:
         return None
     pages = [m["base_color"] for m in maps]
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
     return Scan(np.concatenate(positions), np.concatenate(tris).astype(np.int32), np.concatenate(uvs),
-                np.concatenate(face_page), sizes, pages, maps)
+                np.concatenate(face_page), sizes, pages, maps, corner_source=np.concatenate(sources))
+
+
+def _instance_corners(first_corners: dict, mesh_index: int, start: int, end: int, mirrors: bool) -> np.ndarray:
+    """Scan.corner_source of the faces start..end, one node's instance of a
+    mesh: their own corners at the mesh's first instance, else the first's,
+    in reverse order where one of the two mirrors and the other does not."""
+    own = np.arange(3 * start, 3 * end, dtype=np.int64).reshape(-1, 3)
+    if mesh_index not in first_corners:
+        first_corners[mesh_index] = (own, mirrors)
+        return own
+    corners, first_mirrors = first_corners[mesh_index]
+    return corners[:, ::-1] if mirrors != first_mirrors else corners
