@@ -58,13 +58,13 @@ def test_obj_faces_counted_and_cut_caught(tmp_path):
 def test_obj_material_libraries_found_and_checked(tmp_path):
     (tmp_path / "scan.obj").write_bytes(b"mtllib first.mtl\r\n" + OBJ + b"usemtl a\nusemtl b c\nusemtl \n"
                                         b"  mtllib  last.mtl\n# mtllib not.mtl")
-    names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "scan.obj"))}
+    names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "scan.obj"))[0]}
     assert names == {"scan.obj", "first.mtl", "scan.mtl", "last.mtl"}
     (tmp_path / "spaced.obj").write_bytes(b"mtllib my scan.mtl\n" + OBJ)
-    names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "spaced.obj"))}
+    names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "spaced.obj"))[0]}
     assert names == {"spaced.obj", "my", "scan.mtl", "my scan.mtl", "spaced.mtl"}  # spaced.mtl: read by default
     (tmp_path / "a.gltf").write_text('{"buffers": [{"uri": "my%20scan.bin"}], "images": [{"uri": "data:x"}]}')
-    names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "a.gltf"))}
+    names = {p.split("/")[-1] for p in batch._input_files(str(tmp_path / "a.gltf"))[0]}
     assert names == {"a.gltf", "my scan.bin"}
     for lib in ("first.mtl", "scan.mtl"):
         (tmp_path / lib).write_bytes(b"newmtl a\nmap_Kd -bm 0.5 -s 1 1 a b.png\n")
@@ -206,11 +206,11 @@ def test_an_output_that_is_an_input_by_another_name_is_refused(tmp_path):
 def test_quoted_and_default_material_libraries_are_inputs(tmp_path):
     model = tmp_path / "in.obj"
     model.write_bytes(b'mtllib "my scan.mtl"\n' + OBJ)
-    files = {os.path.basename(p) for p in batch._input_files(str(model))}
+    files = {os.path.basename(p) for p in batch._input_files(str(model))[0]}
     assert {"my scan.mtl", "in.mtl"} <= files, files  # Blender's importer reads both
     broken = tmp_path / "b.gltf"
     broken.write_text('{"buffers": {}}')
-    assert batch._input_files(str(broken)) == {str(broken)}
+    assert batch._input_files(str(broken))[0] == {str(broken)}
 
 
 def test_an_mtl_of_another_model_is_never_replaced(tmp_path, monkeypatch):

@@ -268,7 +268,7 @@ def run_one(args, cancel=None) -> dict:
     pkg = _package()
     t0 = time.perf_counter()
     src, dst = os.path.abspath(args.input), os.path.abspath(args.output)
-    inputs = _input_files(src)
+    inputs, faces_in_file = _input_files(src)
     objects = _import_input(src, dst, inputs)
     inputs |= _input_files_of_scene()  # an OBJ's textures, found through its MTL
     _refuse_overwriting(inputs, _model_files(dst))
@@ -282,7 +282,7 @@ def run_one(args, cancel=None) -> dict:
     out_dir = os.path.dirname(dst) or "."
     os.makedirs(out_dir, exist_ok=True)
     report = {"input": src, "output": dst, "objects": [], "warnings": _interrupted_runs(dst)}
-    report["warnings"] += _faces_the_import_dropped(src, objects)
+    report["warnings"] += _faces_the_import_dropped(src, faces_in_file, objects)
     tmp = tempfile.mkdtemp(prefix=_SCRATCH_PREFIX, dir=out_dir)
     keep_scratch = False
     try:
@@ -312,15 +312,13 @@ def _obj_face_lines(data: bytes) -> int:
     return data.count(b"\nf ") + data.startswith(b"f ")
 
 
-def _faces_the_import_dropped(src: str, objects) -> list:
+def _faces_the_import_dropped(src: str, in_file, objects) -> list:
     """A warning when Blender's OBJ importer made fewer faces than the file
-    has: it skips a face naming a vertex the file lacks (printing only that it
-    did) and drops repeated or degenerate ones, and the output lacks them all."""
-    if not src.lower().endswith(".obj"):
+    has (in_file: its `f` lines, None unless an OBJ): it skips a face naming a
+    vertex the file lacks (printing only that it did) and drops repeated or
+    degenerate ones, and the output lacks them all."""
+    if in_file is None:
         return []
-    with open(src, "rb") as f:
-        data = f.read()
-    in_file = _obj_face_lines(data)
     made = sum(len(o.data.polygons) for o in objects if o.type == "MESH")
     if made >= in_file:
         return []
@@ -377,20 +375,23 @@ def _model_files(dst: str) -> set:
     return files
 
 
-def _input_files(src: str) -> set:
-    """src and the files it names that the import reads: an OBJ's MTL
+def _input_files(src: str) -> tuple:
+    """(src and the files it names that the import reads: an OBJ's MTL
     libraries (and the MTL of its own name, which Blender's importer reads
-    too), a glTF's buffers and images."""
-    files = {src}
+    too), a glTF's buffers and images; the `f` lines of an OBJ, read from
+    the same bytes, else None)."""
+    files, faces = {src}, None
     folder = os.path.dirname(src)
     try:
         if src.lower().endswith(".obj"):
             files.add(os.path.splitext(src)[0] + ".mtl")
             with open(src, "rb") as f:
-                for line in _lines_starting(f.read(), b"mtllib"):
-                    # Several libraries, or one whose name holds spaces (quoted or not): each reading is an input.
-                    names = line.decode("utf-8", "replace").split()[1:] + [_rest_of(line)]
-                    files.update(os.path.join(folder, n.strip('"')) for n in names if n.strip('"'))
+                data = f.read()
+            faces = _obj_face_lines(data)
+            for line in _lines_starting(data, b"mtllib"):
+                # Several libraries, or one whose name holds spaces (quoted or not): each reading is an input.
+                names = line.decode("utf-8", "replace").split()[1:] + [_rest_of(line)]
+                files.update(os.path.join(folder, n.strip('"')) for n in names if n.strip('"'))
         elif src.lower().endswith(".gltf"):
             with open(src, "r", encoding="utf-8") as f:
                 gltf = json.load(f)
@@ -400,7 +401,7 @@ def _input_files(src: str) -> set:
                     files.add(os.path.join(folder, urllib.parse.unquote(uri)))
     except (OSError, ValueError, TypeError, AttributeError):
         pass  # the importer reports what it cannot read
-    return files
+    return files, faces
 
 
 def _input_files_of_scene() -> set:
@@ -860,7 +861,7 @@ def _report_path_problem(path, src: str, dst: str) -> str:
     path = os.path.abspath(path)
     if os.path.isdir(path):
         return f"--report {path} is a folder"
-    other = _file_among(path, _input_files(os.path.abspath(src)) | _model_files(os.path.abspath(dst)))
+    other = _file_among(path, _input_files(os.path.abspath(src))[0] | _model_files(os.path.abspath(dst)))
     if other:
         return f"--report {path} would overwrite {other}"
     if os.path.lexists(path) and not _is_report(path):
