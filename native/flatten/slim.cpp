@@ -804,6 +804,11 @@ ChartSolution parameterize_chart(const ChartProblem& problem, const SlimOptions&
       solution.density_repaired = repair_density(s, reference_area, options, control, solution);
     faces = std::move(s.faces);
     x = std::move(s.x);
+    if (solution.status.ok()) {
+      RowMatrixX2d uv = from_solver(x, order);
+      if (relax_squeezed_faces(problem.triangles, reference.corners, options.relax, uv))
+        x = to_solver(uv, order), solution.density_repaired = true;
+    }
     solution.energy_final = total_energy(faces, x) / reference_area;
   } else {
     std::ostringstream msg;

@@ -5,6 +5,7 @@
 
 #include "core/mesh.hpp"
 #include "core/run_control.hpp"
+#include "flatten/relax_squeezed_faces.hpp"
 #include "flatten/solve_status.hpp"
 
 namespace atlas {
@@ -59,6 +60,9 @@ struct SlimOptions {
   // and a chart already above it is not repaired: the squeeze then spreads over the chart
   // and costs more detail than it saves (bench/README.md). 0: no repair.
   double repair_energy_bound = 5.5;
+  // Then the faces still below half their area, with the vertices near them
+  // relaxed and the rest held (relax_squeezed_faces.hpp; sweeps 0: not).
+  RelaxOptions relax;
 };
 
 struct ChartSolution {
