@@ -140,6 +140,8 @@ def main(argv=None) -> int:
     p.add_argument("--large", action="store_true", help=f"also the generated scan ({LARGE})")
     p.add_argument("--results", type=Path, default=HERE / "RESULTS.md")
     args = p.parse_args(argv)
+    if args.large and not LARGE.exists():
+        p.error(f"--large needs {LARGE}: generate it first with bench/make_large_scan.py")
     with tempfile.TemporaryDirectory(prefix="whole_process_") as scratch:
         out = Path(scratch)
         builds = {}
