@@ -338,6 +338,7 @@ CapRun flatten_cap(const Mesh& mesh, int relief_cuts) {
   for (int f = 0; f < mesh.face_count(); ++f) chart_faces[graph.face_chart[f]].push_back(f);
   FlattenOptions options;
   options.relief_cuts = relief_cuts;
+  options.slim.relax.sweeps = 0;  // the cap's squeeze is what the cuts and splits here answer
   CapRun run;
   run.face_chart = graph.face_chart;
   run.merges = merged.merges;

@@ -169,12 +169,19 @@ double area_below_half(const ChartSolution& solution, const ChartProblem& proble
   return area;
 }
 
+// The global repair alone: the local relaxation after it would lift the
+// bump's faces by itself (see below).
+SlimOptions without_relaxing(SlimOptions options = SlimOptions()) {
+  options.relax.sweeps = 0;
+  return options;
+}
+
 TEST(Slim, DensityRepairLiftsSqueezedFaces) {
   const ChartProblem problem = bump(0.5);
-  SlimOptions none;
+  SlimOptions none = without_relaxing();
   none.repair_rounds = 0;
   const ChartSolution plain = parameterize_chart(problem, none, RunControl());
-  const ChartSolution repaired = parameterize_chart(problem, SlimOptions(), RunControl());
+  const ChartSolution repaired = parameterize_chart(problem, without_relaxing(), RunControl());
   expect_valid(plain, problem);
   expect_valid(repaired, problem);
   EXPECT_FALSE(plain.density_repaired);
@@ -185,7 +192,7 @@ TEST(Slim, DensityRepairLiftsSqueezedFaces) {
 
 TEST(Slim, DensityRepairSparesChartsThatLoseLittle) {
   const ChartProblem problem = bump(0.3);
-  SlimOptions none, every;
+  SlimOptions none = without_relaxing(), every = without_relaxing();
   none.repair_rounds = 0;
   every.repair_share = 0;
   const ChartSolution plain = parameterize_chart(problem, none, RunControl());
@@ -194,17 +201,32 @@ TEST(Slim, DensityRepairSparesChartsThatLoseLittle) {
   for (int f = 0; f < problem.triangles.rows(); ++f) area += reference_area(problem, f);
   ASSERT_GT(lost, 0);
   ASSERT_LT(lost, SlimOptions().repair_share * area);
-  EXPECT_FALSE(parameterize_chart(problem, SlimOptions(), RunControl()).density_repaired);
+  EXPECT_FALSE(parameterize_chart(problem, without_relaxing(), RunControl()).density_repaired);
   EXPECT_TRUE(parameterize_chart(problem, every, RunControl()).density_repaired);
+}
+
+// What the solve and the global repair leave below half, the local
+// relaxation lifts, with the boundary where the solve left it.
+TEST(Slim, LocalRelaxationLiftsWhatTheSolveLeftSqueezed) {
+  const ChartProblem problem = bump(0.5);
+  SlimOptions solve_only = without_relaxing(), relaxing;
+  solve_only.repair_rounds = 0, relaxing.repair_rounds = 0;
+  const ChartSolution plain = parameterize_chart(problem, solve_only, RunControl());
+  const ChartSolution relaxed = parameterize_chart(problem, relaxing, RunControl());
+  expect_valid(relaxed, problem);
+  ASSERT_GT(area_below_half(plain, problem), 0);
+  EXPECT_EQ(area_below_half(relaxed, problem), 0);
+  EXPECT_TRUE(relaxed.density_repaired);
+  EXPECT_LE(relaxed.energy_final, 1.02 * plain.energy_final);
 }
 
 // Solved to convergence, the bump's repair must raise the energy.
 TEST(Slim, DensityRepairThatRaisesTheEnergyPastItsBoundIsUndone) {
   const ChartProblem problem = bump(0.5);
-  SlimOptions none = tight_options(), strict = tight_options();
+  SlimOptions none = without_relaxing(tight_options()), strict = without_relaxing(tight_options());
   none.repair_rounds = 0;
   const ChartSolution plain = parameterize_chart(problem, none, RunControl());
-  const ChartSolution repaired = parameterize_chart(problem, tight_options(), RunControl());
+  const ChartSolution repaired = parameterize_chart(problem, without_relaxing(tight_options()), RunControl());
   ASSERT_TRUE(repaired.density_repaired);
   ASSERT_GT(repaired.energy_final, plain.energy_final);
   strict.repair_energy_bound = (plain.energy_final + repaired.energy_final) / 2;
