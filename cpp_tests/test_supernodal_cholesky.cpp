@@ -57,23 +57,18 @@ void expect_solves(const Eigen::SparseMatrix<double>& a, const Solver& solver) {
   EXPECT_LT((x - expected).norm(), 1e-9 * expected.norm());
 }
 
-TEST(SupernodalCholesky, SolvesASparseSystem) {
-  const Eigen::SparseMatrix<double> a = grid_system(6, false, 1);
+void expect_factorizes_and_solves(const Eigen::SparseMatrix<double>& a) {
   SupernodalCholesky ours;
   ours.analyze(a);
   ASSERT_TRUE(ours.factorize(a));
   expect_solves(a, ours);
 }
 
+TEST(SupernodalCholesky, SolvesASparseSystem) { expect_factorizes_and_solves(grid_system(6, false, 1)); }
+
 // Random order: supernodes wider than the narrow-panel loops and updates
 // long enough for dense products.
-TEST(SupernodalCholesky, SolvesASystemThatFillsIn) {
-  const Eigen::SparseMatrix<double> a = grid_system(24, true, 2);
-  SupernodalCholesky ours;
-  ours.analyze(a);
-  ASSERT_TRUE(ours.factorize(a));
-  expect_solves(a, ours);
-}
+TEST(SupernodalCholesky, SolvesASystemThatFillsIn) { expect_factorizes_and_solves(grid_system(24, true, 2)); }
 
 TEST(SupernodalCholesky, SolvesAfterRefactorizing) {
   Eigen::SparseMatrix<double> a = grid_system(16, true, 3);
