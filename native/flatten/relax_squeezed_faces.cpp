@@ -5,6 +5,7 @@
 #include <limits>
 #include <vector>
 
+#include "core/topology.hpp"
 #include "flatten/symmetric_dirichlet.hpp"
 
 namespace atlas {
@@ -48,17 +49,15 @@ Eigen::Matrix2d jacobian(const ReferenceFace& face, const RowMatrixX2d& uv) {
   return j;
 }
 
-// sum_f w_f A_ref(f) psi(J_f) over the faces `which` (every face if empty),
-// w_f 1 where `weight` is empty.
-double weighted_energy(const std::vector<ReferenceFace>& faces, const std::vector<int>& which,
-                       const std::vector<double>& weight, const RowMatrixX2d& uv) {
-  double energy = 0;
+// sum_f A_ref(f) psi(J_f) over the faces `which` (every face if empty).
+double energy(const std::vector<ReferenceFace>& faces, const std::vector<int>& which, const RowMatrixX2d& uv) {
+  double sum = 0;
   const size_t count = which.empty() ? faces.size() : which.size();
   for (size_t i = 0; i < count; ++i) {
     const size_t f = which.empty() ? i : static_cast<size_t>(which[i]);
-    energy += (weight.empty() ? 1.0 : weight[f]) * faces[f].area * symmetric_dirichlet_density(jacobian(faces[f], uv));
+    sum += faces[f].area * symmetric_dirichlet_density(jacobian(faces[f], uv));
   }
-  return energy;
+  return sum;
 }
 
 // Reference area of the faces `which` whose area ratio det J is below 1/2.
@@ -69,64 +68,31 @@ double area_below_half(const std::vector<ReferenceFace>& faces, const std::vecto
   return area;
 }
 
-// Faces at each vertex, as (face, corner) pairs: those of v are
-// at[start[v] .. start[v + 1]).
-struct VertexFaces {
-  std::vector<int> start;
-  std::vector<std::pair<int, int>> at;
-};
-
-VertexFaces vertex_faces(const std::vector<ReferenceFace>& faces, int vertex_count) {
-  VertexFaces out;
-  out.start.assign(static_cast<size_t>(vertex_count) + 1, 0);
-  for (const ReferenceFace& face : faces)
-    for (int k = 0; k < 3; ++k) ++out.start[static_cast<size_t>(face.corners[k]) + 1];
-  for (int v = 0; v < vertex_count; ++v) out.start[v + 1] += out.start[v];
-  out.at.resize(3 * faces.size());
-  std::vector<int> next(out.start.begin(), out.start.end() - 1);
-  for (size_t f = 0; f < faces.size(); ++f)
-    for (int k = 0; k < 3; ++k) out.at[static_cast<size_t>(next[faces[f].corners[k]]++)] = {static_cast<int>(f), k};
-  return out;
-}
-
 // 1 for every vertex on an edge that only one face uses.
-std::vector<char> boundary_vertices(const std::vector<ReferenceFace>& faces, int vertex_count) {
-  std::vector<std::pair<int, int>> edges;
-  edges.reserve(3 * faces.size());
-  for (const ReferenceFace& face : faces)
-    for (int k = 0; k < 3; ++k) {
-      const int a = face.corners[k], b = face.corners[(k + 1) % 3];
-      edges.push_back({std::min(a, b), std::max(a, b)});
-    }
-  std::sort(edges.begin(), edges.end());
+std::vector<char> boundary_vertices(const MeshTopology& topology, int vertex_count) {
   std::vector<char> out(static_cast<size_t>(vertex_count), 0);
-  for (size_t i = 0; i < edges.size();) {
-    size_t j = i;
-    while (j < edges.size() && edges[j] == edges[i]) ++j;
-    if (j - i == 1) out[edges[i].first] = out[edges[i].second] = 1;
-    i = j;
-  }
+  for (int e = 0; e < topology.edge_count(); ++e)
+    if (topology.edge_valence(e) == 1) out[topology.edge_vertices(e, 0)] = out[topology.edge_vertices(e, 1)] = 1;
   return out;
 }
 
-// Interior vertices within `rings` vertex rings of a face below half its
-// reference area, in the order they were reached.
-std::vector<int> free_vertices(const std::vector<ReferenceFace>& faces, const VertexFaces& at,
-                               const std::vector<char>& boundary, const RowMatrixX2d& uv, int rings) {
+// Interior vertices within `rings` vertex rings of the faces `squeezed`, in
+// the order they were reached.
+std::vector<int> free_vertices(const std::vector<ReferenceFace>& faces, const MeshTopology& topology,
+                               const std::vector<int>& squeezed, int rings) {
+  const std::vector<char> boundary = boundary_vertices(topology, static_cast<int>(topology.vertex_offsets.size()) - 1);
   std::vector<char> reached(boundary.size(), 0);
   std::vector<int> order;
-  for (const ReferenceFace& face : faces)
-    if (jacobian(face, uv).determinant() < 0.5)
-      for (int k = 0; k < 3; ++k)
-        if (!reached[face.corners[k]]) reached[face.corners[k]] = 1, order.push_back(face.corners[k]);
+  auto reach = [&](int f) {
+    for (int k = 0; k < 3; ++k)
+      if (!reached[faces[f].corners[k]]) reached[faces[f].corners[k]] = 1, order.push_back(faces[f].corners[k]);
+  };
+  for (int f : squeezed) reach(f);
   for (size_t ring_start = 0, ring = 0; ring < static_cast<size_t>(rings); ++ring) {
     const size_t ring_end = order.size();
     for (size_t i = ring_start; i < ring_end; ++i)
-      for (int s = at.start[order[i]]; s < at.start[order[i] + 1]; ++s)
-        for (int k = 0; k < 3; ++k) {
-          const int w = faces[at.at[s].first].corners[k];
-          if (!reached[w]) reached[w] = 1, order.push_back(w);
-        }
+      for (int s = topology.vertex_offsets[order[i]]; s < topology.vertex_offsets[order[i] + 1]; ++s)
+        reach(topology.vertex_corners[s] / 3);
     ring_start = ring_end;
   }
   order.erase(std::remove_if(order.begin(), order.end(), [&](int v) { return boundary[v]; }), order.end());
@@ -134,31 +100,32 @@ std::vector<int> free_vertices(const std::vector<ReferenceFace>& faces, const Ve
 }
 
 // The weighted energy of the faces at v with v at p (+inf if one degenerates).
-double vertex_energy(const std::vector<ReferenceFace>& faces, const VertexFaces& at, const std::vector<double>& weight,
-                     int v, const Eigen::Vector2d& p, RowMatrixX2d& uv) {
+double vertex_energy(const std::vector<ReferenceFace>& faces, const MeshTopology& topology,
+                     const std::vector<double>& weight, int v, const Eigen::Vector2d& p, RowMatrixX2d& uv) {
   const Eigen::Vector2d kept = uv.row(v).transpose();
   uv.row(v) = p.transpose();
-  double energy = 0;
-  for (int s = at.start[v]; s < at.start[v + 1] && energy < kInfinity; ++s) {
-    const int f = at.at[s].first;
-    energy += weight[f] * faces[f].area * symmetric_dirichlet_density(jacobian(faces[f], uv));
+  double sum = 0;
+  for (int s = topology.vertex_offsets[v]; s < topology.vertex_offsets[v + 1] && sum < kInfinity; ++s) {
+    const int f = topology.vertex_corners[s] / 3;
+    sum += weight[f] * faces[f].area * symmetric_dirichlet_density(jacobian(faces[f], uv));
   }
   uv.row(v) = kept.transpose();
-  return energy;
+  return sum;
 }
 
 // One step of vertex v: the minimum of its faces' SLIM proxies
 //   sum_f w_f A_f |W_f (J_f + d g_f^T - R_f)|^2  (g_f: v's gradient in f),
 // a 2x2 system, then a backtracking line search on the true energy that
 // starts short of the first face to degenerate.
-void relax_vertex(const std::vector<ReferenceFace>& faces, const VertexFaces& at, const std::vector<double>& weight,
-                  int v, RowMatrixX2d& uv) {
+void relax_vertex(const std::vector<ReferenceFace>& faces, const MeshTopology& topology,
+                  const std::vector<double>& weight, int v, RowMatrixX2d& uv) {
   Eigen::Matrix2d h = Eigen::Matrix2d::Zero();
   Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
   double largest_step = kInfinity;
   std::vector<std::pair<Eigen::Matrix2d, Eigen::Vector2d>> jacobians;
-  for (int s = at.start[v]; s < at.start[v + 1]; ++s) {
-    const auto [f, k] = at.at[s];
+  const int first = topology.vertex_offsets[v], last = topology.vertex_offsets[v + 1];
+  for (int s = first; s < last; ++s) {
+    const int f = topology.vertex_corners[s] / 3, k = topology.vertex_corners[s] % 3;
     const Eigen::Matrix2d j = jacobian(faces[f], uv);
     const Eigen::Vector2d& g = faces[f].gradient[k];
     const SlimProxyTarget target = slim_proxy_target(j);
@@ -173,7 +140,7 @@ void relax_vertex(const std::vector<ReferenceFace>& faces, const VertexFaces& at
   double slope = 0;  // dE/dt at t = 0 along d
   for (size_t i = 0; i < jacobians.size(); ++i) {
     const auto& [j, g] = jacobians[i];
-    const int f = at.at[at.start[v] + i].first;
+    const int f = topology.vertex_corners[first + static_cast<int>(i)] / 3;
     const Eigen::Matrix2d dj = d * g.transpose();
     slope += weight[f] * faces[f].area * symmetric_dirichlet_rate(j, dj);
     // det(J + t dJ) is linear in t for a rank-one dJ.
@@ -182,10 +149,10 @@ void relax_vertex(const std::vector<ReferenceFace>& faces, const VertexFaces& at
   }
   if (!(slope < 0)) return;
   const Eigen::Vector2d p = uv.row(v).transpose();
-  const double start = vertex_energy(faces, at, weight, v, p, uv);
+  const double start = vertex_energy(faces, topology, weight, v, p, uv);
   double t = std::min(1.0, kToDegenerate * largest_step);
   for (int i = 0; i < kHalvings; ++i, t /= 2)
-    if (vertex_energy(faces, at, weight, v, p + t * d, uv) <= start + kArmijo * t * slope) {
+    if (vertex_energy(faces, topology, weight, v, p + t * d, uv) <= start + kArmijo * t * slope) {
       uv.row(v) = (p + t * d).transpose();
       return;
     }
@@ -203,10 +170,11 @@ void weigh_squeezed(const std::vector<ReferenceFace>& faces, const std::vector<i
 }
 
 // The faces at the vertices `at_vertices`, each once, ascending.
-std::vector<int> faces_at(const VertexFaces& at, const std::vector<int>& at_vertices) {
+std::vector<int> faces_at(const MeshTopology& topology, const std::vector<int>& at_vertices) {
   std::vector<int> out;
   for (int v : at_vertices)
-    for (int s = at.start[v]; s < at.start[v + 1]; ++s) out.push_back(at.at[s].first);
+    for (int s = topology.vertex_offsets[v]; s < topology.vertex_offsets[v + 1]; ++s)
+      out.push_back(topology.vertex_corners[s] / 3);
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
   return out;
@@ -218,24 +186,25 @@ bool relax_squeezed_faces(const RowMatrixX3i& triangles, const RowMatrixX2d& ref
                           RowMatrixX2d& uv) {
   if (options.sweeps <= 0 || !(options.floor > 0)) return false;
   const std::vector<ReferenceFace> all = reference_faces(triangles, reference);
-  if (std::none_of(all.begin(), all.end(), [&](const ReferenceFace& f) { return jacobian(f, uv).determinant() < 0.5; }))
-    return false;
-  const int vertex_count = static_cast<int>(uv.rows());
-  const VertexFaces at = vertex_faces(all, vertex_count);
-  const std::vector<int> free = free_vertices(all, at, boundary_vertices(all, vertex_count), uv, options.rings);
+  std::vector<int> squeezed;
+  for (size_t f = 0; f < all.size(); ++f)
+    if (jacobian(all[f], uv).determinant() < 0.5) squeezed.push_back(static_cast<int>(f));
+  if (squeezed.empty()) return false;
+  const MeshTopology topology = build_topology(triangles, static_cast<int>(uv.rows()));
+  const std::vector<int> free = free_vertices(all, topology, squeezed, options.rings);
   if (free.empty()) return false;
   // Only the faces at free vertices change: the sums run over them.
-  const std::vector<int> region = faces_at(at, free);
+  const std::vector<int> region = faces_at(topology, free);
   const double lost = area_below_half(all, region, uv);
-  const double energy = weighted_energy(all, region, {}, uv);
-  const double rise = options.energy_rise * weighted_energy(all, {}, {}, uv);
+  const double start_energy = energy(all, region, uv);
+  const double rise = options.energy_rise * energy(all, {}, uv);
   RowMatrixX2d relaxed = uv;
   std::vector<double> weight(all.size(), 1.0);
   double now_lost = lost;
   for (int sweep = 0; sweep < options.sweeps && now_lost > 0; ++sweep) {
     weigh_squeezed(all, region, relaxed, options.floor, weight);
-    for (int v : free) relax_vertex(all, at, weight, v, relaxed);
-    if (weighted_energy(all, region, {}, relaxed) > energy + rise) return false;
+    for (int v : free) relax_vertex(all, topology, weight, v, relaxed);
+    if (energy(all, region, relaxed) > start_energy + rise) return false;
     now_lost = area_below_half(all, region, relaxed);
   }
   if (!(now_lost < lost)) return false;
