@@ -214,6 +214,14 @@ def run_job(args, scan):
     return inp, result, old
 
 
+def every_instance(result: job.JobResult, rows) -> tuple:
+    """(uvs, face_page) of every face of the scan read, each instance of a
+    mesh with its first's (rows: see Scan.first_instances; None: as laid out)."""
+    if rows is None:
+        return result.uvs, result.face_page
+    return result.uvs.reshape(-1, 2)[rows], result.face_page[rows[:, 0] // 3]
+
+
 def write_checked(args, scan, laid, rows, inp, result, old):
     """Writes the files, never over one the scan was read from, none left
     when writing fails; the metrics of the faces laid out (measured natively
@@ -228,7 +236,7 @@ def write_checked(args, scan, laid, rows, inp, result, old):
         measured = pool.submit(quality, laid, inp, result, old.result()) if args.metrics else None
         try:
             args.output.mkdir(parents=True, exist_ok=True)
-            write_obj(outputs[0], scan, result.uvs.reshape(-1, 2)[rows], result.face_page[rows[:, 0] // 3], maps)
+            write_obj(outputs[0], scan, *every_instance(result, rows), maps)
         except OSError as exc:
             for path in outputs:  # no OBJ left naming a PNG that was not written
                 if path.is_file():

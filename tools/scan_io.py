@@ -45,9 +45,12 @@ class Scan:
     def first_instances(self) -> tuple["Scan", np.ndarray]:
         """(scan of the faces that repeat none, (F, 3) rows into its corners
         (3 * its face + k) giving every corner of this scan its source):
-        `new_uvs.reshape(-1, 2)[rows]` lays every instance out as the first."""
+        `new_uvs.reshape(-1, 2)[rows]` lays every instance out as the first.
+        (self, None) when no face repeats another."""
+        if self.instances_repeated() == 0:
+            return self, None
         faces = np.arange(len(self.triangles))
-        source = faces[:, None] * 3 + np.arange(3) if self.corner_source is None else self.corner_source
+        source = self.corner_source
         kept = np.flatnonzero(source[:, 0] // 3 == faces)
         position = np.full(len(faces), -1, dtype=np.int64)
         position[kept] = np.arange(len(kept))
