@@ -49,7 +49,7 @@ SCHEMA: Tuple[Option, ...] = (
     Option("weighting", str, "3d", "Weighting", "Seam length that decides which charts merge first",
            choices=(Choice("uv", "UV", "Merge by seam length measured in the texture"),
                     Choice("3d", "3D", "Merge by seam length measured on the surface"))),
-    Option("density_loss_budget", float, 0.8, "Density Loss Budget",
+    Option("density_loss_budget", float, 0.2, "Density Loss Budget",
            "Percent of the surface that may keep less than half its source texel density where flattening "
            "squeezes it (0: none; squeezed faces are repaired, and charts split or slit where that is not enough, "
            "for a few more charts and up to twice the layout time)",
