@@ -44,8 +44,10 @@ struct SlimOptions {
   // faces can end squeezed below half their texels. Each face left below
   // repair_floor of its reference area, at ratio r, then weighs
   // repair_factor * repair_floor / r times more and the solve goes on from
-  // where it stopped, up to repair_rounds times. 0 rounds: no repair.
-  int repair_rounds = 2;
+  // where it stopped, up to repair_rounds times. 0 rounds: no repair. One
+  // round, because the local relaxation after it (relax below) lifts most
+  // of what a second round would, for a smaller chart and less time.
+  int repair_rounds = 1;
   // Only charts with more than this share of their reference area below half
   // are repaired: below it the repair costs more time than the detail it
   // saves is worth (bench/README.md). 0: every chart with such a face. The
