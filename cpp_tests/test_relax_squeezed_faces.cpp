@@ -4,29 +4,20 @@
 
 #include "core/geometry.hpp"
 #include "flatten/relax_squeezed_faces.hpp"
+#include "test_meshes.hpp"
 
 namespace atlas {
 namespace {
 
-// An n x n grid of unit cells, two triangles per cell, counter-clockwise.
+// An n x n grid of unit cells (test_meshes' grid_disk, scaled by n).
 struct Grid {
   RowMatrixX3i triangles;
   RowMatrixX2d points;
 };
 
 Grid grid(int n) {
-  Grid g;
-  g.points.resize((n + 1) * (n + 1), 2);
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i) g.points.row(j * (n + 1) + i) << i, j;
-  g.triangles.resize(2 * n * n, 3);
-  for (int j = 0, f = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const int a = j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
-      g.triangles.row(f++) << a, b, c;
-      g.triangles.row(f++) << a, c, d;
-    }
-  return g;
+  const Mesh mesh = testing::grid_disk(n);
+  return {mesh.triangles, n * mesh.positions.leftCols<2>()};
 }
 
 // Each face's corners, 3 rows a face, scaled: the references of the tests.
