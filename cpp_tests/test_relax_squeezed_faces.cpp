@@ -2,7 +2,12 @@
 
 #include <Eigen/LU>
 
+#include <map>
+#include <utility>
+#include <vector>
+
 #include "core/geometry.hpp"
+#include "core/segment_crossing.hpp"
 #include "flatten/relax_squeezed_faces.hpp"
 #include "test_meshes.hpp"
 
@@ -80,6 +85,108 @@ TEST(RelaxSqueezedFaces, LeavesAChartSqueezedAllOverAsItWas) {
   const RowMatrixX2d squeezed = uv;
   EXPECT_FALSE(relax_squeezed_faces(g.triangles, corners(g, 10.0), none, uv));
   EXPECT_EQ(uv, squeezed);
+}
+
+
+// Whether two boundary edges (edges one face uses) cross or touch.
+bool boundary_crosses(const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
+  std::map<std::pair<int, int>, int> uses;
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
+      ++uses[{std::min(a, b), std::max(a, b)}];
+    }
+  std::vector<Segment> segments;
+  for (const auto& [edge, count] : uses)
+    if (count == 1) segments.push_back({edge.first, edge.second});
+  std::vector<Eigen::Vector2d> points;
+  for (Eigen::Index v = 0; v < uv.rows(); ++v) points.push_back(uv.row(v).transpose());
+  return first_crossing(points, segments).has_value();
+}
+
+TEST(RelaxSqueezedFaces, LiftsAFaceOnTheBorderWhenTheBorderMayMove) {
+  // A face whose three corners are all on the boundary, squeezed by sliding
+  // one of them along the border: held, nothing can lift it; free, it is.
+  const int n = 6;
+  const Grid g = grid(n);
+  const RowMatrixX2d reference = corners(g, 10.0);
+  RowMatrixX2d uv = 10.0 * g.points;
+  auto on_boundary = [&](int v) {
+    const Eigen::RowVector2d p = g.points.row(v);
+    return p.x() == 0 || p.y() == 0 || p.x() == n || p.y() == n;
+  };
+  Eigen::Index corner_face = -1;
+  for (Eigen::Index f = 0; f < g.triangles.rows() && corner_face < 0; ++f)
+    if (on_boundary(g.triangles(f, 0)) && on_boundary(g.triangles(f, 1)) && on_boundary(g.triangles(f, 2)))
+      corner_face = f;
+  ASSERT_GE(corner_face, 0);
+  // Its corner that is not a corner of the square slides towards the one that is.
+  int slid = -1, towards = -1;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::RowVector2d p = g.points.row(g.triangles(corner_face, k));
+    const bool square_corner = (p.x() == 0 || p.x() == n) && (p.y() == 0 || p.y() == n);
+    if (square_corner) towards = g.triangles(corner_face, k);
+  }
+  for (int k = 0; k < 3 && slid < 0; ++k) {
+    const int v = g.triangles(corner_face, k);
+    const Eigen::RowVector2d d = g.points.row(v) - g.points.row(towards);
+    if (v != towards && (d.x() == 0 || d.y() == 0)) slid = v;
+  }
+  ASSERT_GE(slid, 0);
+  uv.row(slid) = 10.0 * (0.35 * g.points.row(slid) + 0.65 * g.points.row(towards));
+  ASSERT_LT(smallest_ratio(g, reference, uv), 0.4);
+  ASSERT_GT(smallest_ratio(g, reference, uv), 0.0);
+
+  RowMatrixX2d held = uv;
+  relax_squeezed_faces(g.triangles, reference, RelaxOptions(), held);
+  EXPECT_LT(smallest_ratio(g, reference, held), 0.5);
+  RelaxOptions free;
+  free.free_border = true;
+  ASSERT_TRUE(relax_squeezed_faces(g.triangles, reference, free, uv));
+  EXPECT_GT(smallest_ratio(g, reference, uv), 0.5);
+  EXPECT_FALSE(boundary_crosses(g.triangles, uv));
+}
+
+TEST(RelaxSqueezedFaces, AFreeBorderNeverCrossesItself) {
+  // A slit from the left side to the middle, its two sides 0.05 apart. A
+  // vertex of its lower side is pushed down, squeezing the faces under it,
+  // whose references are taller than the gap leaves room for: lifting them
+  // fully would push that side through the other.
+  const int n = 6;
+  Grid g = grid(n);
+  std::vector<Eigen::RowVector2d> points;
+  for (Eigen::Index v = 0; v < g.points.rows(); ++v) points.push_back(g.points.row(v));
+  std::map<int, int> lower_copy;
+  RowMatrixX2d reference = corners(g, 10.0);
+  for (Eigen::Index f = 0; f < g.triangles.rows(); ++f) {
+    double centre_y = 0;
+    for (int k = 0; k < 3; ++k) centre_y += g.points(g.triangles(f, k), 1) / 3;
+    if (centre_y > 3 || centre_y < 2) continue;
+    for (int k = 0; k < 3; ++k) reference(3 * f + k, 1) = 10.0 * (2 + 1.3 * (g.points(g.triangles(f, k), 1) - 2));
+    for (int k = 0; k < 3; ++k) {
+      const int v = g.triangles(f, k);
+      if (g.points(v, 1) != 3 || g.points(v, 0) >= 3) continue;
+      if (!lower_copy.count(v)) {
+        lower_copy[v] = static_cast<int>(points.size());
+        points.push_back(g.points.row(v) - Eigen::RowVector2d(0, 0.05));
+      }
+      g.triangles(f, k) = lower_copy[v];
+    }
+  }
+  g.points.resize(static_cast<Eigen::Index>(points.size()), 2);
+  for (size_t v = 0; v < points.size(); ++v) g.points.row(static_cast<Eigen::Index>(v)) = points[v];
+  RowMatrixX2d uv = 10.0 * g.points;
+  const int pushed = lower_copy.at(1 * (n + 1) + 3);
+  uv(pushed, 1) = 24.0;
+  ASSERT_FALSE(boundary_crosses(g.triangles, uv));
+  ASSERT_LT(smallest_ratio(g, reference, uv), 0.5);
+
+  RelaxOptions free;
+  free.free_border = true;
+  ASSERT_TRUE(relax_squeezed_faces(g.triangles, reference, free, uv));
+  EXPECT_GT(smallest_ratio(g, reference, uv), 0.5);
+  EXPECT_LT(uv(pushed, 1), 30.0);
+  EXPECT_FALSE(boundary_crosses(g.triangles, uv));
 }
 
 }  // namespace

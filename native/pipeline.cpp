@@ -10,12 +10,15 @@
 #include <numeric>
 #include <sstream>
 #include <string>
+#include <tuple>
 
 #include "charts/degenerate_faces.hpp"
 #include "core/geometry.hpp"
 #include "core/parallel_for.hpp"
 #include "core/topology.hpp"
 #include "core/uv_layout.hpp"
+#include "flatten/reference_triangles.hpp"
+#include "flatten/relax_squeezed_faces.hpp"
 #include "pack/page_filling.hpp"
 #include "pack/smallest_box_turn.hpp"
 
@@ -494,6 +497,92 @@ void refine_charts(const Mesh& welded, const Mesh& mesh, const MeshTopology& top
   turn_solved_charts(charts);
 }
 
+// A flattened chart as a mesh of its own: corners of one mesh vertex at one
+// UV are one vertex (the two sides of a slit are two).
+struct IndexedChart {
+  RowMatrixX3i triangles;  // F x 3, rows of uv
+  RowMatrixX2d uv;         // n x 2, texels
+  std::vector<int> vertex;  // n: mesh vertex
+};
+
+IndexedChart indexed_chart(const Mesh& mesh, const FlatChart& chart) {
+  IndexedChart out;
+  out.triangles.resize(static_cast<Eigen::Index>(chart.faces.size()), 3);
+  std::map<std::tuple<int, double, double>, int> index;
+  std::vector<Eigen::Vector2d> uv;
+  for (size_t i = 0; i < chart.faces.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector2d p = chart.corner_uv.row(3 * static_cast<Eigen::Index>(i) + k).transpose();
+      const int v = mesh.triangles(chart.faces[i], k);
+      const auto [it, added] = index.emplace(std::make_tuple(v, p.x(), p.y()), static_cast<int>(uv.size()));
+      if (added) uv.push_back(p), out.vertex.push_back(v);
+      out.triangles(static_cast<Eigen::Index>(i), k) = it->second;
+    }
+  out.uv.resize(static_cast<Eigen::Index>(uv.size()), 2);
+  for (size_t v = 0; v < uv.size(); ++v) out.uv.row(static_cast<Eigen::Index>(v)) = uv[v].transpose();
+  return out;
+}
+
+// The smallest texel area of a face of the chart over its original one
+// (faces without an original area left out; 1 with none), and the chart's
+// texel area.
+std::pair<double, double> smallest_area_ratio(const Mesh& mesh, const FlatChart& chart) {
+  double smallest = 1, area = 0;
+  for (size_t i = 0; i < chart.faces.size(); ++i) {
+    const auto corner = [&](int k) { return Eigen::Vector2d(chart.corner_uv.row(3 * static_cast<Eigen::Index>(i) + k)); };
+    const double now = std::abs(signed_area(corner(0), corner(1), corner(2)));
+    const double before = std::abs(mesh.signed_area_uv(chart.faces[i]));
+    area += now;
+    if (before > 0) smallest = std::min(smallest, now / before);
+  }
+  return {smallest, area};
+}
+
+// Relaxes a solved chart with its squeezed faces' boundary corners free
+// (RelaxOptions::free_border); returns whether it moved.
+bool relax_border(const Mesh& mesh, const ChartGraph& graph, const RelaxOptions& options, FlatChart& chart) {
+  const IndexedChart local = indexed_chart(mesh, chart);
+  RowMatrixX3d positions(local.uv.rows(), 3);
+  for (Eigen::Index v = 0; v < local.uv.rows(); ++v) positions.row(v) = mesh.positions.row(local.vertex[v]);
+  RowMatrixX2d reference_uv(3 * local.triangles.rows(), 2);
+  Eigen::VectorXi mirrored(local.triangles.rows());
+  for (Eigen::Index i = 0; i < local.triangles.rows(); ++i) {
+    const int f = chart.faces[static_cast<size_t>(i)];
+    for (int k = 0; k < 3; ++k) reference_uv.row(3 * i + k) = mesh.uv_texels(f, k).transpose();
+    mirrored[i] = graph.charts[graph.face_chart[f]].mirrored() ? 1 : 0;
+  }
+  const ReferenceTriangles reference = repaired_reference_triangles(local.triangles, positions, reference_uv, mirrored);
+  RowMatrixX2d uv = local.uv;
+  if (!relax_squeezed_faces(local.triangles, reference.corners, options, uv)) return false;
+  for (Eigen::Index i = 0; i < local.triangles.rows(); ++i)
+    for (int k = 0; k < 3; ++k) chart.corner_uv.row(3 * i + k) = uv.row(local.triangles(i, k));
+  return true;
+}
+
+// Most faces the flattening leaves below half their texel area touch their
+// chart's outline, where its relaxation (which holds the outline) cannot
+// reach them. The border refinements place a moved face where its new
+// chart's outline already has its corners; once they are done, the outlines
+// may change, so each solved chart with such a face is relaxed again with
+// their boundary corners free: a chart a few texels larger where it was
+// squeezed, instead of lost detail. A chart still squeezed and of at most
+// kDebrisTexels once grown until no face is (scan debris, a few faces of a
+// fraction of a texel each) is grown: it costs a few texels.
+constexpr double kDebrisTexels = 64;
+void relax_squeezed_borders(const Mesh& mesh, const ChartGraph& graph, const RelaxOptions& relax,
+                            std::vector<FlatChart>& charts) {
+  RelaxOptions options = relax;
+  options.free_border = true;
+  parallel_for(static_cast<int>(charts.size()), 1, [&](int c) {
+    FlatChart& chart = charts[c];
+    if (chart.kept_original || smallest_area_ratio(mesh, chart).first >= 0.5) return;
+    if (relax_border(mesh, graph, options, chart) && smallest_area_ratio(mesh, chart).first >= 0.5) return;
+    const auto [smallest, area] = smallest_area_ratio(mesh, chart);
+    const double growth = options.floor / smallest;
+    if (smallest > 0 && area * growth <= kDebrisTexels) chart.corner_uv *= std::sqrt(growth);
+  });
+}
+
 // Packs the charts into result. Untextured faces keep their input UVs and
 // page -1. A face whose winding float32 storage turns over becomes a chart of
 // its own and all is packed again (rare: slivers a hundredth of a texel high).
@@ -587,6 +676,7 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   clock.lap("flatten");
   refine_charts(welded, mesh, topology, flat_graph.self_seam, face_group, Polygons(face_polygon), options.refine,
                 charts, report);
+  relax_squeezed_borders(mesh, graph, options.slim.relax, charts);
   clock.lap("refine");
 
   PackingCutStats cuts = cut_for_packing(mesh, topology, packing_cut_options(mesh, charts, options), charts, control);

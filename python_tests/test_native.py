@@ -149,19 +149,29 @@ def test_density_loss_target(native, tetra_result):
     assert m["map"]["density_loss_area_share"] < 0.01
 
 
+@pytest.mark.parametrize("name", ["tetra", "meshroom"])
+def test_faces_squeezed_at_a_chart_border_are_lifted(native, defragmented, name):
+    # The flattening's local relaxation holds each chart's outline, and most
+    # faces it leaves below half their density touch it (tetra 0.008% and
+    # Meshroom 0.004% of the surface while it stayed held). Relaxed once more
+    # after the border refinements, with those faces' boundary corners free,
+    # none is left, and no chart, seam or texel more.
+    scan, result = defragmented(name)
+    m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
+    assert m["map"]["density_loss_area_share"] == 0
+    assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
+
+
 def test_no_density_loss_budget_leaves_no_face_below_half_density(native, scans, tetra_result):
-    # The default budget leaves tetra some squeezed surface, which a budget of
-    # 0 repairs, then splits and slits away: more charts, no face below half
-    # its density. Repairing every chart that loses any surface first keeps
-    # the splits few (41 charts when only those losing over 1% were repaired).
+    # A budget of 0 repairs, then splits and slits away every squeezed face
+    # of the solves: a few more charts, no face below half its density.
+    # Repairing every chart that loses any surface first keeps the splits few
+    # (41 charts when only those losing over 1% were repaired).
     scan, default = tetra_result
     strict = native.defragment(*args(scan), options={"density_loss_budget": 0})
-    loss = {}
-    for name, result in (("default", default), ("strict", strict)):
-        m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
-        assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
-        loss[name] = m["map"]["density_loss_area_share"]
-    assert loss["default"] > 0 and loss["strict"] == 0
+    m = native.measure(*args(scan), strict["uvs"], strict["face_page"], strict["page_sizes"])
+    assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
+    assert m["map"]["density_loss_area_share"] == 0
     charts = default["report"]["charts_after"]
     assert charts < strict["report"]["charts_after"] <= 1.5 * charts
     assert strict["report"]["density_repaired"] > default["report"]["density_repaired"]

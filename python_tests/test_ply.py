@@ -67,8 +67,10 @@ def test_vertex_uvs_split_at_seams_read_back(scans, tmp_path):
 
 
 def test_cli_on_a_ply_scan_matches_the_obj(scans, scan_path, tool_env, tmp_path):
-    """The same mesh and UVs through PLY and OBJ: the same charts, and texels within 2%. The PLY holds
-    the UVs as float32, so the flattening's last digits differ, which may move the packer's pages."""
+    """The same mesh and UVs through PLY and OBJ: the same charts, and texels within 4%. The PLY holds
+    the UVs as float32, so the flattening's last digits differ, which may move the packer's pages: the
+    same tetra with its corners listed from the second one packs into 2.7% more texels, with float32
+    UVs into 1.4-3.7% more (bench/README.md, session 28)."""
     write_face_texcoords(tmp_path / "tetra.ply", scans("tetra"))
     outs = []
     for source in (scan_path("tetra"), tmp_path / "tetra.ply"):
@@ -80,7 +82,7 @@ def test_cli_on_a_ply_scan_matches_the_obj(scans, scan_path, tool_env, tmp_path)
     # Whether a chart is repaired (over 1% of it below half density) can turn on those digits too.
     assert outs[0][0].split("; density repairs")[0] == outs[1][0].split("; density repairs")[0]
     texels = [int(out[1].split("->")[1].split()[0].replace(",", "")) for out in outs]
-    assert abs(texels[1] - texels[0]) <= 0.02 * texels[0], outs
+    assert abs(texels[1] - texels[0]) <= 0.04 * texels[0], outs
     assert (tmp_path / "ply" / "tetra_defrag.obj").exists()
 
 

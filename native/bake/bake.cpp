@@ -18,6 +18,7 @@
 #include "bake/texel_encoding.hpp"
 #include "core/geometry.hpp"
 #include "core/hash_words.hpp"
+#include "core/plane_predicates.hpp"
 #include "core/rasterize_triangle.hpp"
 
 namespace atlas {
@@ -485,14 +486,6 @@ struct PaddingCandidates {
     touched.clear();
   }
 };
-
-Eigen::Vector2d closest_on_segment(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
-                                   const Eigen::Vector2d& p) {
-  const Eigen::Vector2d d = b - a;
-  const double length2 = d.squaredNorm();
-  const double t = length2 > 0 ? std::clamp(d.dot(p - a) / length2, 0.0, 1.0) : 0.0;
-  return a + t * d;
-}
 
 // The closest point to p on the face's border edges (edges: its bits, not 0).
 Eigen::Vector2d closest_on_border(const FaceMap& face, std::uint8_t edges, const Eigen::Vector2d& p) {

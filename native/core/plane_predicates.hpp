@@ -25,6 +25,22 @@ inline bool segments_touch(const Eigen::Vector2d& p, const Eigen::Vector2d& q, c
          (d4 == 0 && within_box(r, s, q));
 }
 
+// The point of segment ab closest to p.
+inline Eigen::Vector2d closest_on_segment(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& p) {
+  const Eigen::Vector2d d = b - a;
+  const double length2 = d.squaredNorm();
+  const double t = length2 > 0 ? std::clamp(d.dot(p - a) / length2, 0.0, 1.0) : 0.0;
+  return a + t * d;
+}
+
+// Distance between segments pq and rs (0 when they cross or touch).
+inline double segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const Eigen::Vector2d& r,
+                               const Eigen::Vector2d& s) {
+  if (segments_touch(p, q, r, s)) return 0;
+  return std::min({(closest_on_segment(r, s, p) - p).norm(), (closest_on_segment(r, s, q) - q).norm(),
+                   (closest_on_segment(p, q, r) - r).norm(), (closest_on_segment(p, q, s) - s).norm()});
+}
+
 // p inside triangle abc or on its edges, either winding.
 inline bool in_or_on_triangle(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c,
                               const Eigen::Vector2d& p) {

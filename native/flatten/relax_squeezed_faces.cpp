@@ -2,9 +2,14 @@
 
 #include <Eigen/LU>
 #include <algorithm>
+#include <cmath>
 #include <limits>
+#include <optional>
 #include <vector>
 
+#include "core/bucket_grid.hpp"
+#include "core/plane_predicates.hpp"
+#include "core/segment_crossing.hpp"
 #include "core/topology.hpp"
 #include "flatten/symmetric_dirichlet.hpp"
 
@@ -12,6 +17,7 @@ namespace atlas {
 namespace {
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
+constexpr double kFullTurn = 6.283185307179586;
 // Armijo sufficient decrease, and the share of the step at which a face
 // would degenerate that the line search starts from.
 constexpr double kArmijo = 1e-4;
@@ -77,10 +83,11 @@ std::vector<char> boundary_vertices(const MeshTopology& topology, int vertex_cou
 }
 
 // Interior vertices within `rings` vertex rings of the faces `squeezed`, in
-// the order they were reached.
+// the order they were reached, and with free_border the boundary corners of
+// those faces as well (boundary: see boundary_vertices).
 std::vector<int> free_vertices(const std::vector<ReferenceFace>& faces, const MeshTopology& topology,
-                               const std::vector<int>& squeezed, int rings) {
-  const std::vector<char> boundary = boundary_vertices(topology, static_cast<int>(topology.vertex_offsets.size()) - 1);
+                               const std::vector<char>& boundary, const std::vector<int>& squeezed, int rings,
+                               bool free_border) {
   std::vector<char> reached(boundary.size(), 0);
   std::vector<int> order;
   auto reach = [&](int f) {
@@ -88,6 +95,7 @@ std::vector<int> free_vertices(const std::vector<ReferenceFace>& faces, const Me
       if (!reached[faces[f].corners[k]]) reached[faces[f].corners[k]] = 1, order.push_back(faces[f].corners[k]);
   };
   for (int f : squeezed) reach(f);
+  const size_t corners = order.size();
   for (size_t ring_start = 0, ring = 0; ring < static_cast<size_t>(rings); ++ring) {
     const size_t ring_end = order.size();
     for (size_t i = ring_start; i < ring_end; ++i)
@@ -95,9 +103,132 @@ std::vector<int> free_vertices(const std::vector<ReferenceFace>& faces, const Me
         reach(topology.vertex_corners[s] / 3);
     ring_start = ring_end;
   }
-  order.erase(std::remove_if(order.begin(), order.end(), [&](int v) { return boundary[v]; }), order.end());
-  return order;
+  std::vector<int> out;
+  for (size_t i = 0; i < order.size(); ++i)
+    if (!boundary[order[i]] || (free_border && i < corners)) out.push_back(order[i]);
+  return out;
 }
+
+// The boundary of a chart whose boundary vertices move, kept a simple
+// closed curve, so that the flip-free map stays one to one: no boundary edge
+// meets another, and the faces at each boundary vertex turn less than once
+// around it (beyond that its first and last faces overlap, and its two
+// boundary edges, which share it, cannot show it). Outputs are snapped to
+// 1/256 texel when rasterised (core/rasterize_triangle.hpp), so a move may
+// not bring an edge closer than kClearance texels to another, nor a vertex's
+// faces closer than kTurnClearance to a full turn, unless they already were
+// and it does not bring them closer.
+//
+// allows() tests one move. It reads the edges bucketed as the sweep began,
+// their boxes grown by kBorderStep of the mean boundary edge, and no boundary
+// vertex may move further than that in the sweep: every edge stays within
+// the cells it was put in. Small boxes keep the test short; a vertex that
+// must go further takes several sweeps.
+constexpr double kBorderStep = 0.25;
+constexpr double kClearance = 0.05;
+constexpr double kTurnClearance = 0.05;
+class BorderGuard {
+ public:
+  BorderGuard(const MeshTopology& topology, const RowMatrixX3i& triangles)
+      : topology_(topology), triangles_(triangles), at_(topology.vertex_offsets.size() - 1) {
+    for (int e = 0; e < topology.edge_count(); ++e)
+      if (topology.edge_valence(e) == 1) {
+        const Segment segment{topology.edge_vertices(e, 0), topology.edge_vertices(e, 1)};
+        at_[segment.from].push_back(static_cast<int>(segments_.size()));
+        at_[segment.to].push_back(static_cast<int>(segments_.size()));
+        segments_.push_back(segment);
+      }
+  }
+
+  // Buckets the edges where they are at the start of a sweep.
+  void bucket(const RowMatrixX2d& uv) {
+    start_ = uv;
+    Eigen::Vector2d lo = uv.colwise().minCoeff().transpose(), hi = uv.colwise().maxCoeff().transpose();
+    margin_ = 0;
+    for (const Segment& s : segments_) margin_ += (uv.row(s.to) - uv.row(s.from)).norm();
+    margin_ *= kBorderStep / static_cast<double>(std::max<size_t>(segments_.size(), 1));
+    const Eigen::Vector2d grow = Eigen::Vector2d::Constant(margin_);
+    grid_.emplace(lo - grow, hi + grow, segments_.size());
+    for (size_t i = 0; i < segments_.size(); ++i) {
+      const Eigen::Vector2d a = uv.row(segments_[i].from).transpose(), b = uv.row(segments_[i].to).transpose();
+      grid_->insert(static_cast<int>(i), a.cwiseMin(b) - grow, a.cwiseMax(b) + grow);
+    }
+  }
+
+  // Whether v may move to p: always for an interior vertex, whose faces stay
+  // positive; a boundary vertex must keep its edges clear of the others and
+  // the boundary vertices of its faces clear of a full turn.
+  bool allows(int v, const Eigen::Vector2d& p, RowMatrixX2d& uv) const {
+    if (at_[v].empty()) return true;
+    if ((p - start_.row(v).transpose()).cwiseAbs().maxCoeff() > margin_) return false;
+    return edges_stay_clear(v, p, uv) && turns_stay_clear(v, p, uv);
+  }
+
+  // The whole boundary is a simple closed curve.
+  bool simple(const RowMatrixX2d& uv) const {
+    for (size_t u = 0; u < at_.size(); ++u)
+      if (!at_[u].empty() && !(turn(static_cast<int>(u), uv) < kFullTurn)) return false;
+    std::vector<Eigen::Vector2d> points(static_cast<size_t>(uv.rows()));
+    for (Eigen::Index v = 0; v < uv.rows(); ++v) points[static_cast<size_t>(v)] = uv.row(v).transpose();
+    return !first_crossing(points, segments_).has_value();
+  }
+
+ private:
+  // v's boundary edges, with v at p, come no closer than kClearance to
+  // another boundary edge, or no closer than they are.
+  bool edges_stay_clear(int v, const Eigen::Vector2d& p, const RowMatrixX2d& uv) const {
+    const Eigen::Vector2d now = uv.row(v).transpose(), grow = Eigen::Vector2d::Constant(kClearance);
+    for (int i : at_[v]) {
+      const int w = segments_[i].from == v ? segments_[i].to : segments_[i].from;
+      const Eigen::Vector2d q = uv.row(w).transpose();
+      const bool closer = grid_->any_near(p.cwiseMin(q) - grow, p.cwiseMax(q) + grow, [&](int j) {
+        const Segment& t = segments_[j];
+        if (t.from == v || t.to == v || t.from == w || t.to == w) return false;
+        const Eigen::Vector2d r = uv.row(t.from).transpose(), s = uv.row(t.to).transpose();
+        const double after = segment_distance(p, q, r, s);
+        return after < kClearance && after < segment_distance(now, q, r, s);
+      });
+      if (closer) return false;
+    }
+    return true;
+  }
+
+  // The boundary vertices of v's faces, with v at p, stay kTurnClearance
+  // short of a full turn, or no closer to it than they are.
+  bool turns_stay_clear(int v, const Eigen::Vector2d& p, RowMatrixX2d& uv) const {
+    const Eigen::Vector2d now = uv.row(v).transpose();
+    for (int s = topology_.vertex_offsets[v]; s < topology_.vertex_offsets[v + 1]; ++s)
+      for (int k = 0; k < 3; ++k) {
+        const int u = triangles_(topology_.vertex_corners[s] / 3, k);
+        if (at_[u].empty()) continue;
+        uv.row(v) = p.transpose();
+        const double after = turn(u, uv);
+        uv.row(v) = now.transpose();
+        if (after > kFullTurn - kTurnClearance && after > turn(u, uv)) return false;
+      }
+    return true;
+  }
+
+  // The faces' angles at u, added up.
+  double turn(int u, const RowMatrixX2d& uv) const {
+    double sum = 0;
+    for (int s = topology_.vertex_offsets[u]; s < topology_.vertex_offsets[u + 1]; ++s) {
+      const int f = topology_.vertex_corners[s] / 3, k = topology_.vertex_corners[s] % 3;
+      const Eigen::Vector2d a = (uv.row(triangles_(f, (k + 1) % 3)) - uv.row(u)).transpose();
+      const Eigen::Vector2d b = (uv.row(triangles_(f, (k + 2) % 3)) - uv.row(u)).transpose();
+      sum += std::atan2(a.x() * b.y() - a.y() * b.x(), a.dot(b));
+    }
+    return sum;
+  }
+
+  const MeshTopology& topology_;
+  const RowMatrixX3i& triangles_;
+  std::vector<Segment> segments_;
+  std::vector<std::vector<int>> at_;  // per vertex: its boundary edges
+  std::optional<BucketGrid> grid_;
+  RowMatrixX2d start_;  // where the vertices were as the sweep began
+  double margin_ = 0;
+};
 
 // The weighted energy of the faces at v with v at p (+inf if one degenerates).
 double vertex_energy(const std::vector<ReferenceFace>& faces, const MeshTopology& topology,
@@ -118,7 +249,7 @@ double vertex_energy(const std::vector<ReferenceFace>& faces, const MeshTopology
 // a 2x2 system, then a backtracking line search on the true energy that
 // starts short of the first face to degenerate.
 void relax_vertex(const std::vector<ReferenceFace>& faces, const MeshTopology& topology,
-                  const std::vector<double>& weight, int v, RowMatrixX2d& uv) {
+                  const std::vector<double>& weight, const BorderGuard* guard, int v, RowMatrixX2d& uv) {
   Eigen::Matrix2d h = Eigen::Matrix2d::Zero();
   Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
   double largest_step = kInfinity;
@@ -152,7 +283,8 @@ void relax_vertex(const std::vector<ReferenceFace>& faces, const MeshTopology& t
   const double start = vertex_energy(faces, topology, weight, v, p, uv);
   double t = std::min(1.0, kToDegenerate * largest_step);
   for (int i = 0; i < kHalvings; ++i, t /= 2)
-    if (vertex_energy(faces, topology, weight, v, p + t * d, uv) <= start + kArmijo * t * slope) {
+    if (vertex_energy(faces, topology, weight, v, p + t * d, uv) <= start + kArmijo * t * slope &&
+        (!guard || guard->allows(v, p + t * d, uv))) {
       uv.row(v) = (p + t * d).transpose();
       return;
     }
@@ -191,7 +323,8 @@ bool relax_squeezed_faces(const RowMatrixX3i& triangles, const RowMatrixX2d& ref
     if (jacobian(all[f], uv).determinant() < 0.5) squeezed.push_back(static_cast<int>(f));
   if (squeezed.empty()) return false;
   const MeshTopology topology = build_topology(triangles, static_cast<int>(uv.rows()));
-  const std::vector<int> free = free_vertices(all, topology, squeezed, options.rings);
+  const std::vector<char> boundary = boundary_vertices(topology, static_cast<int>(uv.rows()));
+  const std::vector<int> free = free_vertices(all, topology, boundary, squeezed, options.rings, options.free_border);
   if (free.empty()) return false;
   // Only the faces at free vertices change: the sums run over them.
   const std::vector<int> region = faces_at(topology, free);
@@ -201,13 +334,16 @@ bool relax_squeezed_faces(const RowMatrixX3i& triangles, const RowMatrixX2d& ref
   RowMatrixX2d relaxed = uv;
   std::vector<double> weight(all.size(), 1.0);
   double now_lost = lost;
+  std::optional<BorderGuard> guard;
+  if (options.free_border) guard.emplace(topology, triangles);
   for (int sweep = 0; sweep < options.sweeps && now_lost > 0; ++sweep) {
     weigh_squeezed(all, region, relaxed, options.floor, weight);
-    for (int v : free) relax_vertex(all, topology, weight, v, relaxed);
+    if (guard) guard->bucket(relaxed);
+    for (int v : free) relax_vertex(all, topology, weight, guard ? &*guard : nullptr, v, relaxed);
     if (energy(all, region, relaxed) > start_energy + rise) return false;
     now_lost = area_below_half(all, region, relaxed);
   }
-  if (!(now_lost < lost)) return false;
+  if (!(now_lost < lost) || (guard && !guard->simple(relaxed))) return false;
   uv = std::move(relaxed);
   return true;
 }

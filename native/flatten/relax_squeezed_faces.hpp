@@ -4,7 +4,9 @@
 // with the rest of the chart (its boundary included) held still, lifts them
 // without growing the chart, without a new seam and for little time. The
 // global repair (SlimOptions::repair_rounds) re-solves the whole chart
-// instead, which grows it.
+// instead, which grows it. Most faces left squeezed touch the boundary; once
+// no later step needs the outline as it is, free_border lets their boundary
+// corners move as well (see pipeline.cpp).
 #pragma once
 
 #include "core/mesh.hpp"
@@ -26,6 +28,11 @@ struct RelaxOptions {
   // than this share: a squeeze spread over the neighbours would blur them
   // instead (colour PSNR falls). 0: only relaxations that lower it.
   double energy_rise = 0.02;
+  // true: the squeezed faces' own boundary corners move too, each move only
+  // where the boundary stays a simple closed curve with a little room to
+  // spare (see BorderGuard in the .cpp), so the chart may grow at its edge;
+  // false: the boundary stays where it is.
+  bool free_border = false;
 };
 
 // triangles (F,3) local vertices of a disk; reference (3F,2) each face's
@@ -35,9 +42,10 @@ struct RelaxOptions {
 // one vertex at a time (its faces' SLIM proxies give a 2x2 step, then a line
 // search that keeps every face's area positive), over the interior vertices
 // within `rings` of faces whose area ratio det J_f is below 1/2. The boundary
-// stays where it was, so the map stays injective. The result is kept only
-// when it leaves less reference area below half and the unweighted energy
-// within the bound; returns whether it was kept.
+// stays where it was (or, with free_border, moves without crossing itself),
+// so the map stays injective. The result is kept only when it leaves less
+// reference area below half and the unweighted energy within the bound;
+// returns whether it was kept.
 bool relax_squeezed_faces(const RowMatrixX3i& triangles, const RowMatrixX2d& reference, const RelaxOptions& options,
                           RowMatrixX2d& uv);
 
