@@ -529,7 +529,8 @@ IndexedChart indexed_chart(const Mesh& mesh, const FlatChart& chart) {
 std::pair<double, double> smallest_area_ratio(const Mesh& mesh, const FlatChart& chart) {
   double smallest = 1, area = 0;
   for (size_t i = 0; i < chart.faces.size(); ++i) {
-    const auto corner = [&](int k) { return Eigen::Vector2d(chart.corner_uv.row(3 * static_cast<Eigen::Index>(i) + k)); };
+    const Eigen::Index row = 3 * static_cast<Eigen::Index>(i);
+    const auto corner = [&](int k) { return Eigen::Vector2d(chart.corner_uv.row(row + k)); };
     const double now = std::abs(signed_area(corner(0), corner(1), corner(2)));
     const double before = std::abs(mesh.signed_area_uv(chart.faces[i]));
     area += now;

@@ -26,7 +26,8 @@ inline bool segments_touch(const Eigen::Vector2d& p, const Eigen::Vector2d& q, c
 }
 
 // The point of segment ab closest to p.
-inline Eigen::Vector2d closest_on_segment(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& p) {
+inline Eigen::Vector2d closest_on_segment(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                                          const Eigen::Vector2d& p) {
   const Eigen::Vector2d d = b - a;
   const double length2 = d.squaredNorm();
   const double t = length2 > 0 ? std::clamp(d.dot(p - a) / length2, 0.0, 1.0) : 0.0;
