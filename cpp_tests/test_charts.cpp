@@ -11,6 +11,7 @@
 #include "charts/disk_merge.hpp"
 #include "core/angle_defects.hpp"
 #include "core/corners.hpp"
+#include "core/geometry.hpp"
 #include "test_meshes.hpp"
 
 using namespace atlas;
@@ -195,7 +196,6 @@ TEST(Aggregate, TwoChartsSharingTwoArcsMergeLeavingOneArcOpen) {
 // shared edges would close a ring round the hub, leaving a hole. The arc is
 // split at the hub, so one edge welds and the union is a disk.
 TEST(Aggregate, ArcsSplitWhereAChartTouchesItself) {
-  constexpr double kPi = 3.14159265358979323846;
   RowMatrixX3d positions(17, 3);
   positions.row(0) << 0, 0, 0;
   for (int i = 0; i < 8; ++i)

@@ -4,10 +4,10 @@
 #include <cmath>
 #include <map>
 
+#include "core/geometry.hpp"
+
 namespace atlas::testing {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Quad (a,b,c,d) counter-clockwise -> two triangles.
 void add_quad(std::vector<Eigen::Vector3i>& tris, int a, int b, int c, int d) {

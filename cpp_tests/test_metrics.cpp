@@ -15,8 +15,6 @@ using namespace atlas;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 AtlasMeasures measure(const Mesh& mesh) {
   const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
   return measure_atlas(mesh, topology, layout_of(mesh));

@@ -292,7 +292,6 @@ namespace {
 // cells of quads around the pole, each cell of 3 rings by 6 quads its own
 // nearly flat chart. Merged, they bend too far to flatten without squeezing.
 Mesh sector_cap(int rings, int sectors, double extent) {
-  constexpr double kPi = 3.14159265358979323846;
   const int around = 6 * sectors;
   RowMatrixX3d positions(1 + rings * around, 3);
   positions.row(0) << 0, 0, 1;

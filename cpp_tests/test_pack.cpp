@@ -4,6 +4,7 @@
 #include <limits>
 #include <random>
 
+#include "core/geometry.hpp"
 #include "pack/chart_raster.hpp"
 #include "pack/coarse_mask.hpp"
 #include "pack/pack.hpp"
@@ -14,8 +15,6 @@
 
 namespace atlas {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Axis-aligned w x h rectangle at (x, y), as two triangles.
 RowMatrixX2d rectangle(double w, double h, double x = 0.0, double y = 0.0) {

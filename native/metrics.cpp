@@ -19,7 +19,6 @@
 namespace atlas {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // Rows per coverage work item: one thread counts a band from every face overlapping
 // it, so the per-texel counters need no atomics and only a band-sized buffer.
 constexpr int kBandRows = 32;

@@ -5,6 +5,8 @@
 
 namespace atlas {
 
+constexpr double kPi = 3.14159265358979323846;
+
 // Signed area of a 2D triangle: ((b-a) x (c-a)) / 2, positive counter-clockwise.
 inline double signed_area(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
   return 0.5 * ((b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x()));

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/bucket_grid.hpp"
+#include "core/geometry.hpp"
 #include "core/plane_predicates.hpp"
 #include "core/segment_crossing.hpp"
 #include "core/topology.hpp"
@@ -17,7 +18,7 @@ namespace atlas {
 namespace {
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
-constexpr double kFullTurn = 6.283185307179586;
+constexpr double kFullTurn = 2 * kPi;
 // Armijo sufficient decrease, and the share of the step at which a face
 // would degenerate that the line search starts from.
 constexpr double kArmijo = 1e-4;

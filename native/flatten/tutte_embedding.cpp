@@ -9,8 +9,6 @@
 namespace atlas {
 namespace {
 
-constexpr double kTwoPi = 6.283185307179586;
-
 Eigen::Vector2d corner(const RowMatrixX2d& reference, int f, int k) { return reference.row(3 * f + k % 3); }
 
 // tan(alpha / 2) for the angle alpha at corner a of the positive triangle (a, b, c):
@@ -34,7 +32,7 @@ void place_boundary_on_circle(const RowMatrixX3i& triangles, const RowMatrixX2d&
     perimeter += (corner(reference, f, k + 1) - corner(reference, f, k)).norm();
   }
   for (size_t i = 0; i < boundary_corners.size(); ++i) {
-    const double angle = kTwoPi * arc_start[i] / perimeter;
+    const double angle = 2 * kPi * arc_start[i] / perimeter;
     uv.row(corner_vertex(triangles, boundary_corners[i])) << std::cos(angle), std::sin(angle);
   }
 }
