@@ -543,16 +543,9 @@ std::pair<double, double> smallest_area_ratio(const Mesh& mesh, const FlatChart&
 // (RelaxOptions::free_border); returns whether it moved.
 bool relax_border(const Mesh& mesh, const ChartGraph& graph, const RelaxOptions& options, FlatChart& chart) {
   const IndexedChart local = indexed_chart(mesh, chart);
-  RowMatrixX3d positions(local.uv.rows(), 3);
-  for (Eigen::Index v = 0; v < local.uv.rows(); ++v) positions.row(v) = mesh.positions.row(local.vertex[v]);
-  RowMatrixX2d reference_uv(3 * local.triangles.rows(), 2);
-  Eigen::VectorXi mirrored(local.triangles.rows());
-  for (Eigen::Index i = 0; i < local.triangles.rows(); ++i) {
-    const int f = chart.faces[static_cast<size_t>(i)];
-    for (int k = 0; k < 3; ++k) reference_uv.row(3 * i + k) = mesh.uv_texels(f, k).transpose();
-    mirrored[i] = graph.charts[graph.face_chart[f]].mirrored() ? 1 : 0;
-  }
-  const ReferenceTriangles reference = repaired_reference_triangles(local.triangles, positions, reference_uv, mirrored);
+  const ChartProblem problem = chart_problem(mesh, graph, chart.faces, local.triangles, local.vertex);
+  const ReferenceTriangles reference =
+      repaired_reference_triangles(problem.triangles, problem.positions, problem.reference_uv, problem.mirrored);
   RowMatrixX2d uv = local.uv;
   if (!relax_squeezed_faces(local.triangles, reference.corners, options, uv)) return false;
   for (Eigen::Index i = 0; i < local.triangles.rows(); ++i)
@@ -576,9 +569,11 @@ void relax_squeezed_borders(const Mesh& mesh, const ChartGraph& graph, const Rel
   options.free_border = true;
   parallel_for(static_cast<int>(charts.size()), 1, [&](int c) {
     FlatChart& chart = charts[c];
-    if (chart.kept_original || smallest_area_ratio(mesh, chart).first >= 0.5) return;
-    if (relax_border(mesh, graph, options, chart) && smallest_area_ratio(mesh, chart).first >= 0.5) return;
-    const auto [smallest, area] = smallest_area_ratio(mesh, chart);
+    if (chart.kept_original) return;
+    auto [smallest, area] = smallest_area_ratio(mesh, chart);
+    if (smallest >= 0.5) return;
+    if (relax_border(mesh, graph, options, chart)) std::tie(smallest, area) = smallest_area_ratio(mesh, chart);
+    if (smallest >= 0.5) return;
     const double growth = options.floor / smallest;
     if (smallest > 0 && area * growth <= kDebrisTexels) chart.corner_uv *= std::sqrt(growth);
   });

@@ -54,6 +54,22 @@ bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d&
   return boundary_crossing(triangles, uv).has_value();
 }
 
+ChartProblem chart_problem(const Mesh& mesh, const ChartGraph& graph, const std::vector<int>& faces,
+                           const RowMatrixX3i& triangles, const std::vector<int>& vertices) {
+  ChartProblem p;
+  p.triangles = triangles;
+  p.positions.resize(static_cast<Eigen::Index>(vertices.size()), 3);
+  for (size_t i = 0; i < vertices.size(); ++i) p.positions.row(i) = mesh.positions.row(vertices[i]);
+  p.reference_uv.resize(3 * static_cast<Eigen::Index>(faces.size()), 2);
+  p.mirrored.resize(static_cast<Eigen::Index>(faces.size()));
+  for (size_t i = 0; i < faces.size(); ++i) {
+    const int f = faces[i];
+    for (int k = 0; k < 3; ++k) p.reference_uv.row(3 * i + k) = mesh.uv_texels(f, k).transpose();
+    p.mirrored[i] = graph.charts[graph.face_chart[f]].mirrored() ? 1 : 0;
+  }
+  return p;
+}
+
 namespace {
 
 struct LocalChart {
@@ -115,18 +131,7 @@ std::vector<char> uncut_corners(const MeshTopology& topology, const std::vector<
 }
 
 ChartProblem make_problem(const Mesh& mesh, const ChartGraph& graph, const LocalChart& c) {
-  ChartProblem p;
-  p.triangles = c.triangles;
-  p.positions.resize(static_cast<Eigen::Index>(c.vertices.size()), 3);
-  for (size_t i = 0; i < c.vertices.size(); ++i) p.positions.row(i) = mesh.positions.row(c.vertices[i]);
-  p.reference_uv.resize(3 * static_cast<Eigen::Index>(c.faces.size()), 2);
-  p.mirrored.resize(static_cast<Eigen::Index>(c.faces.size()));
-  for (size_t i = 0; i < c.faces.size(); ++i) {
-    const int f = c.faces[i];
-    for (int k = 0; k < 3; ++k) p.reference_uv.row(3 * i + k) = mesh.uv_texels(f, k).transpose();
-    p.mirrored[i] = graph.charts[graph.face_chart[f]].mirrored() ? 1 : 0;
-  }
-  return p;
+  return chart_problem(mesh, graph, c.faces, c.triangles, c.vertices);
 }
 
 FlatChart keep_original(const Mesh& mesh, const std::vector<int>& faces) {

@@ -26,6 +26,13 @@ bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d&
 // The faces of the first two boundary edges found crossing, if any.
 std::optional<std::pair<int, int>> boundary_crossing(const RowMatrixX3i& triangles, const RowMatrixX2d& uv);
 
+// The problem parameterize_chart solves for the mesh faces `faces` as
+// triangles (F x 3) over local vertices (`vertices`: local -> mesh vertex):
+// their 3D positions, their original UV triangles in texels and whether
+// each face's original chart is mirrored.
+ChartProblem chart_problem(const Mesh& mesh, const ChartGraph& graph, const std::vector<int>& faces,
+                           const RowMatrixX3i& triangles, const std::vector<int>& vertices);
+
 // A chart as it leaves the parameterization stage.
 struct FlatChart {
   std::vector<int> faces;      // mesh faces

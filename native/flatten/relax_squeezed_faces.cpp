@@ -197,17 +197,23 @@ class BorderGuard {
   // The boundary vertices of v's faces, with v at p, stay kTurnClearance
   // short of a full turn, or no closer to it than they are.
   bool turns_stay_clear(int v, const Eigen::Vector2d& p, RowMatrixX2d& uv) const {
-    const Eigen::Vector2d now = uv.row(v).transpose();
+    std::vector<int> around;
     for (int s = topology_.vertex_offsets[v]; s < topology_.vertex_offsets[v + 1]; ++s)
-      for (int k = 0; k < 3; ++k) {
-        const int u = triangles_(topology_.vertex_corners[s] / 3, k);
-        if (at_[u].empty()) continue;
-        uv.row(v) = p.transpose();
-        const double after = turn(u, uv);
-        uv.row(v) = now.transpose();
-        if (after > kFullTurn - kTurnClearance && after > turn(u, uv)) return false;
-      }
-    return true;
+      for (int k = 0; k < 3; ++k)
+        if (const int u = triangles_(topology_.vertex_corners[s] / 3, k); !at_[u].empty()) around.push_back(u);
+    std::sort(around.begin(), around.end());
+    around.erase(std::unique(around.begin(), around.end()), around.end());
+    std::vector<double> before;
+    for (int u : around) before.push_back(turn(u, uv));
+    const Eigen::Vector2d now = uv.row(v).transpose();
+    uv.row(v) = p.transpose();
+    bool clear = true;
+    for (size_t i = 0; i < around.size() && clear; ++i) {
+      const double after = turn(around[i], uv);
+      clear = !(after > kFullTurn - kTurnClearance && after > before[i]);
+    }
+    uv.row(v) = now.transpose();
+    return clear;
   }
 
   // The faces' angles at u, added up.
