@@ -147,6 +147,30 @@ TEST(RelaxSqueezedFaces, LiftsAFaceOnTheBorderWhenTheBorderMayMove) {
   EXPECT_FALSE(boundary_crosses(g.triangles, uv));
 }
 
+TEST(RelaxSqueezedFaces, AFreeBorderMovesBeyondTheSqueezedFacesOwnCorners) {
+  // A cell on the bottom border whose references are 5 times as wide: to
+  // lift it the border must stretch by more than the cells beside it can
+  // give up, so boundary vertices beyond its own corners must move too (with
+  // only its corners free it stays below half).
+  const int n = 6;
+  const Grid g = grid(n);
+  RowMatrixX2d reference = corners(g, 10.0);
+  for (Eigen::Index f = 0; f < g.triangles.rows(); ++f) {
+    Eigen::RowVector2d centre = Eigen::RowVector2d::Zero();
+    for (int k = 0; k < 3; ++k) centre += g.points.row(g.triangles(f, k)) / 3;
+    if (centre.x() > 2 && centre.x() < 3 && centre.y() < 1)
+      for (int k = 0; k < 3; ++k) reference(3 * f + k, 0) = 10.0 * (2.5 + 5.0 * (g.points(g.triangles(f, k), 0) - 2.5));
+  }
+  RowMatrixX2d uv = 10.0 * g.points;
+  ASSERT_LT(smallest_ratio(g, reference, uv), 0.5);
+
+  RelaxOptions free;
+  free.free_border = true;
+  ASSERT_TRUE(relax_squeezed_faces(g.triangles, reference, free, uv));
+  EXPECT_GT(smallest_ratio(g, reference, uv), 0.5);
+  EXPECT_FALSE(boundary_crosses(g.triangles, uv));
+}
+
 TEST(RelaxSqueezedFaces, AFreeBorderNeverCrossesItself) {
   // A slit from the left side to the middle, its two sides 0.05 apart. A
   // vertex of its lower side is pushed down, squeezing the faces under it,

@@ -539,7 +539,7 @@ std::pair<double, double> smallest_area_ratio(const Mesh& mesh, const FlatChart&
   return {smallest, area};
 }
 
-// Relaxes a solved chart with its squeezed faces' boundary corners free
+// Relaxes a solved chart with the boundary near its squeezed faces free
 // (RelaxOptions::free_border); returns whether it moved.
 bool relax_border(const Mesh& mesh, const ChartGraph& graph, const RelaxOptions& options, FlatChart& chart) {
   const IndexedChart local = indexed_chart(mesh, chart);
@@ -558,7 +558,7 @@ bool relax_border(const Mesh& mesh, const ChartGraph& graph, const RelaxOptions&
 // reach them. The border refinements place a moved face where its new
 // chart's outline already has its corners; once they are done, the outlines
 // may change, so each solved chart with such a face is relaxed again with
-// their boundary corners free: a chart a few texels larger where it was
+// the boundary near them free: a chart a few texels larger where it was
 // squeezed, instead of lost detail. A chart still squeezed and of at most
 // kDebrisTexels once grown until no face is (scan debris, a few faces of a
 // fraction of a texel each) is grown: it costs a few texels.

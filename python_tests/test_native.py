@@ -154,11 +154,23 @@ def test_faces_squeezed_at_a_chart_border_are_lifted(native, defragmented, name)
     # The flattening's local relaxation holds each chart's outline, and most
     # faces it leaves below half their density touch it (tetra 0.008% and
     # Meshroom 0.004% of the surface while it stayed held). Relaxed once more
-    # after the border refinements, with those faces' boundary corners free,
+    # after the border refinements, with the boundary near those faces free,
     # none is left, and no chart, seam or texel more.
     scan, result = defragmented(name)
     m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
     assert m["map"]["density_loss_area_share"] == 0
+    assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
+
+
+def test_squeezed_faces_held_by_the_border_beyond_their_corners_are_lifted(native, defragmented):
+    # On the Smithsonian scan 17 faces (0.0067% of the surface) stayed below
+    # half while only the squeezed faces' own boundary corners were free: the
+    # boundary vertices a ring or two away held them, and one chart's squeeze
+    # moved to its neighbours. With the boundary within the relaxation's rings
+    # free, three faces of about a texel are left.
+    scan, result = defragmented("smithsonian")
+    m = native.measure(*args(scan), result["uvs"], result["face_page"], result["page_sizes"])
+    assert m["map"]["density_loss_area_share"] < 1e-5
     assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
 
 
@@ -563,11 +575,12 @@ def test_a_dense_atlas_is_cut_to_stay_near_its_texels(native, scans):
 
 
 def test_cuts_to_fit_that_pack_no_better_are_undone(native, scans):
-    # The Smithsonian scan's charts on 352^2 pages with 4 texels of padding
-    # come out at 1.46x the input's texels; the cuts the fit rule finds there
-    # (23 for a seam of 1) pack worse, so the result is the uncut one.
+    # The Smithsonian scan's charts on 344^2 pages with 4 texels of padding
+    # come out at 1.48x the input's texels; the cuts the fit rule finds there
+    # (29 for a seam of 1) pack worse, so the result is the uncut one. (On
+    # other page sizes they pack better by a little, and are kept.)
     scan = scans("smithsonian")
-    dense = args(scan)[:4] + (np.full_like(np.asarray(scan.page_sizes), 352),)
+    dense = args(scan)[:4] + (np.full_like(np.asarray(scan.page_sizes), 344),)
     options = {"padding_follows_page": False}
     tried = native.defragment(*dense, options=options)
     uncut = native.defragment(*dense, options={**options, "fit_cut_seam": 0})

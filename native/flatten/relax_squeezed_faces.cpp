@@ -83,9 +83,11 @@ std::vector<char> boundary_vertices(const MeshTopology& topology, int vertex_cou
   return out;
 }
 
-// Interior vertices within `rings` vertex rings of the faces `squeezed`, in
-// the order they were reached, and with free_border the boundary corners of
-// those faces as well (boundary: see boundary_vertices).
+// The vertices within `rings` vertex rings of the faces `squeezed`, in the
+// order they were reached: the interior ones, and with free_border the
+// boundary ones too (boundary: see boundary_vertices). A squeezed face at the
+// border is often held by boundary vertices a ring or two away; freeing only
+// its own corners moves the squeeze to its neighbours.
 std::vector<int> free_vertices(const std::vector<ReferenceFace>& faces, const MeshTopology& topology,
                                const std::vector<char>& boundary, const std::vector<int>& squeezed, int rings,
                                bool free_border) {
@@ -96,7 +98,6 @@ std::vector<int> free_vertices(const std::vector<ReferenceFace>& faces, const Me
       if (!reached[faces[f].corners[k]]) reached[faces[f].corners[k]] = 1, order.push_back(faces[f].corners[k]);
   };
   for (int f : squeezed) reach(f);
-  const size_t corners = order.size();
   for (size_t ring_start = 0, ring = 0; ring < static_cast<size_t>(rings); ++ring) {
     const size_t ring_end = order.size();
     for (size_t i = ring_start; i < ring_end; ++i)
@@ -105,8 +106,8 @@ std::vector<int> free_vertices(const std::vector<ReferenceFace>& faces, const Me
     ring_start = ring_end;
   }
   std::vector<int> out;
-  for (size_t i = 0; i < order.size(); ++i)
-    if (!boundary[order[i]] || (free_border && i < corners)) out.push_back(order[i]);
+  for (int v : order)
+    if (free_border || !boundary[v]) out.push_back(v);
   return out;
 }
 
@@ -182,10 +183,13 @@ class BorderGuard {
     for (int i : at_[v]) {
       const int w = segments_[i].from == v ? segments_[i].to : segments_[i].from;
       const Eigen::Vector2d q = uv.row(w).transpose();
-      const bool closer = grid_->any_near(p.cwiseMin(q) - grow, p.cwiseMax(q) + grow, [&](int j) {
+      const Eigen::Vector2d lo = p.cwiseMin(q) - grow, hi = p.cwiseMax(q) + grow;
+      const bool closer = grid_->any_near(lo, hi, [&](int j) {
         const Segment& t = segments_[j];
         if (t.from == v || t.to == v || t.from == w || t.to == w) return false;
         const Eigen::Vector2d r = uv.row(t.from).transpose(), s = uv.row(t.to).transpose();
+        // Most edges in the cells lie clear of the grown box: no distance needed.
+        if ((r.cwiseMax(s).array() < lo.array()).any() || (r.cwiseMin(s).array() > hi.array()).any()) return false;
         const double after = segment_distance(p, q, r, s);
         return after < kClearance && after < segment_distance(now, q, r, s);
       });

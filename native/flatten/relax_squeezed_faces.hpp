@@ -5,8 +5,8 @@
 // without growing the chart, without a new seam and for little time. The
 // global repair (SlimOptions::repair_rounds) re-solves the whole chart
 // instead, which grows it. Most faces left squeezed touch the boundary; once
-// no later step needs the outline as it is, free_border lets their boundary
-// corners move as well (see pipeline.cpp).
+// no later step needs the outline as it is, free_border lets the boundary
+// near them move as well (see pipeline.cpp).
 #pragma once
 
 #include "core/mesh.hpp"
@@ -17,7 +17,7 @@ struct RelaxOptions {
   // Sweeps over the free vertices, one SLIM-like step each; 0: no relaxing.
   int sweeps = 30;
   // Vertex rings around the squeezed faces that may move (0: only their own
-  // corners). Boundary vertices never move.
+  // corners). Boundary vertices move only with free_border.
   int rings = 4;
   // Each sweep multiplies the weight of a face below `floor` of its
   // reference area by floor / ratio, so one that stays squeezed weighs more
@@ -28,7 +28,7 @@ struct RelaxOptions {
   // than this share: a squeeze spread over the neighbours would blur them
   // instead (colour PSNR falls). 0: only relaxations that lower it.
   double energy_rise = 0.02;
-  // true: the squeezed faces' own boundary corners move too, each move only
+  // true: the boundary vertices within `rings` move too, each move only
   // where the boundary stays a simple closed curve with a little room to
   // spare (see BorderGuard in the .cpp), so the chart may grow at its edge;
   // false: the boundary stays where it is.
