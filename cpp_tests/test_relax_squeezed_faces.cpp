@@ -104,6 +104,16 @@ bool boundary_crosses(const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
   return first_crossing(points, segments).has_value();
 }
 
+// Relaxes uv with the border free: every face ends above half its
+// reference area, and the boundary crosses nowhere.
+void expect_lifted_with_free_border(const Grid& g, const RowMatrixX2d& reference, RowMatrixX2d& uv) {
+  RelaxOptions free;
+  free.free_border = true;
+  ASSERT_TRUE(relax_squeezed_faces(g.triangles, reference, free, uv));
+  EXPECT_GT(smallest_ratio(g, reference, uv), 0.5);
+  EXPECT_FALSE(boundary_crosses(g.triangles, uv));
+}
+
 TEST(RelaxSqueezedFaces, LiftsAFaceOnTheBorderWhenTheBorderMayMove) {
   // A face whose three corners are all on the boundary, squeezed by sliding
   // one of them along the border: held, nothing can lift it; free, it is.
@@ -140,11 +150,7 @@ TEST(RelaxSqueezedFaces, LiftsAFaceOnTheBorderWhenTheBorderMayMove) {
   RowMatrixX2d held = uv;
   relax_squeezed_faces(g.triangles, reference, RelaxOptions(), held);
   EXPECT_LT(smallest_ratio(g, reference, held), 0.5);
-  RelaxOptions free;
-  free.free_border = true;
-  ASSERT_TRUE(relax_squeezed_faces(g.triangles, reference, free, uv));
-  EXPECT_GT(smallest_ratio(g, reference, uv), 0.5);
-  EXPECT_FALSE(boundary_crosses(g.triangles, uv));
+  expect_lifted_with_free_border(g, reference, uv);
 }
 
 TEST(RelaxSqueezedFaces, AFreeBorderMovesBeyondTheSqueezedFacesOwnCorners) {
@@ -164,11 +170,7 @@ TEST(RelaxSqueezedFaces, AFreeBorderMovesBeyondTheSqueezedFacesOwnCorners) {
   RowMatrixX2d uv = 10.0 * g.points;
   ASSERT_LT(smallest_ratio(g, reference, uv), 0.5);
 
-  RelaxOptions free;
-  free.free_border = true;
-  ASSERT_TRUE(relax_squeezed_faces(g.triangles, reference, free, uv));
-  EXPECT_GT(smallest_ratio(g, reference, uv), 0.5);
-  EXPECT_FALSE(boundary_crosses(g.triangles, uv));
+  expect_lifted_with_free_border(g, reference, uv);
 }
 
 TEST(RelaxSqueezedFaces, AFreeBorderNeverCrossesItself) {
@@ -205,12 +207,8 @@ TEST(RelaxSqueezedFaces, AFreeBorderNeverCrossesItself) {
   ASSERT_FALSE(boundary_crosses(g.triangles, uv));
   ASSERT_LT(smallest_ratio(g, reference, uv), 0.5);
 
-  RelaxOptions free;
-  free.free_border = true;
-  ASSERT_TRUE(relax_squeezed_faces(g.triangles, reference, free, uv));
-  EXPECT_GT(smallest_ratio(g, reference, uv), 0.5);
+  expect_lifted_with_free_border(g, reference, uv);
   EXPECT_LT(uv(pushed, 1), 30.0);
-  EXPECT_FALSE(boundary_crosses(g.triangles, uv));
 }
 
 }  // namespace
