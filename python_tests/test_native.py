@@ -532,7 +532,9 @@ def test_a_dense_atlas_keeps_its_density_by_default(native, scans):
     result = native.defragment(*dense)
     assert result["report"]["scale"] == 1.0 and not result["report"]["shrunk"]
     m = native.measure(*dense, result["uvs"], result["face_page"], result["page_sizes"])
-    assert m["map"]["density_loss_area_share"] < 0.01
+    # No face below half its density (0.014% of the surface before the border
+    # relaxation after the refinements).
+    assert m["map"]["density_loss_area_share"] == 0
     # Its small page gets padding in proportion (at least 2 texels): fewer
     # texels than with the full 4 texels on every page.
     assert result["page_padding"].tolist() == [2] * len(result["page_sizes"])
