@@ -10,6 +10,7 @@
 #include "core/mesh.hpp"
 #include "io/byte_pixels.hpp"
 #include "io/png_rows.hpp"
+#include "io/zlib_stream.hpp"
 
 namespace atlas {
 namespace {
@@ -103,6 +104,45 @@ TEST(PngRows, RefusesBadFilterBytesSizesAndChannels) {
                InputError);
   EXPECT_THROW(png::unfilter_rows(im.scanlines.data(), im.scanlines.size(), 4, 3, 2, out.data()), InputError);
   EXPECT_THROW(png::unfilter_rows(im.scanlines.data(), im.scanlines.size(), 0, 3, 4, out.data()), InputError);
+}
+
+// data compressed at `level`, as many bytes as the stream took.
+Bytes compressed(const Bytes& data, int level) {
+  Bytes out(zlib_stream::bound(data.size()));
+  out.resize(zlib_stream::compress(data.data(), data.size(), level, out.data()));
+  return out;
+}
+
+TEST(ZlibStream, InflatesWhatItCompressesAtEveryLevel) {
+  std::mt19937 rng(5);
+  Bytes noisy(70000), smooth(70000);
+  for (size_t i = 0; i < noisy.size(); ++i) {
+    noisy[i] = static_cast<std::uint8_t>(rng());
+    smooth[i] = static_cast<std::uint8_t>(i / 300);
+  }
+  for (const Bytes* data : {&noisy, &smooth})
+    for (int level : {0, 1, 6, 12}) {
+      const Bytes stream = compressed(*data, level);
+      Bytes back(data->size());
+      zlib_stream::inflate(stream.data(), stream.size(), back.data(), back.size());
+      EXPECT_EQ(back, *data) << "level " << level;
+    }
+  EXPECT_LT(compressed(smooth, 1).size(), smooth.size() / 20);
+  EXPECT_THROW(compressed(smooth, 13), InputError);
+  EXPECT_THROW(compressed(smooth, -1), InputError);
+}
+
+TEST(ZlibStream, RefusesBrokenStreamsAndWrongSizes) {
+  const Bytes data(5000, 7);
+  const Bytes stream = compressed(data, 1);
+  Bytes out(data.size() + 1);
+  EXPECT_NO_THROW(zlib_stream::inflate(stream.data(), stream.size(), out.data(), data.size()));
+  EXPECT_THROW(zlib_stream::inflate(stream.data(), stream.size(), out.data(), data.size() + 1), InputError);
+  EXPECT_THROW(zlib_stream::inflate(stream.data(), stream.size(), out.data(), data.size() - 1), InputError);
+  Bytes bad_checksum = stream;
+  bad_checksum.back() ^= 1;  // the Adler-32's last byte
+  EXPECT_THROW(zlib_stream::inflate(bad_checksum.data(), bad_checksum.size(), out.data(), data.size()), InputError);
+  EXPECT_THROW(zlib_stream::inflate(stream.data(), stream.size() / 2, out.data(), data.size()), InputError);
 }
 
 TEST(BytesFromUnitFloats, GivesBytesBackAndClamps) {

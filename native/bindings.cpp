@@ -9,6 +9,9 @@
 #include <cstdint>
 #include <new>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "bake/bake.hpp"
 #include "charts/chart_graph.hpp"
@@ -16,6 +19,7 @@
 #include "io/byte_pixels.hpp"
 #include "io/obj_file.hpp"
 #include "io/png_rows.hpp"
+#include "io/zlib_stream.hpp"
 #include "metrics.hpp"
 #include "pipeline.hpp"
 
@@ -453,18 +457,40 @@ void write_obj_py(const std::string& path, const std::string& library, const py:
   obj::write_obj(path, library, points, faces, corner_uv, material, materials);
 }
 
-py::array_t<std::uint8_t> png_rows_py(const py::buffer& scanlines, int width, int height,
-                                     int channels) {
-  const py::buffer_info in = scanlines.request();
+// A flat, contiguous byte buffer's start and length.
+std::pair<const std::uint8_t*, std::size_t> flat_bytes(const py::buffer& buffer, const char* name) {
+  const py::buffer_info in = buffer.request();
   if (in.itemsize != 1 || in.ndim != 1 || (in.size > 1 && in.strides[0] != 1))
-    throw py::value_error("scanlines must be a contiguous flat buffer of bytes");
-  png::check_sizes(static_cast<std::size_t>(in.size), width, height, channels);
+    throw py::value_error(std::string(name) + " must be a contiguous flat buffer of bytes");
+  return {static_cast<const std::uint8_t*>(in.ptr), static_cast<std::size_t>(in.size)};
+}
+
+py::array_t<std::uint8_t> png_pixels_py(const py::buffer& idat, int width, int height, int channels) {
+  const auto [data, size] = flat_bytes(idat, "idat");
+  // Allocated first: a size that fits in memory cannot overflow the row count below.
   py::array_t<std::uint8_t> out({py::ssize_t(height), py::ssize_t(width), py::ssize_t(channels)});
-  const auto* data = static_cast<const std::uint8_t*>(in.ptr);
+  const std::size_t scanline_bytes = std::size_t(height) * (1 + std::size_t(width) * std::size_t(channels));
+  png::check_sizes(scanline_bytes, width, height, channels);
   std::uint8_t* dst = out.mutable_data();
   py::gil_scoped_release release;
-  png::unfilter_rows(data, static_cast<std::size_t>(in.size), width, height, channels, dst);
+  std::vector<std::uint8_t> scanlines(scanline_bytes);
+  zlib_stream::inflate(data, size, scanlines.data(), scanline_bytes);
+  png::unfilter_rows(scanlines.data(), scanline_bytes, width, height, channels, dst);
   return out;
+}
+
+py::array_t<std::uint8_t> zlib_compress_py(const py::buffer& data, int level) {
+  const auto [bytes, size] = flat_bytes(data, "data");
+  // Pages of the bound that the stream does not reach are never touched, so
+  // the array costs about the stream's own size in memory.
+  py::array_t<std::uint8_t> out(py::ssize_t(zlib_stream::bound(size)));
+  std::uint8_t* dst = out.mutable_data();
+  std::size_t written;
+  {
+    py::gil_scoped_release release;
+    written = zlib_stream::compress(bytes, size, level, dst);
+  }
+  return out[py::slice(0, py::ssize_t(written), 1)].cast<py::array_t<std::uint8_t>>();
 }
 
 py::array_t<std::uint8_t> bytes_from_unit_floats_py(const py::array& values, int kept) {
@@ -857,12 +883,18 @@ clipped into ears in their plane. ValueError naming the line on malformed input.
 of uvs (F,3,2), and faces grouped by face_material (F,) in ascending order, each group
 after `usemtl materials[m]`. Positions exactly (shortest round trip), UVs as %.9g.)");
 
-  m.def("png_rows", &png_rows_py, py::arg("scanlines"), py::arg("width"), py::arg("height"),
+  m.def("png_pixels", &png_pixels_py, py::arg("idat"), py::arg("width"), py::arg("height"),
         py::arg("channels"),
-        R"(The pixels of a non-interlaced 8-bit RGB (channels 3) or RGBA (4) PNG from its
-inflated IDAT data (height rows of a filter byte and width * channels bytes, top row
-first): (height, width, channels) uint8, row 0 at the BOTTOM, as Blender stores images.
-ValueError on a bad filter byte or size.)");
+        R"(The pixels of a non-interlaced 8-bit RGB (channels 3) or RGBA (4) PNG from its IDAT
+data (the chunks' bytes joined: one zlib stream of height rows of a filter byte and
+width * channels bytes, top row first): (height, width, channels) uint8, row 0 at the
+BOTTOM, as Blender stores images. ValueError on a broken stream, one holding more or fewer
+bytes than the rows, or a bad filter byte.)");
+
+  m.def("zlib_compress", &zlib_compress_py, py::arg("data"), py::arg("level") = 1,
+        R"(data (a flat byte buffer) as one zlib stream (RFC 1950), uint8 (n,), at level 1
+(the fastest) .. 12 (the smallest; 0 stores the bytes). One thread; the GIL is released,
+so several calls run side by side.)");
 
   m.def("bytes_from_unit_floats", &bytes_from_unit_floats_py, py::arg("values"), py::arg("kept") = 0,
         R"(uint8 pixels of values (float32, (..., C)): v * 255 + 0.5 truncated, clamped to 0-255,

@@ -681,15 +681,37 @@ def test_bytes_from_unit_floats_gives_bytes_back_in_their_shape(native):
         native.bytes_from_unit_floats(values.ravel())
 
 
-def test_png_rows_checks_its_sizes(native):
+def test_png_pixels_checks_its_stream_and_sizes(native):
+    import zlib
+
     rows = np.zeros(3 * (1 + 4 * 3), np.uint8)
-    assert native.png_rows(rows, 4, 3, 3).shape == (3, 4, 3)
-    with pytest.raises(ValueError, match="bytes"):
-        native.png_rows(rows[:-1], 4, 3, 3)
+    assert native.png_pixels(zlib.compress(rows.tobytes()), 4, 3, 3).shape == (3, 4, 3)
+    with pytest.raises(ValueError, match="fewer bytes"):
+        native.png_pixels(zlib.compress(rows[:-1].tobytes()), 4, 3, 3)
+    with pytest.raises(ValueError, match="more bytes"):
+        native.png_pixels(zlib.compress(rows.tobytes() + b"\0"), 4, 3, 3)
+    with pytest.raises(ValueError, match="broken"):
+        native.png_pixels(zlib.compress(rows.tobytes())[:-1], 4, 3, 3)
     with pytest.raises(ValueError, match="contiguous"):
-        native.png_rows(np.zeros(2 * rows.size, np.uint8)[::2], 4, 3, 3)
+        native.png_pixels(np.zeros(2 * rows.size, np.uint8)[::2], 4, 3, 3)
     with pytest.raises(ValueError, match="channels"):
-        native.png_rows(rows, 4, 3, 1000)
+        native.png_pixels(zlib.compress(rows.tobytes()), 4, 3, 5)
     rows[0] = 7
     with pytest.raises(ValueError, match="filter type 7"):
-        native.png_rows(rows, 4, 3, 3)
+        native.png_pixels(zlib.compress(rows.tobytes()), 4, 3, 3)
+
+
+def test_zlib_compress_makes_a_stream_zlib_inflates(native):
+    import zlib
+
+    noisy = np.random.default_rng(4).integers(0, 256, 100000, dtype=np.uint8)
+    smooth = np.repeat(np.arange(250, dtype=np.uint8), 400)
+    for data in (noisy, smooth, np.zeros(0, np.uint8)):
+        for level in (0, 1, 12):
+            stream = native.zlib_compress(data, level)
+            assert stream.dtype == np.uint8 and zlib.decompress(stream.tobytes()) == data.tobytes()
+    assert native.zlib_compress(smooth, 1).size < smooth.size // 20
+    with pytest.raises(ValueError, match="level"):
+        native.zlib_compress(smooth, 13)
+    with pytest.raises(ValueError, match="contiguous"):
+        native.zlib_compress(smooth[::2])

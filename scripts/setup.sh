@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 missing=()
-for pkg in blender python3-numpy libeigen3-dev googletest libgtest-dev cmake g++ make python3-venv \
+for pkg in blender python3-numpy libeigen3-dev libdeflate-dev googletest libgtest-dev cmake g++ make python3-venv \
            assimp-testmodels xvfb xauth parallel; do
   dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
 done

@@ -198,7 +198,7 @@ def load_checked(args):
 
 def run_job(args, scan):
     """(job input, result, the input atlas's measures pending or None). The
-    images decode without the GIL (zlib and native row filters for PNGs,
+    images decode without the GIL (libdeflate and row filters, natively, for PNGs,
     Pillow for the others), beside the layout, and the input's own atlas is
     measured after that, where the layout leaves a core idle."""
     chosen = job.Options(**{o.name: getattr(args, o.name) for o in options.SCHEMA})

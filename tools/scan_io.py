@@ -63,8 +63,8 @@ class Scan:
 def load_image(source) -> np.ndarray:
     """(H, W, C) uint8 with row 0 at the bottom (v = 0), as Blender stores
     pixels; C is 1 (grey), 3 or 4. 8-bit RGB and RGBA PNGs are decoded as the
-    add-on decodes them (png_files.decode_png: zlib, then the row filters
-    undone natively straight into Blender's row order, skipping Pillow's copy
+    add-on decodes them (png_files.decode_png: libdeflate, then the row
+    filters undone natively straight into Blender's row order, skipping Pillow's copy
     into numpy and the flip); other files, and PNGs it refuses, by Pillow."""
     from PIL import Image
     from atlas_defrag import png_files

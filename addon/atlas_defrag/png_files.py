@@ -2,11 +2,11 @@
 """8-bit PNG files to and from numpy arrays: grey, RGB and RGBA written,
 RGB and RGBA read.
 
-Blender's Image.save() encodes one image at a time on one core. zlib releases
-the GIL, so here the images of a job, and the parts of a large image, are
-compressed side by side. Reading, Blender hands out pixels only as floats,
-after holding the image as its own buffer: inflating the file again and
-undoing its row filters natively (decode_png) skips both copies. No bpy in
+Blender's Image.save() encodes one image at a time on one core, with zlib.
+Here the pixel data is compressed and inflated natively (_native.zlib_compress
+and png_pixels, through libdeflate, which releases the GIL), the images of a
+job side by side. Reading, Blender hands out pixels only as floats, after
+holding the image as its own buffer: decode_png skips both copies. No bpy in
 this module.
 """
 
@@ -17,31 +17,21 @@ import os
 import struct
 import zlib
 from concurrent.futures import ThreadPoolExecutor
-from typing import BinaryIO, Iterable, List, Optional, Tuple
+from typing import BinaryIO, Iterable, Optional, Tuple
 
 import numpy as np
 
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _UP_FILTER = 2  # each byte minus the byte above it, modulo 256 (PNG spec 9.2)
-# Scanline bytes compressed as one part: an image larger than this is split
-# into parts that compress on separate threads, joined as one zlib stream
-# (each part ends on a byte boundary by a sync flush). Parts this large make
-# the dictionary reset at each start negligible.
-_PART_BYTES = 8 << 20
-_ZLIB_HEADER = b"\x78\x01"  # deflate, 32K window, the fastest level
-_ADLER_BASE = 65521
+_LEVEL = 1  # the fastest: baked textures gain little from slower ones (bench/README.md)
 
 
-def _write_chunk(out: BinaryIO, kind: bytes, pieces: List[bytes]) -> None:
-    """One chunk whose data is the pieces in order, written piece by piece:
-    a large image's data is never joined into one more copy of itself."""
-    crc = zlib.crc32(kind)
-    for piece in pieces:
-        crc = zlib.crc32(piece, crc)
-    out.write(struct.pack(">I", sum(len(piece) for piece in pieces)) + kind)
-    for piece in pieces:
-        out.write(piece)
-    out.write(struct.pack(">I", crc & 0xFFFFFFFF))
+def _write_chunk(out: BinaryIO, kind: bytes, data) -> None:
+    """One chunk: length, type, data (any bytes-like object, written as it
+    is: a large image's stream is not copied again) and CRC."""
+    out.write(struct.pack(">I", len(data)) + kind)
+    out.write(data)
+    out.write(struct.pack(">I", zlib.crc32(data, zlib.crc32(kind)) & 0xFFFFFFFF))
 
 
 _COLOUR_TYPE = {1: 0, 3: 2, 4: 6}  # channels -> PNG colour type: greyscale, truecolour, truecolour with alpha
@@ -52,8 +42,8 @@ HEADER_BYTES = 33  # signature, then the IHDR chunk: length, type, 13 bytes, CRC
 
 def _scanlines(pixels: np.ndarray) -> np.ndarray:
     """(H, 1 + W C) filtered rows, top row first: each row starts with its
-    filter type, Up: with zlib's fastest level it compresses baked textures
-    nearly as well as slower levels, in a fraction of their time
+    filter type, Up: at the fastest deflate level it compresses baked
+    textures nearly as well as slower levels, in a fraction of their time
     (bench/README.md)."""
     if pixels.dtype != np.uint8 or pixels.ndim != 3 or pixels.shape[2] not in _COLOUR_TYPE:
         raise ValueError(f"encode_png needs (H, W, 1, 3 or 4) uint8 pixels, got {pixels.shape} {pixels.dtype}")
@@ -66,67 +56,38 @@ def _scanlines(pixels: np.ndarray) -> np.ndarray:
     return scanlines
 
 
-def _parts(scanlines: np.ndarray) -> List[memoryview]:
-    rows_per_part = max(1, _PART_BYTES // scanlines.shape[1])
-    flat = memoryview(scanlines).cast("B")
-    step = rows_per_part * scanlines.shape[1]
-    return [flat[i:i + step] for i in range(0, len(flat), step)]
-
-
-def _deflate(part: memoryview, last: bool) -> Tuple[Tuple[bytes, bytes], int]:
-    """Raw deflate of one part, as the compressor's two outputs, and its Adler-32."""
-    compressor = zlib.compressobj(1, zlib.DEFLATED, -15)
-    data = (compressor.compress(part), compressor.flush(zlib.Z_FINISH if last else zlib.Z_SYNC_FLUSH))
-    return data, zlib.adler32(part)
-
-
-def _adler32_combine(first: int, second: int, second_length: int) -> int:
-    """Adler-32 of two byte strings joined, from theirs (as zlib's adler32_combine)."""
-    rem = second_length % _ADLER_BASE
-    low = (first & 0xFFFF) + (second & 0xFFFF) + _ADLER_BASE - 1
-    high = (rem * (first & 0xFFFF)) % _ADLER_BASE + (first >> 16) + (second >> 16) + _ADLER_BASE - rem
-    return (low % _ADLER_BASE) | ((high % _ADLER_BASE) << 16)
-
-
-def _write_png(out: BinaryIO, pixels: np.ndarray, compressed: List[Tuple[Tuple[bytes, bytes], int]],
-               lengths: List[int]) -> None:
+def _write_png(out: BinaryIO, pixels: np.ndarray, stream: np.ndarray) -> None:
+    """The PNG of pixels whose rows compress to the zlib stream `stream`."""
     height, width, channels = pixels.shape
-    adler = 1
-    for (_, part_adler), length in zip(compressed, lengths):
-        adler = _adler32_combine(adler, part_adler, length)
-    idat = [_ZLIB_HEADER] + [piece for data, _ in compressed for piece in data] + [struct.pack(">I", adler)]
-    header = struct.pack(">IIBBBBB", width, height, 8, _COLOUR_TYPE[channels], 0, 0, 0)  # 8-bit, no interlace
+    header = _IHDR.pack(width, height, 8, _COLOUR_TYPE[channels], 0, 0, 0)  # 8-bit, no interlace
     out.write(SIGNATURE)
-    _write_chunk(out, b"IHDR", [header])
-    _write_chunk(out, b"IDAT", idat)
-    _write_chunk(out, b"IEND", [])
+    _write_chunk(out, b"IHDR", header)
+    _write_chunk(out, b"IDAT", memoryview(stream))
+    _write_chunk(out, b"IEND", b"")
+
+
+def _compressed_rows(pixels: np.ndarray) -> np.ndarray:
+    from . import _native
+    return _native.zlib_compress(_scanlines(pixels).reshape(-1), _LEVEL)
 
 
 def encode_png(pixels: np.ndarray) -> bytes:
     """(H, W, 1, 3 or 4) uint8 pixels, row 0 at the bottom as Blender stores them, as a PNG."""
-    parts = _parts(_scanlines(pixels))
     out = io.BytesIO()
-    _write_png(out, pixels, [_deflate(part, i == len(parts) - 1) for i, part in enumerate(parts)],
-               [len(p) for p in parts])
+    _write_png(out, pixels, _compressed_rows(pixels))
     return out.getvalue()
 
 
 def write_pngs(files: Iterable[Tuple[str, np.ndarray]]) -> None:
-    """Writes each (path, pixels) as encode_png does, the parts of every image
-    compressed together, one thread per core."""
+    """Writes each (path, pixels) as encode_png does, the images compressed
+    side by side, one thread per core."""
     files = list(files)
-    workers = max(1, os.cpu_count() or 1)
+    workers = max(1, min(len(files), os.cpu_count() or 1))
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        # Every part of every image is queued before any image waits for its own.
-        jobs = []
-        for path, pixels in files:
-            parts = _parts(_scanlines(pixels))
-            futures = [pool.submit(_deflate, part, i == len(parts) - 1) for i, part in enumerate(parts)]
-            jobs.append((path, pixels, parts, futures))
-        for path, pixels, parts, futures in jobs:
-            compressed = [future.result() for future in futures]
+        streams = [pool.submit(_compressed_rows, pixels) for _, pixels in files]  # all queued first
+        for (path, pixels), stream in zip(files, streams):
             with open(path, "wb") as f:
-                _write_png(f, pixels, compressed, [len(p) for p in parts])
+                _write_png(f, pixels, stream.result())
 
 
 # --------------------------------------------------------------------------- reading
@@ -232,10 +193,9 @@ def decode_png(data: bytes) -> np.ndarray:
     if expected > _MAX_INFLATION * len(compressed) + 1024:
         raise ValueError(f"PNG header claims {width}x{height} pixels, more than its data holds")
     try:
-        scanlines = zlib.decompress(compressed, bufsize=expected)
-    except zlib.error as exc:
+        return _native.png_pixels(compressed, width, height, channels)
+    except ValueError as exc:
         raise ValueError(f"PNG pixel data is broken: {exc}") from exc
-    return _native.png_rows(scanlines, width, height, channels)
 
 
 def decode_png_or_none(data: Optional[bytes]) -> Optional[np.ndarray]:

@@ -702,8 +702,8 @@ class PendingImage:
 
 def _read_images(pages: List[SourcePage]) -> Dict[str, PendingImage]:
     """Every image of the pages, its pixels pending (PendingImage): plain
-    PNGs start decoding from their files at once, side by side (zlib and the
-    native row filters release the GIL)."""
+    PNGs start decoding from their files at once, side by side (the native
+    inflate and row filters release the GIL)."""
     import bpy
 
     names = list(dict.fromkeys(m.image for page in pages for m in page.maps))

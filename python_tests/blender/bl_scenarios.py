@@ -449,7 +449,7 @@ def filtered_png(pixels, chunks=()) -> bytes:
     out.write(png_files.SIGNATURE)
     for kind, data in [(b"IHDR", header)] + list(chunks) + [(b"IDAT", zlib.compress(scanlines.tobytes())),
                                                            (b"IEND", b"")]:
-        png_files._write_chunk(out, kind, [data])
+        png_files._write_chunk(out, kind, data)
     return out.getvalue()
 
 

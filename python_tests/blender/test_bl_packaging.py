@@ -28,8 +28,8 @@ def test_zip_layout(addon_zip):
     names = zipfile.ZipFile(addon_zip).namelist()
     files = {n for n in names if not n.endswith("/")}
     assert all(n.startswith("atlas_defrag/") for n in names), names
-    for need in ("__init__.py", "blender_manifest.toml", "LICENSE", "batch.py", "job.py", "operators.py",
-                 "read_bpy.py", "write_bpy.py", "api.py", "compat.py"):
+    for need in ("__init__.py", "blender_manifest.toml", "LICENSE", "LICENSE-libdeflate", "batch.py", "job.py",
+                 "operators.py", "read_bpy.py", "write_bpy.py", "api.py", "compat.py"):
         assert f"atlas_defrag/{need}" in files, need
     assert any(n.startswith("atlas_defrag/_native") and n.endswith(".so") for n in files), files
     # Every .py of the source folder is shipped (flat, no subpackages).
