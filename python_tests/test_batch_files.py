@@ -321,3 +321,42 @@ def test_the_report_is_written_whole_and_never_over_another_file(tmp_path):
     with pytest.raises(FileExistsError):
         batch._write_report(str(report), {"status": "error"})
     assert clash.read_text() == "the user's" and json.loads(report.read_text()) == {"status": "ok"}
+
+
+def test_cached_bytecode_counts_only_when_compiled_from_the_source_as_it_is(tmp_path, monkeypatch):
+    """The batch entry writes the bytecode of modules Blender imported before
+    it ran unless the cache holds it already: a stale one (the source changed
+    since, as after an upgrade) is written again."""
+    import py_compile
+
+    monkeypatch.setattr("sys.pycache_prefix", str(tmp_path / "cache"))
+    source = tmp_path / "scripts" / "startup_module.py"
+    source.parent.mkdir()
+    source.write_text("X = 1\n")
+    assert not batch._bytecode_current(str(source))
+    py_compile.compile(str(source), cfile=batch.importlib.util.cache_from_source(str(source)),
+                       invalidation_mode=py_compile.PycInvalidationMode.TIMESTAMP)
+    assert batch._bytecode_current(str(source))
+    source.write_text("X = 22\n")  # another size
+    assert not batch._bytecode_current(str(source))
+    py_compile.compile(str(source), cfile=batch.importlib.util.cache_from_source(str(source)),
+                       invalidation_mode=py_compile.PycInvalidationMode.TIMESTAMP)
+    st = source.stat()
+    os.utime(source, (st.st_atime, st.st_mtime - 100))  # same size, older
+    assert not batch._bytecode_current(str(source))
+
+
+def test_the_many_models_form_starts_blender_reading_the_bytecode_cache(monkeypatch):
+    monkeypatch.delenv("PYTHONPYCACHEPREFIX", raising=False)
+    assert batch._blender_env("blender")["PYTHONPYCACHEPREFIX"] == batch.bytecode_cache_dir()
+    monkeypatch.setenv("PYTHONPYCACHEPREFIX", "/elsewhere")
+    assert batch._blender_env("blender")["PYTHONPYCACHEPREFIX"] == "/elsewhere"
+
+
+def test_a_bytecode_cache_that_cannot_be_written_costs_only_time(tmp_path, monkeypatch):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    monkeypatch.setattr("sys.pycache_prefix", str(blocker / "cache"))  # no folder can be made there
+    monkeypatch.setattr("sys.dont_write_bytecode", True)
+    batch._cache_bytecode()
+    assert not (tmp_path / "cache").exists() and blocker.is_file()

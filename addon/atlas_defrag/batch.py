@@ -26,10 +26,12 @@ import importlib
 import importlib.util
 import json
 import os
+import py_compile
 import re
 import shutil
 import signal
 import stat
+import struct
 import subprocess
 import sys
 import tempfile
@@ -925,21 +927,45 @@ def bytecode_cache_dir() -> str:
 
 def _cache_bytecode() -> None:
     """Blender turns Python's bytecode cache off (sys.dont_write_bytecode), and
-    a Blender whose add-ons ship without one (Debian's) compiles the glTF
-    add-on and this package again in every batch process: a tenth of a second
-    each, for every model of a collection. The cache goes to
-    bytecode_cache_dir(), apart from the sources, so that read-only installs
-    stay untouched. A prefix set already is kept; a directory that cannot be
-    made leaves the cache off."""
-    if sys.pycache_prefix is not None:
-        return
-    path = bytecode_cache_dir()
-    try:
-        os.makedirs(path, mode=0o700, exist_ok=True)
-    except OSError:
-        return
-    sys.pycache_prefix = path
+    a Blender whose scripts ship without one (Debian's) compiles its start-up
+    modules, the glTF add-on and this package again in every batch process:
+    about a third of a second each, for every model of a collection. The cache
+    goes to bytecode_cache_dir() (or to the PYTHONPYCACHEPREFIX Blender was
+    started with), apart from the sources, so that read-only installs stay
+    untouched. Blender's start-up reads it only when started with that
+    variable (README, the many-models entry sets it); the modules it imported
+    before this script ran are written here, once (a second or two on the
+    first run). A directory that cannot be made leaves the cache off."""
+    if sys.pycache_prefix is None:
+        path = bytecode_cache_dir()
+        try:
+            os.makedirs(path, mode=0o700, exist_ok=True)
+        except OSError:
+            return
+        sys.pycache_prefix = path
     sys.dont_write_bytecode = False
+    for module in list(sys.modules.values()):
+        source = getattr(module, "__file__", None)
+        if source and source.endswith(".py") and not _bytecode_current(source):
+            try:  # a cache that cannot be written costs only time
+                py_compile.compile(source, cfile=importlib.util.cache_from_source(source), quiet=2,
+                                   invalidation_mode=py_compile.PycInvalidationMode.TIMESTAMP)
+            except OSError:
+                pass
+
+
+def _bytecode_current(source: str) -> bool:
+    """Whether the cached bytecode of source is there and was compiled from it
+    as it is now (the header Python checks: magic number, no flags, the
+    source's mtime and size, PEP 552)."""
+    try:
+        with open(importlib.util.cache_from_source(source), "rb") as f:
+            header = f.read(16)
+        st = os.stat(source)
+    except OSError:
+        return False
+    return header == importlib.util.MAGIC_NUMBER + struct.pack(
+        "<III", 0, int(st.st_mtime) & 0xFFFFFFFF, st.st_size & 0xFFFFFFFF)
 
 
 def main_single(argv) -> int:
@@ -1116,12 +1142,14 @@ def _output_names(files, out_dir: str, fmt: str) -> list:
 
 
 def _blender_env(blender: str) -> dict:
-    """The environment for Blender: no Python variables of this interpreter,
-    and Blender's own folder first on PATH. A Blender linked against the
+    """The environment for Blender: no Python variables of this interpreter
+    but the bytecode cache's (_cache_bytecode), and Blender's own folder first
+    on PATH. A Blender linked against the
     system Python takes its prefix from the first python3 on PATH: a virtualenv
     or pyenv python3 there would hide the system numpy."""
     env = {k: v for k, v in os.environ.items()
            if k not in ("PYTHONHOME", "PYTHONPATH", "VIRTUAL_ENV", "PYTHONSTARTUP", "PYTHONUSERBASE")}
+    env.setdefault("PYTHONPYCACHEPREFIX", bytecode_cache_dir())  # Blender's start-up reads the cache too
     exe = shutil.which(blender)
     if exe:
         env["PATH"] = os.pathsep.join([os.path.dirname(os.path.realpath(exe)), env.get("PATH", "")])

@@ -78,8 +78,19 @@ def test_batch34_glb_to_glb(tmp_path):
     _check_glb(out)
     # Blender writes no bytecode; the batch entry caches the glTF add-on's and
     # its own in the user's cache, so the next model's process need not compile them.
-    compiled = {p.name.split(".")[0] for p in (cache / "atlas_defrag" / "pycache").rglob("*.pyc")}
-    assert {"gltf2_blender_export", "gltf2_blender_gltf", "write_bpy", "api"} <= compiled, sorted(compiled)
+    prefix = cache / "atlas_defrag" / "pycache"
+    pycs = list(prefix.rglob("*.pyc"))
+    named = {p.name.split(".")[0] for p in pycs}
+    assert {"gltf2_blender_export", "gltf2_blender_gltf", "write_bpy", "api"} <= named, sorted(named)
+    # So are Blender's start-up scripts, imported before the entry ran; a
+    # Blender started with PYTHONPYCACHEPREFIX naming the cache reads them
+    # (Python's verbose flag names each code object read from a file).
+    startup = [p for p in pycs if p.parent.name == "bl_ui" and p.name.startswith("__init__.")]
+    assert startup, sorted(named)
+    proc = blender34_batch(BOX_GLB, tmp_path / "again.glb",
+                           env={"XDG_CACHE_HOME": str(cache), "PYTHONPYCACHEPREFIX": str(prefix), "PYTHONVERBOSE": "1"})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert f"code object from '{startup[0]}'" in proc.stderr, proc.stderr[-3000:]
 
 
 def _check_glb(path):
