@@ -7,6 +7,7 @@ For every model, in one run and one after another (never two jobs at once):
     wall time including Blender's start, import and export; output in the input's format;
   * Atlas Defrag through the numpy path (tools/scan_io + atlas_defrag.job, as tools/defrag_scan.py);
   * Smart UV Project + Cycles EMIT bake in Blender (bench/blender_route.py).
+Both Blender routes start with PYTHONPYCACHEPREFIX, as the README's batch command does.
 Each job is a child process: wall time, peak resident memory (wait4), and the CPU
 time other processes took meanwhile. Every route's new UVs and baked colour are
 then measured by the same code (_native.measure, _native.compare_colors with
@@ -55,6 +56,15 @@ TEXTURE_DEFRAG = {"meshroom": (124, 12.1), "smithsonian": (1719, 62.4), "tetra":
 # Issue 12's targets: at most (charts, seam) per real scan.
 ISSUE_12_BOUNDS = {"meshroom": (90, 10.0), "smithsonian": (300, 40.0), "tetra": (80, 19.0)}
 BATCH = SNAPSHOT / "atlas_defrag" / "batch.py"
+
+
+def with_bytecode_cache(cmd: list) -> list:
+    """cmd started as the README starts Blender for the batch entry: with
+    PYTHONPYCACHEPREFIX naming the batch entry's bytecode cache, so that
+    Blender reads its start-up scripts compiled. Both Blender routes get it."""
+    sys.path.insert(0, str(REPO / "build" / "addon"))
+    from atlas_defrag.batch import bytecode_cache_dir
+    return ["env", f"PYTHONPYCACHEPREFIX={bytecode_cache_dir()}"] + cmd
 ROUTES = ("batch", "numpy", "smartuv")
 ROUTE_NAMES = {"input": "input", "batch": "Atlas Defrag, Blender batch",
                "numpy": "Atlas Defrag, numpy path", "smartuv": "Smart UV Project + Cycles bake"}
@@ -446,8 +456,8 @@ def run_model(name: str, path: Path, work: Path, args) -> dict:
         out = mdir / "batch" / f"{path.stem}_defrag{'.obj' if ext == '.obj' else '.glb'}"
         out.parent.mkdir()
         rep = mdir / "batch" / "report.json"
-        cmd = [blender, "--background", "--factory-startup", "--python-exit-code", "1", "--python", BATCH,
-               "--", path, out, "--report", rep]
+        cmd = with_bytecode_cache([blender, "--background", "--factory-startup", "--python-exit-code", "1",
+                                   "--python", BATCH, "--", path, out, "--report", rep])
         run = run_child(cmd, mdir / "batch.log", f"{name}: Atlas Defrag, Blender batch", args.timeout)
         r = {"run": run}
         if run["rc"] == 0 and rep.exists():
@@ -482,8 +492,8 @@ def run_model(name: str, path: Path, work: Path, args) -> dict:
 
     if "smartuv" in args.routes:
         sdir = mdir / "smartuv"
-        cmd = [blender, "--background", "--factory-startup", "--python-exit-code", "1", "--python",
-               HERE / "blender_route.py", "--", path, sdir, "--samples", args.samples]
+        cmd = with_bytecode_cache([blender, "--background", "--factory-startup", "--python-exit-code", "1",
+                                   "--python", HERE / "blender_route.py", "--", path, sdir, "--samples", args.samples])
         run = run_child(cmd, mdir / "smartuv.log", f"{name}: Smart UV Project + Cycles bake", args.timeout)
         r = {"run": run}
         if run["rc"] == 0 and (sdir / "route.json").exists():

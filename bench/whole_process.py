@@ -37,7 +37,7 @@ REPO = HERE.parent
 sys.path.insert(0, str(HERE))
 
 from profile_stages import LARGE, SCANS, replace_section  # noqa: E402
-from run_benchmark import _SPAWN, host_speed_seconds  # noqa: E402
+from run_benchmark import _SPAWN, host_speed_seconds, with_bytecode_cache  # noqa: E402
 
 SECTION = "## Whole process"
 # Issue 13's targets: seconds, and for the large scan peak memory in GB.
@@ -45,14 +45,6 @@ TARGETS = {"CLI, smithsonian": 2.4, "CLI with metrics, smithsonian": 2.4, "CLI, 
            "CLI with metrics, meshroom": 1.3, "batch, smithsonian": 4.0, "CLI, large": 20.0, "batch, large": 20.0,
            "batch to OBJ, large": 20.0}
 LARGE_MEMORY_GB = 3.0
-
-
-def bytecode_cache_dir() -> str:
-    """The batch entry's bytecode cache (batch.bytecode_cache_dir), shared by
-    both builds: Blender's start-up modules are the same for both."""
-    sys.path.insert(0, str(REPO / "build" / "addon"))
-    from atlas_defrag.batch import bytecode_cache_dir as cache_dir
-    return cache_dir()
 
 
 def metrics_flag(cli: list, checkout: Path) -> list:
@@ -68,7 +60,7 @@ def commands(checkout: Path, out: Path) -> dict:
     metrics = metrics_flag(cli, checkout)
     plain_batch = ["blender", "--background", "--factory-startup", "--python-exit-code", "1",
                    "--python", str(checkout / "build" / "addon" / "atlas_defrag" / "batch.py"), "--"]
-    batch = ["env", f"PYTHONPYCACHEPREFIX={bytecode_cache_dir()}"] + plain_batch
+    batch = with_bytecode_cache(plain_batch)
     jobs = {"CLI, smithsonian": cli + [str(SCANS["smithsonian"]), str(out / "cli_s")],
             "CLI with metrics, smithsonian": cli + [str(SCANS["smithsonian"]), str(out / "cli_s")] + metrics,
             "CLI, meshroom": cli + [str(SCANS["meshroom"]), str(out / "cli_m")],
