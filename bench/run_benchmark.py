@@ -56,18 +56,18 @@ TEXTURE_DEFRAG = {"meshroom": (124, 12.1), "smithsonian": (1719, 62.4), "tetra":
 # Issue 12's targets: at most (charts, seam) per real scan.
 ISSUE_12_BOUNDS = {"meshroom": (90, 10.0), "smithsonian": (300, 40.0), "tetra": (80, 19.0)}
 BATCH = SNAPSHOT / "atlas_defrag" / "batch.py"
+ROUTES = ("batch", "numpy", "smartuv")
+ROUTE_NAMES = {"input": "input", "batch": "Atlas Defrag, Blender batch",
+               "numpy": "Atlas Defrag, numpy path", "smartuv": "Smart UV Project + Cycles bake"}
 
 
 def with_bytecode_cache(cmd: list) -> list:
     """cmd started as the README starts Blender for the batch entry: with
     PYTHONPYCACHEPREFIX naming the batch entry's bytecode cache, so that
-    Blender reads its start-up scripts compiled. Both Blender routes get it."""
-    sys.path.insert(0, str(REPO / "build" / "addon"))
+    Blender reads its start-up scripts compiled. Both Blender routes get it.
+    (The add-on's folder is on sys.path from the top of this module.)"""
     from atlas_defrag.batch import bytecode_cache_dir
     return ["env", f"PYTHONPYCACHEPREFIX={bytecode_cache_dir()}"] + cmd
-ROUTES = ("batch", "numpy", "smartuv")
-ROUTE_NAMES = {"input": "input", "batch": "Atlas Defrag, Blender batch",
-               "numpy": "Atlas Defrag, numpy path", "smartuv": "Smart UV Project + Cycles bake"}
 
 
 def log(msg: str) -> None:
