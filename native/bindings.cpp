@@ -6,6 +6,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <new>
 #include <sstream>
@@ -457,16 +458,24 @@ void write_obj_py(const std::string& path, const std::string& library, const py:
   obj::write_obj(path, library, points, faces, corner_uv, material, materials);
 }
 
-// A flat, contiguous byte buffer's start and length.
-std::pair<const std::uint8_t*, std::size_t> flat_bytes(const py::buffer& buffer, const char* name) {
-  const py::buffer_info in = buffer.request();
+// A flat, contiguous byte buffer, exported for as long as this lives: while
+// the native code reads it without the GIL, a bytearray cannot be resized or
+// freed under it (Python raises BufferError instead). Destroy it with the GIL held.
+struct FlatBytes {
+  py::buffer_info info;
+  const std::uint8_t* data() const { return static_cast<const std::uint8_t*>(info.ptr); }
+  std::size_t size() const { return static_cast<std::size_t>(info.size); }
+};
+
+FlatBytes flat_bytes(const py::buffer& buffer, const char* name) {
+  py::buffer_info in = buffer.request();
   if (in.itemsize != 1 || in.ndim != 1 || (in.size > 1 && in.strides[0] != 1))
     throw py::value_error(std::string(name) + " must be a contiguous flat buffer of bytes");
-  return {static_cast<const std::uint8_t*>(in.ptr), static_cast<std::size_t>(in.size)};
+  return {std::move(in)};
 }
 
 py::array_t<std::uint8_t> png_pixels_py(const py::buffer& idat, int width, int height, int channels) {
-  const auto [data, size] = flat_bytes(idat, "idat");
+  const FlatBytes in = flat_bytes(idat, "idat");
   // Allocated first: a size that fits in memory cannot overflow the row count below.
   py::array_t<std::uint8_t> out({py::ssize_t(height), py::ssize_t(width), py::ssize_t(channels)});
   const std::size_t scanline_bytes = std::size_t(height) * (1 + std::size_t(width) * std::size_t(channels));
@@ -474,23 +483,24 @@ py::array_t<std::uint8_t> png_pixels_py(const py::buffer& idat, int width, int h
   std::uint8_t* dst = out.mutable_data();
   py::gil_scoped_release release;
   std::vector<std::uint8_t> scanlines(scanline_bytes);
-  zlib_stream::inflate(data, size, scanlines.data(), scanline_bytes);
+  zlib_stream::inflate(in.data(), in.size(), scanlines.data(), scanline_bytes);
   png::unfilter_rows(scanlines.data(), scanline_bytes, width, height, channels, dst);
   return out;
 }
 
 py::array_t<std::uint8_t> zlib_compress_py(const py::buffer& data, int level) {
-  const auto [bytes, size] = flat_bytes(data, "data");
-  // Pages of the bound that the stream does not reach are never touched, so
-  // the array costs about the stream's own size in memory.
-  py::array_t<std::uint8_t> out(py::ssize_t(zlib_stream::bound(size)));
-  std::uint8_t* dst = out.mutable_data();
-  std::size_t written;
+  const FlatBytes in = flat_bytes(data, "data");
+  std::vector<std::uint8_t> bounded;
   {
     py::gil_scoped_release release;
-    written = zlib_stream::compress(bytes, size, level, dst);
+    bounded.resize(zlib_stream::bound(in.size()));
+    bounded.resize(zlib_stream::compress(in.data(), in.size(), level, bounded.data()));
   }
-  return out[py::slice(0, py::ssize_t(written), 1)].cast<py::array_t<std::uint8_t>>();
+  // A stream of its own size: a view into the bound would keep an input-sized
+  // allocation alive, which counts in full where memory is not overcommitted.
+  py::array_t<std::uint8_t> out(py::ssize_t(bounded.size()));
+  std::copy(bounded.begin(), bounded.end(), out.mutable_data());
+  return out;
 }
 
 py::array_t<std::uint8_t> bytes_from_unit_floats_py(const py::array& values, int kept) {

@@ -3,6 +3,7 @@ a file cut short is caught from its ends, without reading large images whole."""
 import json
 import os
 import struct
+import sys
 import types
 
 import numpy as np
@@ -360,3 +361,55 @@ def test_a_bytecode_cache_that_cannot_be_written_costs_only_time(tmp_path, monke
     monkeypatch.setattr("sys.dont_write_bytecode", True)
     batch._cache_bytecode()
     assert not (tmp_path / "cache").exists() and blocker.is_file()
+
+
+def _count_compiles(monkeypatch, fail: bool) -> list:
+    calls = []
+
+    def compile_(source, **_):
+        calls.append(source)
+        if fail:
+            raise OSError(28, "No space left on device")
+    monkeypatch.setattr(batch.py_compile, "compile", compile_)
+    monkeypatch.setattr(batch, "_bytecode_current", lambda source: False)
+    monkeypatch.setattr("sys.dont_write_bytecode", True)
+    return calls
+
+
+def test_a_cache_folder_that_takes_no_file_compiles_nothing(tmp_path, monkeypatch):
+    """A compile costs as much whether its write succeeds or not: a cache that
+    exists but cannot be written to (read-only, owned by another user) would
+    make every process compile every start-up module for nothing."""
+    calls = _count_compiles(monkeypatch, fail=False)
+    monkeypatch.setattr("sys.pycache_prefix", str(tmp_path))
+
+    def refuse(*_, **__):
+        raise PermissionError(13, "Permission denied")
+    monkeypatch.setattr(batch.tempfile, "TemporaryFile", refuse)
+    batch._cache_bytecode()
+    assert calls == [] and sys.dont_write_bytecode
+
+
+def test_the_first_write_that_fails_ends_the_bytecode_cache(tmp_path, monkeypatch):
+    calls = _count_compiles(monkeypatch, fail=True)
+    monkeypatch.setattr("sys.pycache_prefix", str(tmp_path))
+    batch._cache_bytecode()
+    assert len(calls) == 1 and sys.dont_write_bytecode
+    calls = _count_compiles(monkeypatch, fail=False)
+    batch._cache_bytecode()
+    assert len(calls) > 1 and not sys.dont_write_bytecode
+
+
+def test_no_home_no_bytecode_cache(tmp_path, monkeypatch):
+    """Without HOME and a passwd entry, expanduser leaves '~' as it is: the
+    cache would otherwise land in a folder named '~' under the current one."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    monkeypatch.delenv("PYTHONPYCACHEPREFIX", raising=False)
+    monkeypatch.setattr(batch.os.path, "expanduser", lambda path: path)
+    monkeypatch.setattr("sys.pycache_prefix", None)
+    calls = _count_compiles(monkeypatch, fail=False)
+    assert batch.bytecode_cache_dir() == ""
+    batch._cache_bytecode()
+    assert calls == [] and "PYTHONPYCACHEPREFIX" not in batch._blender_env("blender")
+    assert list(tmp_path.iterdir()) == []

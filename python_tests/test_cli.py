@@ -534,3 +534,19 @@ def test_cli_lays_a_mesh_drawn_by_several_nodes_out_once(native, scans, scan_pat
     m = native.measure(written.positions, written.triangles[first], read.uvs[first], read.face_page[first],
                        read.page_sizes, written.uvs[first], written.face_page[first], written.page_sizes)
     assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
+
+
+def test_a_failed_image_write_leaves_no_files_behind(tmp_path, tool_env):
+    """Whatever stops the writing (here the PNG encoder, not the file system),
+    no OBJ is left naming images that were not written."""
+    source = _two_material_obj(tmp_path / "in", "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
+    out = tmp_path / "out"
+    code = ("import sys, defrag_scan\n"
+            "def broken(files): raise RuntimeError('the encoder broke')\n"
+            "defrag_scan.png_files.write_pngs = broken\n"
+            "sys.exit(defrag_scan.main(sys.argv[1:]))\n")
+    env = dict(tool_env, PYTHONPATH=os.pathsep.join([str(CLI.parent), tool_env["PYTHONPATH"]]))
+    run = subprocess.run([sys.executable, "-c", code, str(source), str(out)], capture_output=True, text=True,
+                         timeout=300, env=env)
+    assert run.returncode != 0 and "the encoder broke" in run.stderr
+    assert list(out.iterdir()) == []

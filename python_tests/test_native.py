@@ -715,3 +715,28 @@ def test_zlib_compress_makes_a_stream_zlib_inflates(native):
         native.zlib_compress(smooth, 13)
     with pytest.raises(ValueError, match="contiguous"):
         native.zlib_compress(smooth[::2])
+
+
+def test_zlib_compress_returns_a_stream_that_holds_only_itself(native):
+    """A view into the bound's buffer would keep an input-sized allocation
+    alive for as long as the stream lives."""
+    stream = native.zlib_compress(np.zeros(10 ** 7, np.uint8), 1)
+    assert stream.size < 10 ** 5 and (stream.base is None or stream.base.nbytes == stream.nbytes)
+
+
+def test_the_bytes_compressed_stay_held_while_the_gil_is_released(native):
+    """Python may run while the native code reads: the buffer is exported for
+    the whole call, so a bytearray cannot be resized (freed) under it."""
+    import threading
+    import time
+
+    data = bytearray(np.random.default_rng(5).integers(0, 256, 8 << 20, dtype=np.uint8).tobytes())
+    done = threading.Event()
+    worker = threading.Thread(target=lambda: (native.zlib_compress(data, 12), done.set()))
+    worker.start()
+    time.sleep(0.05)
+    assert not done.is_set(), "the compression ended before the resize: make the data larger"
+    with pytest.raises(BufferError):
+        data.clear()
+    worker.join()
+    assert len(data) == 8 << 20

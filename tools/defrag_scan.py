@@ -237,11 +237,13 @@ def write_checked(args, scan, laid, rows, inp, result, old):
         try:
             args.output.mkdir(parents=True, exist_ok=True)
             write_obj(outputs[0], scan, *every_instance(result, rows), maps)
-        except OSError as exc:
+        except BaseException as exc:  # Ctrl-C and encoder errors too
             for path in outputs:  # no OBJ left naming a PNG that was not written
                 if path.is_file():
                     path.unlink()
-            raise Failed(f"writing into {args.output} failed: {exc}") from exc
+            if isinstance(exc, OSError):
+                raise Failed(f"writing into {args.output} failed: {exc}") from exc
+            raise
         return measured.result() if measured else (None, None)
 
 

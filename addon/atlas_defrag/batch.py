@@ -915,14 +915,28 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 def bytecode_cache_dir() -> str:
     """Where the batch entry keeps compiled Python: the user's own cache
     directory (LOCALAPPDATA on Windows, else XDG_CACHE_HOME or ~/.cache),
-    never a shared one, whose files another user could have planted."""
+    never a shared one, whose files another user could have planted; '' when
+    the user has no home to find it in (expanduser then leaves '~' as it is)."""
+    home = os.path.expanduser("~")
     if os.name == "nt":
-        base = os.environ.get("LOCALAPPDATA") or os.path.join(os.path.expanduser("~"), "AppData", "Local")
+        base = os.environ.get("LOCALAPPDATA") or os.path.join(home, "AppData", "Local")
     else:
         base = os.environ.get("XDG_CACHE_HOME", "")
         if not os.path.isabs(base):  # the XDG spec ignores a relative path
-            base = os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "atlas_defrag", "pycache")
+            base = os.path.join(home, ".cache")
+    return os.path.join(base, "atlas_defrag", "pycache") if os.path.isabs(base) else ""
+
+
+def _writable_cache(path: str) -> bool:
+    """Whether the cache folder exists (made private if it is new) and takes
+    files: a compile whose write fails costs as much as one whose write
+    succeeds, so a read-only cache would make every process slower."""
+    try:
+        os.makedirs(path, mode=0o700, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            return True
+    except OSError:
+        return False
 
 
 def _cache_bytecode() -> None:
@@ -935,23 +949,22 @@ def _cache_bytecode() -> None:
     untouched. Blender's start-up reads it only when started with that
     variable (README, the many-models entry sets it); the modules it imported
     before this script ran are written here, once (a second or two on the
-    first run). A directory that cannot be made leaves the cache off."""
-    if sys.pycache_prefix is None:
-        path = bytecode_cache_dir()
-        try:
-            os.makedirs(path, mode=0o700, exist_ok=True)
-        except OSError:
-            return
-        sys.pycache_prefix = path
+    first run). A folder that cannot be made or written to leaves the cache
+    off, and so does a write that fails midway (a full disk)."""
+    path = sys.pycache_prefix or bytecode_cache_dir()
+    if not path or not _writable_cache(path):
+        return
+    sys.pycache_prefix = path
     sys.dont_write_bytecode = False
     for module in list(sys.modules.values()):
         source = getattr(module, "__file__", None)
         if source and source.endswith(".py") and not _bytecode_current(source):
-            try:  # a cache that cannot be written costs only time
+            try:
                 py_compile.compile(source, cfile=importlib.util.cache_from_source(source), quiet=2,
                                    invalidation_mode=py_compile.PycInvalidationMode.TIMESTAMP)
             except OSError:
-                pass
+                sys.dont_write_bytecode = True
+                return
 
 
 def _bytecode_current(source: str) -> bool:
@@ -981,7 +994,11 @@ def main_single(argv) -> int:
     if args.skip_existing and os.path.exists(args.output):
         print(f"atlas_defrag: skipped, {args.output} exists")
         return 0
-    _cache_bytecode()
+    try:
+        _cache_bytecode()
+    except KeyboardInterrupt:  # before the interrupt handler below is in place
+        print(f"atlas_defrag: error: {args.input}: interrupted (SIGINT): nothing was written", file=sys.stderr)
+        return EXIT_INTERRUPTED
     pkg = _package()
     problem = importlib.import_module(pkg.__name__ + ".native_check").problem(pkg.__name__)
     if problem:
@@ -1149,7 +1166,9 @@ def _blender_env(blender: str) -> dict:
     or pyenv python3 there would hide the system numpy."""
     env = {k: v for k, v in os.environ.items()
            if k not in ("PYTHONHOME", "PYTHONPATH", "VIRTUAL_ENV", "PYTHONSTARTUP", "PYTHONUSERBASE")}
-    env.setdefault("PYTHONPYCACHEPREFIX", bytecode_cache_dir())  # Blender's start-up reads the cache too
+    cache = env.get("PYTHONPYCACHEPREFIX") or bytecode_cache_dir()
+    if cache and _writable_cache(cache):  # private: Python would make it readable by all
+        env["PYTHONPYCACHEPREFIX"] = cache  # Blender's start-up reads the cache too
     exe = shutil.which(blender)
     if exe:
         env["PATH"] = os.pathsep.join([os.path.dirname(os.path.realpath(exe)), env.get("PATH", "")])

@@ -45,8 +45,9 @@ def _scanlines(pixels: np.ndarray) -> np.ndarray:
     filter type, Up: at the fastest deflate level it compresses baked
     textures nearly as well as slower levels, in a fraction of their time
     (bench/README.md)."""
-    if pixels.dtype != np.uint8 or pixels.ndim != 3 or pixels.shape[2] not in _COLOUR_TYPE:
-        raise ValueError(f"encode_png needs (H, W, 1, 3 or 4) uint8 pixels, got {pixels.shape} {pixels.dtype}")
+    if pixels.dtype != np.uint8 or pixels.ndim != 3 or pixels.shape[2] not in _COLOUR_TYPE or 0 in pixels.shape:
+        raise ValueError(f"encode_png needs (H, W, 1, 3 or 4) uint8 pixels, H and W >= 1 (PNG has no empty "
+                         f"image), got {pixels.shape} {pixels.dtype}")
     height, width, channels = pixels.shape
     rows = pixels[::-1].reshape(height, channels * width)  # PNG rows run top down (a view, no copy)
     scanlines = np.empty((height, channels * width + 1), dtype=np.uint8)
@@ -80,14 +81,16 @@ def encode_png(pixels: np.ndarray) -> bytes:
 
 def write_pngs(files: Iterable[Tuple[str, np.ndarray]]) -> None:
     """Writes each (path, pixels) as encode_png does, the images compressed
-    side by side, one thread per core."""
+    side by side, one thread per core. No file is opened before every image
+    is compressed: pixels it cannot encode leave every path as it was."""
     files = list(files)
     workers = max(1, min(len(files), os.cpu_count() or 1))
     with ThreadPoolExecutor(max_workers=workers) as pool:
         streams = [pool.submit(_compressed_rows, pixels) for _, pixels in files]  # all queued first
-        for (path, pixels), stream in zip(files, streams):
-            with open(path, "wb") as f:
-                _write_png(f, pixels, stream.result())
+        streams = [stream.result() for stream in streams]
+    for (path, pixels), stream in zip(files, streams):
+        with open(path, "wb") as f:
+            _write_png(f, pixels, stream)
 
 
 # --------------------------------------------------------------------------- reading

@@ -38,6 +38,15 @@ def test_many_pngs_written_side_by_side_round_trip(pkg, tmp_path):
         assert np.array_equal(decoded, image[::-1]), path
 
 
+def test_pixels_that_cannot_be_encoded_leave_every_file_as_it_was(pkg, tmp_path):
+    earlier = [tmp_path / "page0.png", tmp_path / "page1.png"]
+    for path in earlier:
+        path.write_bytes(b"an earlier run's image")
+    with pytest.raises(ValueError, match="uint8"):
+        pkg.png_files.write_pngs([(str(earlier[0]), pixels()), (str(earlier[1]), pixels().astype(np.float32))])
+    assert [path.read_bytes() for path in earlier] == [b"an earlier run's image"] * 2
+
+
 def test_png_loads_into_blender_as_written(pkg, tmp_path):
     """RGBA, RGB and grey: Blender gives an RGB file opaque alpha and a grey
     one its grey in R, G and B."""
@@ -63,6 +72,9 @@ def test_png_refuses_other_pixel_formats(pkg):
         pkg.png_files.encode_png(np.zeros((4, 4, 2), np.uint8))
     with pytest.raises(ValueError, match="uint8"):
         pkg.png_files.encode_png(np.zeros((4, 4, 4), np.float32))
+    for empty in ((0, 4, 3), (4, 0, 3)):
+        with pytest.raises(ValueError, match="no empty image"):
+            pkg.png_files.encode_png(np.zeros(empty, np.uint8))
 
 
 # --------------------------------------------------------------------------- reading
