@@ -413,3 +413,14 @@ def test_no_home_no_bytecode_cache(tmp_path, monkeypatch):
     batch._cache_bytecode()
     assert calls == [] and "PYTHONPYCACHEPREFIX" not in batch._blender_env("blender")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_while_the_bytecode_cache_is_written_ends_the_run_as_interrupted(tmp_path, monkeypatch, capsys):
+    """The first run compiles Blender's start-up modules for a second or two,
+    before the interrupt handler of the job is in place."""
+    def interrupted():
+        raise KeyboardInterrupt
+    monkeypatch.setattr(batch, "_cache_bytecode", interrupted)
+    code = batch.main_single([str(tmp_path / "in.obj"), str(tmp_path / "out.glb")])
+    assert code == batch.EXIT_INTERRUPTED and "interrupted" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
