@@ -616,6 +616,10 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, re
     tmp_out = os.path.join(tmp, os.path.basename(dst))
     export_model(tmp_out, objects)
     is_obj = dst.lower().endswith(".obj")
+    if is_obj:
+        _copy_maps_left_behind(tmp, out_dir)
+    else:
+        _require_gltf_images(tmp_out, [n for n in os.listdir(tmp) if n.lower().endswith((".png", ".exr"))])
     moving = [name for name in sorted(os.listdir(tmp))
               if name != os.path.basename(dst) and (is_obj or name.lower().endswith(".bin"))]
     unnamed = _verify_outputs(tmp, os.path.basename(dst), moving,
@@ -696,6 +700,47 @@ def _move_new(src: str, dst: str) -> None:
         os.replace(src, dst)
         return
     os.remove(src)
+
+
+def _copy_maps_left_behind(folder: str, out_dir: str) -> None:
+    """Copies into folder the image files its MTLs name that are neither there
+    nor in out_dir, from where their Blender images read them: the maps of
+    materials the job left unchanged (a texture transform, say) still name
+    the input's images, by file name only (path_mode STRIP)."""
+    import bpy
+    named = set()
+    for name in os.listdir(folder):
+        if name.lower().endswith(".mtl"):
+            with open(os.path.join(folder, name), "rb") as f:
+                named |= _map_files(f.read())
+    sources = {}
+    for img in bpy.data.images:
+        path = bpy.path.abspath(img.filepath, library=img.library) if img.filepath else ""
+        if path and os.path.isfile(path):
+            sources.setdefault(os.path.basename(path), path)
+    for name in sorted(named):
+        if name and name == os.path.basename(name) and name in sources and \
+                not os.path.exists(os.path.join(folder, name)) and not os.path.exists(os.path.join(out_dir, name)):
+            shutil.copyfile(sources[name], os.path.join(folder, name))
+
+
+def _require_gltf_images(path: str, written) -> None:
+    """BatchError when the glTF at path holds no image although the job wrote
+    some (written: their files): Blender's glTF exporter drops textures
+    behind shader nodes it cannot export, and the model would come out
+    without its new atlas."""
+    if not written:
+        return
+    with open(path, "rb") as f:
+        data = f.read()
+    if path.lower().endswith(".glb"):
+        import struct
+        data = data[20:20 + struct.unpack_from("<I", data, 12)[0]]
+    if not json.loads(data).get("images"):
+        raise BatchError(
+            f"Blender's glTF exporter wrote none of the new images ({', '.join(sorted(written))}): the materials "
+            "use shader nodes it cannot export (a specular-glossiness material, say), so the model would lose "
+            "its texture; nothing was written. Write an OBJ instead, or wire the textures into a Principled BSDF")
 
 
 def _remove_quietly(path: str) -> None:

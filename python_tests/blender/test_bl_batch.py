@@ -172,6 +172,35 @@ def test_batch_failures(tmp_path, runner):
     assert proc.returncode == 1 and "unsupported output" in proc.stderr, proc.stderr[-2000:]
 
 
+@pytest.mark.parametrize("runner", ["blender34", "bpy45"])
+def test_batch_glb_whose_exporter_drops_the_new_texture_fails(tmp_path, runner):
+    """A specular-glossiness material imports as shader nodes that Blender's
+    glTF exporter cannot write back: the GLB would hold no image. That is a
+    failure, not a model without its atlas reported as done."""
+    run = blender34_batch if runner == "blender34" else bpy45_batch
+    source = H.ASSIMP / "glTF2" / "BoxTextured-glTF-pbrSpecularGlossiness" / "BoxTextured.gltf"
+    out = tmp_path / "out" / "box.glb"
+    proc = run(source, out)
+    if proc.returncode == 0:  # this exporter writes the material after all
+        assert _check_glb(out).get("images"), proc.stderr[-2000:]
+        return
+    assert proc.returncode == 1 and "wrote none of the new images" in proc.stderr, proc.stderr[-2000:]
+    assert list(out.parent.iterdir()) == []
+
+
+def test_batch34_obj_carries_the_maps_of_materials_it_left_unchanged(tmp_path):
+    """Materials read through a texture transform are left as they are, and
+    their MTL entries name the input's images: those are copied beside the
+    OBJ, so that every map the MTL names is there."""
+    out = tmp_path / "out" / "tt.obj"
+    proc = blender34_batch(H.ASSIMP / "glTF2" / "textureTransform" / "TextureTransformTest.gltf", out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    text, maps = _read_obj_output(out)
+    names = {m.split()[-1] for m in maps}
+    assert {"Arrow.png", "UV.png"} <= names, names
+    assert all((out.parent / n).is_file() for n in names), sorted(p.name for p in out.parent.iterdir())
+
+
 def test_batch_many_in_parallel(tmp_path):
     """Folder/list form: one Blender per model, two at once, skipping done ones."""
     out = tmp_path / "out"
