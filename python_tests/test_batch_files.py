@@ -424,3 +424,10 @@ def test_ctrl_c_while_the_bytecode_cache_is_written_ends_the_run_as_interrupted(
     code = batch.main_single([str(tmp_path / "in.obj"), str(tmp_path / "out.glb")])
     assert code == batch.EXIT_INTERRUPTED and "interrupted" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_model_of_many_meshes_that_cannot_be_laid_out_says_so_in_one_short_line():
+    reasons = [f"m{k}: Mesh 'm{k}' has no UV map" for k in range(67)]
+    text = batch._listed(reasons)
+    assert text.count("has no UV map") == 3 and text.endswith("and 64 more meshes")
+    assert batch._listed(reasons[:3]) == "; ".join(reasons[:3])

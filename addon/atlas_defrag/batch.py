@@ -596,8 +596,15 @@ def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict, cancel=N
             _drop_source_uv(o, r["source_uv_map"], r)
         report["objects"].append(pkg.api.plain(r))
     if not report["objects"]:
-        raise BatchError("nothing to defragment: " + "; ".join(errors or ["no mesh"]))
+        raise BatchError("nothing to defragment: " + _listed(errors or ["no mesh"]))
     report["warnings"].extend(errors)
+
+
+def _listed(reasons, most: int = 3) -> str:
+    """The first few reasons, then how many more: a model of hundreds of
+    meshes without UVs would otherwise fill the terminal with one line."""
+    more = len(reasons) - most
+    return "; ".join(reasons[:most]) + (f"; and {more} more meshes" if more > 0 else "")
 
 
 def _stop_if_cancelled(pkg, cancel) -> None:

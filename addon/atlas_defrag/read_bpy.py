@@ -69,6 +69,8 @@ def check_object(obj, uv_map: Optional[str] = None):
         raise DefragError("No active mesh: select a mesh object and make it active")
     me = obj.data
     _refuse_linked(obj)
+    if len(me.polygons) == 0:
+        raise DefragError(f"Mesh '{me.name}' has no faces (points or lines only): there is no texture to lay out")
     if len(me.uv_layers) == 0:
         raise DefragError(f"Mesh '{me.name}' has no UV map: unwrap it or import it with its UVs")
     if uv_map:
@@ -110,9 +112,10 @@ def check_textures(obj, uv_map: Optional[str] = None) -> None:
 
 
 def _no_texture_message(obj, uv_name: str, warnings: List[str]) -> str:
-    why = ("; " + "; ".join(warnings)) if warnings else ""
+    if warnings:  # it has image nodes, none the job can follow
+        return f"No image texture this job can rebuild on '{obj.name}': " + "; ".join(warnings)
     return (f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "
-            f"its Principled BSDF through UV map '{uv_name}'{why}")
+            f"its Principled BSDF through UV map '{uv_name}'")
 
 
 def _render_uv_name(me) -> str:

@@ -170,6 +170,8 @@ def test_batch_failures(tmp_path, runner):
     assert not (tmp_path / "o2.obj").exists()
     proc = run(H.model_path("tetra"), tmp_path / "o3.fbx")
     assert proc.returncode == 1 and "unsupported output" in proc.stderr, proc.stderr[-2000:]
+    proc = run(H.ASSIMP / "OBJ" / "point_cloud.obj", tmp_path / "o4.glb")  # vertices only
+    assert proc.returncode == 1 and "has no faces" in proc.stderr, proc.stderr[-2000:]
 
 
 @pytest.mark.parametrize("runner", ["blender34", "bpy45"])
