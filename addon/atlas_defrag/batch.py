@@ -189,6 +189,20 @@ def _has_image_texture(pkg, obj) -> bool:
     return False
 
 
+def _nodes_feeding_outputs(tree) -> set:
+    """Names of the nodes from which links lead to a material output: the
+    job leaves the old image nodes in the material, unlinked, and what they
+    name no longer shows."""
+    stack = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    seen = set()
+    while stack:
+        node = stack.pop()
+        if node.name not in seen:
+            seen.add(node.name)
+            stack.extend(link.from_node for socket in node.inputs for link in socket.links)
+    return seen
+
+
 def _drop_source_uv(obj, name: str, report: dict) -> None:
     me = obj.data
     layer = me.uv_layers.get(name)
@@ -197,9 +211,10 @@ def _drop_source_uv(obj, name: str, report: dict) -> None:
     still_used = []
     for slot in obj.material_slots:
         mat = slot.material
-        if mat and mat.node_tree:  # nodes that would name the removed map, used or not
+        if mat and mat.node_tree:  # nodes the material still renders with that name the removed map
+            rendered = _nodes_feeding_outputs(mat.node_tree)
             for n in mat.node_tree.nodes:
-                if getattr(n, "uv_map", None) == name:
+                if getattr(n, "uv_map", None) == name and n.name in rendered:
                     still_used.append(f"{mat.name}/{n.name}")
     me.uv_layers.remove(layer)
     if still_used:

@@ -978,6 +978,30 @@ def _diff(a, b):
     return "; ".join(out)[:2000]
 
 
+def source_uv_warning_names_rendered_nodes(pkg):
+    """The batch entry drops the source UV map from what it writes: it warns
+    of the nodes that still render with that map, not of the unlinked ones
+    the job leaves in the material."""
+    import importlib
+
+    batch = importlib.import_module(pkg.__name__ + ".batch")
+    obj = H.textured_plane(name="DropUV")
+    tree = obj.material_slots[0].material.node_tree
+    source = obj.data.uv_layers[0].name
+    obj.data.uv_layers.new(name="Other")
+    tex = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    rendered = tree.nodes.new("ShaderNodeUVMap")
+    rendered.uv_map = source
+    tree.links.new(rendered.outputs["UV"], tex.inputs["Vector"])
+    loose = tree.nodes.new("ShaderNodeUVMap")
+    loose.uv_map = source
+    report = {}
+    batch._drop_source_uv(obj, source, report)
+    assert [u.name for u in obj.data.uv_layers] == ["Other"]
+    warning = " ".join(report.get("warnings", []))
+    assert f"/{rendered.name}" in warning and f"/{loose.name}" not in warning, warning
+
+
 SCENARIOS = {
     "operator_tetra": lambda pkg: operator_on_model(pkg, "tetra"),
     "operator_smithsonian": lambda pkg: operator_on_model(pkg, "smithsonian"),
@@ -1003,6 +1027,7 @@ SCENARIOS = {
     "scan_quads_stay_whole": scan_quads_stay_whole,
     "one_atlas_for_all_selected": one_atlas_for_all_selected,
     "one_atlas_shared_material": one_atlas_shared_material,
+    "source_uv_warning_names_rendered_nodes": source_uv_warning_names_rendered_nodes,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)
