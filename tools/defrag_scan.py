@@ -264,6 +264,8 @@ def main(argv=None) -> int:
         f" ({repeated} of them in further instances of a mesh, laid out once with its first)" if repeated else ""))
     print_report(result, m, fidelity, t_load)
     print(f"  written to    {args.output}")
+    for warning in result.report.get("warnings", []):
+        print(f"defrag_scan: warning: {warning}", file=sys.stderr)
     return 0
 
 

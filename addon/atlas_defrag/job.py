@@ -323,13 +323,31 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
                   pages_after=int(len(layout.page_sizes)), images_written=len(images),
                   padding=int(layout.page_padding.min(initial=options.padding)),
                   copied_share=texels["copied_texels"] / max(1, texels["covered_texels"]))
-    if report.get("shrunk"):
-        report["warnings"] = [f"charts scaled to {report.get('scale', 0):.3g} of the texel density asked for, "
-                              "to fit max_page_size, max_pages or the input's texel count"]
+    report["warnings"] = _size_warnings(report, options)
     if progress is not None:
         progress("done", 1.0)
     return JobResult(uvs=layout.uvs, face_page=layout.face_page, page_sizes=layout.page_sizes,
                      page_group=page_group, images=images, report=report)
+
+
+# New pages past this many times the input's texels (at the density asked
+# for) are worth a word: every face gets texels of its own.
+_GROWTH_TOLD = 2.0
+
+
+def _size_warnings(report: dict, options: Options) -> List[str]:
+    """What the size of the new pages calls for saying: charts shrunk, or
+    pages far larger than the input's, because its faces shared texels."""
+    if report.get("shrunk"):
+        return [f"charts scaled to {report.get('scale', 0):.3g} of the texel density asked for, "
+                "to fit max_page_size, max_pages or the input's texel count"]
+    before, after = report.get("texels_before", 0), report.get("texels_after", 0)
+    expected = before * options.density_scale ** 2
+    if options.texels_per_unit or not before or after <= _GROWTH_TOLD * expected:
+        return []
+    return [f"the new pages hold {after / before:.1f}x the input's texels: its faces share or repeat texels "
+            "(UVs that overlap or run outside the page), and each face now gets texels of its own; "
+            "texels_at_most_input keeps the input's count, at a lower density"]
 
 
 def _group_count(job: JobInput) -> int:

@@ -79,7 +79,8 @@ SCHEMA: Tuple[Option, ...] = (
            low=1, high=4096, automatic="as many as the source uses, or as hold its texels",
            manual_default=1),
     Option("texels_at_most_input", bool, False, "At Most the Source's Texels",
-           "Shrink the charts rather than exceed the source's texel count (costs detail on dense atlases)"),
+           "Shrink the charts rather than exceed the source's texel count (costs detail on dense atlases; "
+           "without it, a source whose faces share texels comes out larger, with a warning)"),
     Option("page_sides", str, "multiple_of_4", "Page Sides", "How the sides of each output page are rounded",
            choices=(Choice("tight", "Tight", "The smallest page that holds the charts"),
                     Choice("multiple_of_4", "Multiple of 4", "Sides a multiple of 4 texels (BCn and ASTC blocks)"),

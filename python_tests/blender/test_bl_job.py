@@ -175,3 +175,29 @@ def test_bake_channels_of_mixed_images(job):
                 assert np.array_equal(out[..., :c], px) and not out[..., c:min(3, channels)].any()
             if channels == 4:
                 assert (out[..., 3] == 255).all()
+
+
+def shared_texels_job(job, quads=12, side=64):
+    """Separate unit quads, every one mapped onto the whole of one small
+    page: the input's faces share all its texels, as mirrored or repeated
+    parts do."""
+    corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float64)
+    positions = np.concatenate([corners + [2.0 * k, 0, 0] for k in range(quads)])
+    tris = np.array([[4 * k, 4 * k + 1, 4 * k + 2] for k in range(quads)] +
+                    [[4 * k, 4 * k + 2, 4 * k + 3] for k in range(quads)], np.int32)
+    quad_uv = np.array([[0.02, 0.02], [0.98, 0.02], [0.98, 0.98], [0.02, 0.98]])
+    uvs = np.array([quad_uv[[0, 1, 2]]] * quads + [quad_uv[[0, 2, 3]]] * quads, np.float64)
+    pixels = np.random.default_rng(1).integers(0, 255, (side, side, 4), dtype=np.uint8)
+    mesh = job.MeshData(positions, tris, uvs, np.zeros(len(tris), np.int32))
+    return job.JobInput(mesh, [job.SourcePage([job.ImageMap("base_color", "A")], group=0)], {"A": job.ImageData("A", pixels)})
+
+
+def test_pages_far_larger_than_the_input_say_why(job, native):
+    """Every face gets texels of its own: an input whose faces share texels
+    comes out many times larger, and the report says so and what to do."""
+    res = job.run(shared_texels_job(job), job.Options())
+    assert res.report["texels_after"] > 10 * res.report["texels_before"]
+    assert any("texels_at_most_input" in w for w in res.report["warnings"]), res.report["warnings"]
+    small = job.run(shared_texels_job(job), job.Options(texels_at_most_input=True))
+    assert not any("input's texels" in w for w in small.report["warnings"]), small.report["warnings"]
+    assert not job.run(grid_job(job), job.Options()).report["warnings"]
