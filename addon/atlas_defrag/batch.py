@@ -640,13 +640,13 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, re
     is_obj = dst.lower().endswith(".obj")
     if is_obj:
         _copy_maps_left_behind(tmp, out_dir)
-    else:
-        _require_gltf_images(tmp_out, [n for n in os.listdir(tmp) if n.lower().endswith((".png", ".exr"))])
     moving = [name for name in sorted(os.listdir(tmp))
               if name != os.path.basename(dst) and (is_obj or name.lower().endswith(".bin"))]
     unnamed = _verify_outputs(tmp, os.path.basename(dst), moving,
                               sum(len(o.data.polygons) for o in objects if o.type == "MESH"),
                               _base_colour_files(objects))
+    if not is_obj:  # once the file is known to be whole
+        _require_gltf_images(tmp_out, [n for n in os.listdir(tmp) if n.lower().endswith((".png", ".exr"))])
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
@@ -754,10 +754,11 @@ def _require_gltf_images(path: str, written) -> None:
     if not written:
         return
     with open(path, "rb") as f:
-        data = f.read()
-    if path.lower().endswith(".glb"):
-        import struct
-        data = data[20:20 + struct.unpack_from("<I", data, 12)[0]]
+        if path.lower().endswith(".glb"):  # the JSON chunk only: the binary one is the model's size
+            head = f.read(20)
+            data = f.read(struct.unpack_from("<I", head, 12)[0]) if len(head) == 20 else b"{}"
+        else:
+            data = f.read()
     if not json.loads(data).get("images"):
         raise BatchError(
             f"Blender's glTF exporter wrote none of the new images ({', '.join(sorted(written))}): the materials "
@@ -831,7 +832,6 @@ def _file_problem(path: str, polygons) -> str:
 
 def _binary_file_problem(path: str, ext: str) -> str:
     """_file_problem of a PNG, EXR or GLB file, from its first and last bytes."""
-    import struct
     png_files = importlib.import_module(_package().__name__ + ".png_files")
     size = os.path.getsize(path)
     head, tail = png_files.file_ends(path, 12, png_files.TAIL_BYTES)
