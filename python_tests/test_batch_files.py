@@ -431,3 +431,17 @@ def test_a_model_of_many_meshes_that_cannot_be_laid_out_says_so_in_one_short_lin
     text = batch._listed(reasons)
     assert text.count("has no UV map") == 3 and text.endswith("and 64 more meshes")
     assert batch._listed(reasons[:3]) == "; ".join(reasons[:3])
+
+
+def test_image_format_and_quality_are_checked_before_any_work():
+    assert batch._image_format_problem("auto", ".obj") == ""
+    assert batch._image_format_problem("jpeg", ".glb") == "" and batch._image_format_problem("webp", ".gltf") == ""
+    assert "glTF outputs" in batch._image_format_problem("jpeg", ".obj")
+    args = batch.single_parser().parse_args(["in.obj", "out.glb", "--image-format", "jpeg", "--image-quality", "70"])
+    assert (args.image_format, args.image_quality) == ("jpeg", 70)
+    for bad in ("0", "101", "high"):
+        with pytest.raises(SystemExit):
+            batch.single_parser().parse_args(["in.obj", "out.glb", "--image-quality", bad])
+    many = batch.multi_parser().parse_args(["in.obj", "--out-dir", "o", "--image-format", "webp"])
+    assert batch._passthrough(many)[-4:] == ["--image-format", "webp", "--image-quality", "90"]
+    assert batch.main_multi(["in.obj", "--out-dir", "o", "--format", "obj", "--image-format", "jpeg"]) == 2

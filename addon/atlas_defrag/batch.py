@@ -73,6 +73,26 @@ def _add_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--keep-source-uv", action="store_true",
                    help="keep the original UV map in the output (as a second UV set)")
     g.add_argument("--skip-existing", action="store_true", help="do nothing if OUT exists")
+    g.add_argument("--image-format", choices=IMAGE_FORMATS, default="auto",
+                   help="glTF outputs: the format Blender's glTF exporter stores the images in (auto: as the "
+                        "add-on writes them, PNG, lossless; jpeg: a fraction of the size, lossy, images with "
+                        "alpha stay PNG; webp: Blender 4.0 and later)")
+    g.add_argument("--image-quality", type=_quality, default=90,
+                   help="1-100, for jpeg and webp where Blender's exporter takes a quality (4.0 and later; "
+                        "Blender 3.x writes 90) (default 90)")
+
+
+IMAGE_FORMATS = ("auto", "jpeg", "webp")
+
+
+def _quality(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= 100:
+        raise argparse.ArgumentTypeError(f"--image-quality must be an integer 1..100, not {text!r}")
+    return value
 
 
 def single_parser() -> argparse.ArgumentParser:
@@ -222,7 +242,7 @@ def _drop_source_uv(obj, name: str, report: dict) -> None:
             "source UV map removed although these nodes named it: " + ", ".join(still_used))
 
 
-def export_model(path: str, objects) -> None:
+def export_model(path: str, objects, image_format: str = "auto", quality: int = 90) -> None:
     import bpy
     ext = os.path.splitext(path)[1].lower()
     for o in bpy.context.view_layer.objects:
@@ -236,12 +256,26 @@ def export_model(path: str, objects) -> None:
         if ext == ".gltf":
             _allow_embedded_gltf()
         kw = dict(filepath=path, export_format="GLB" if ext == ".glb" else "GLTF_EMBEDDED",
-                  use_selection=True, export_normals=not _shaded_flat(objects))
+                  use_selection=True, export_normals=not _shaded_flat(objects),
+                  export_image_format=_exporter_image_format(image_format),
+                  export_image_quality=quality, export_jpeg_quality=quality)
         known = _operator_properties(bpy.ops.export_scene.gltf)
         kw = {k: v for k, v in kw.items() if k in known or k in ("filepath", "export_format")}
         bpy.ops.export_scene.gltf(**kw)
     else:
         raise BatchError(f"unsupported output format '{ext}' (use {', '.join(OUTPUT_EXTS)})")
+
+
+def _exporter_image_format(image_format: str) -> str:
+    """The glTF exporter's value for --image-format; BatchError when this
+    Blender's exporter does not offer it (WebP before Blender 4.0)."""
+    import bpy
+    value = image_format.upper()
+    offered = bpy.ops.export_scene.gltf.get_rna_type().properties["export_image_format"].enum_items.keys()
+    if value not in offered:
+        raise BatchError(f"--image-format {image_format}: this Blender's glTF exporter offers "
+                         f"{', '.join(v.lower() for v in offered if v != 'NONE')} only")
+    return value
 
 
 def _shaded_flat(objects) -> bool:
@@ -285,6 +319,8 @@ def run_one(args, cancel=None) -> dict:
     pkg = _package()
     t0 = time.perf_counter()
     src, dst = os.path.abspath(args.input), os.path.abspath(args.output)
+    if not dst.lower().endswith(".obj"):
+        _exporter_image_format(args.image_format)  # before the work: WebP needs Blender 4.0
     inputs, faces_in_file = _input_files(src)
     objects = _import_input(src, dst, inputs)
     inputs |= _input_files_of_scene()  # an OBJ's textures, found through its MTL
@@ -307,7 +343,8 @@ def run_one(args, cancel=None) -> dict:
         _name_images_after(dst, tmp, owned)
         t_export = time.perf_counter()
         unnamed = _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),  # --texture's too
-                                   lambda: _stop_if_cancelled(pkg, cancel), owned | libraries)
+                                   lambda: _stop_if_cancelled(pkg, cancel), owned | libraries,
+                                   dict(image_format=args.image_format, quality=args.image_quality))
         if unnamed:
             report["warnings"].append(
                 f"{', '.join(unnamed)} written beside {os.path.basename(dst)}, but its materials do not name "
@@ -627,16 +664,19 @@ def _stop_if_cancelled(pkg, cancel) -> None:
         raise pkg.DefragCancelled("cancelled")
 
 
-def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, replaceable: set) -> list:
+def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, replaceable: set,
+                     export_images=None) -> list:
     """Exports into tmp, checks every file there, calls before_moving (which
     may raise), then moves them beside dst: images next to an OBJ (a glTF
     carries them), the model file last. Images and the MTL may replace only
     the files named in replaceable: the earlier output's at dst (its
     libraries and their images). Returns the images moved beside an OBJ that
-    its materials do not name."""
+    its materials do not name. export_images: export_model's image_format and
+    quality."""
+    export_images = export_images or {}
     out_dir = os.path.dirname(dst) or "."
     tmp_out = os.path.join(tmp, os.path.basename(dst))
-    export_model(tmp_out, objects)
+    export_model(tmp_out, objects, **export_images)
     is_obj = dst.lower().endswith(".obj")
     if is_obj:
         _copy_maps_left_behind(tmp, out_dir)
@@ -1048,6 +1088,13 @@ def _bytecode_current(source: str) -> bool:
         "<III", 0, int(st.st_mtime) & 0xFFFFFFFF, st.st_size & 0xFFFFFFFF)
 
 
+def _image_format_problem(image_format: str, output_ext: str) -> str:
+    """Why --image-format cannot apply to an output of that extension ('' if it can)."""
+    if image_format == "auto" or output_ext in (".glb", ".gltf"):
+        return ""
+    return f"--image-format {image_format} applies to glTF outputs: an OBJ's images are the PNG files beside it"
+
+
 def main_single(argv) -> int:
     p = single_parser()
     try:
@@ -1055,6 +1102,10 @@ def main_single(argv) -> int:
     except SystemExit as exc:
         return int(exc.code or 0)
     problem = _report_path_problem(args.report, args.input, args.output)
+    if problem:
+        print(f"atlas_defrag: error: {problem}", file=sys.stderr)
+        return 2
+    problem = _image_format_problem(args.image_format, os.path.splitext(args.output)[1].lower())
     if problem:
         print(f"atlas_defrag: error: {problem}", file=sys.stderr)
         return 2
@@ -1140,6 +1191,10 @@ def main_multi(argv) -> int:
         args = p.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
+    problem = _image_format_problem(args.image_format, "." + args.format)
+    if problem:
+        print(f"atlas_defrag: error: {problem}", file=sys.stderr)
+        return 2
     files = _without_outputs(_expand(args.inputs), args.out_dir, args.format)
     if not files:
         print("atlas_defrag: error: no input models", file=sys.stderr)
@@ -1184,6 +1239,8 @@ def _passthrough(args) -> list:
             out += ["--" + opt.replace("_", "-"), str(value)]
     if args.keep_source_uv:
         out.append("--keep-source-uv")
+    if args.image_format != "auto":
+        out += ["--image-format", args.image_format, "--image-quality", str(args.image_quality)]
     return out
 
 

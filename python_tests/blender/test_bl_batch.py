@@ -203,6 +203,30 @@ def test_batch34_obj_carries_the_maps_of_materials_it_left_unchanged(tmp_path):
     assert all((out.parent / n).is_file() for n in names), sorted(p.name for p in out.parent.iterdir())
 
 
+def test_batch_glb_images_as_jpeg_or_webp(tmp_path):
+    """--image-format has Blender's glTF exporter store the images as JPEG
+    (or WebP where it offers that, Blender 4.0 and later) at --image-quality;
+    Blender 3.4 refuses WebP before doing the work, and an OBJ output refuses
+    the option at once."""
+    proc = blender34_batch(BOX_GLB, tmp_path / "box34.glb", "--image-format", "jpeg")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert [im["mimeType"] for im in _check_glb(tmp_path / "box34.glb")["images"]] == ["image/jpeg"]
+    proc = blender34_batch(BOX_GLB, tmp_path / "w" / "box34.glb", "--image-format", "webp")
+    assert proc.returncode == 1 and "offers auto, jpeg only" in proc.stderr, proc.stderr[-2000:]
+    assert not (tmp_path / "w").exists() or list((tmp_path / "w").iterdir()) == []
+    sizes = {}
+    for fmt, quality in (("jpeg", 20), ("jpeg", 95), ("webp", 80)):
+        out = tmp_path / f"box45_{fmt}_{quality}.glb"
+        proc = bpy45_batch(BOX_GLB, out, "--image-format", fmt, "--image-quality", quality)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        assert [im["mimeType"] for im in _check_glb(out)["images"]] == [f"image/{fmt}"]
+        sizes[fmt, quality] = out.stat().st_size
+    assert sizes["jpeg", 20] < sizes["jpeg", 95], sizes
+    proc = bpy45_batch(BOX_GLB, tmp_path / "box.obj", "--image-format", "jpeg")
+    assert proc.returncode == 2 and "applies to glTF outputs" in proc.stderr, proc.stderr[-2000:]
+    assert not (tmp_path / "box.obj").exists()
+
+
 def test_batch_many_in_parallel(tmp_path):
     """Folder/list form: one Blender per model, two at once, skipping done ones."""
     out = tmp_path / "out"
