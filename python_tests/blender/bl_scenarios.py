@@ -907,6 +907,7 @@ ERRORS = {
     "no_image_texture": "No image texture",
     "eight_uv_maps": "8 UV maps",
     "udim": "UDIM",
+    "no_faces": "has no faces",
 }
 
 
@@ -931,6 +932,13 @@ def make_error_case(case):
         return H.textured_plane(uv_maps=8)
     if case == "udim":
         return H.textured_plane(source="TILED")
+    if case == "no_faces":  # a point cloud, as scanners also write: no faces, so no UVs either
+        obj = H.textured_plane()
+        me = bpy.data.meshes.new("Points")
+        me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [])
+        me.materials.append(obj.data.materials[0])
+        obj.data = me
+        return obj
     raise ValueError(case)
 
 
