@@ -187,11 +187,21 @@ def _texture_path(reference: str, folders: list[Path]) -> Path:
     return folders[0] / whole
 
 
-def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, Path]:
-    """material name -> its map_Kd file (which may not exist)."""
+# The MTL map statements this reader carries over, by the role the job gives
+# their image. Blender's OBJ importer reads map_Bump and bump as a normal map,
+# and so does this reader where the image has colour (a grey one is a height
+# map); map_ao is how the command-line entry writes an occlusion map.
+_MTL_MAP_ROLES = {"map_kd": "base_color", "norm": "normal", "map_bump": "normal", "bump": "normal",
+                  "map_ao": "occlusion"}
+_GREY_MODES = ("1", "L", "LA", "I", "I;16", "F")
+
+
+def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, dict[str, Path]]:
+    """material name -> {role: the file its first map statement of that role
+    names (which may not exist)}."""
     from atlas_defrag import mtl_text
 
-    textures: dict[str, Path] = {}
+    textures: dict[str, dict[str, Path]] = {}
     for mtl in libraries:
         if not mtl.is_file():
             continue
@@ -203,13 +213,37 @@ def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, Path]
             keyword, rest = parts[0].lower(), parts[1].strip() if len(parts) > 1 else ""
             if keyword == "newmtl":
                 current = rest
-            elif keyword == "map_kd" and current is not None:
+            elif keyword in _MTL_MAP_ROLES and current is not None:
                 if mtl_text.uv_transform(rest):
                     raise ValueError(f"{mtl.name}: material '{current}' reads its texture through "
                                      f"'{mtl_text.uv_transform(rest)}' (UVs moved or scaled), "
                                      "which this reader does not apply")
-                textures[current] = _texture_path(rest, [mtl.parent, obj_path.parent])
+                textures.setdefault(current, {}).setdefault(_MTL_MAP_ROLES[keyword],
+                                                            _texture_path(rest, [mtl.parent, obj_path.parent]))
     return textures
+
+
+def _other_maps(maps: dict[str, Path], material: str, warnings: list) -> dict[str, Path]:
+    """The maps of a material besides its base colour that the job can carry
+    over: each missing file, and a grey bump map (heights, not normals), is
+    left out with a warning."""
+    from PIL import Image
+
+    out = {}
+    for role, path in maps.items():
+        if role == "base_color":
+            continue
+        if not path.is_file():
+            warnings.append(f"{role} map {path} of material '{material}' not found: left out")
+            continue
+        if role == "normal":
+            with Image.open(path) as img:
+                if img.mode in _GREY_MODES:
+                    warnings.append(f"bump map {path} of material '{material}' is grey, a height map rather "
+                                    "than a normal map: left out")
+                    continue
+        out[role] = path
+    return out
 
 
 def load_obj(path: Path) -> Scan:
@@ -232,20 +266,26 @@ def load_obj(path: Path) -> Scan:
     used, first_face, counts = np.unique(obj["face_material"][has_uv], return_index=True, return_counts=True)
     for k in np.argsort(first_face):  # pages in the order faces first use them
         m = used[k]
-        tex = textures.get(obj["materials"][m]) if m >= 0 else None
+        name = obj["materials"][m] if m >= 0 else ""
+        maps = textures.get(name, {}) if m >= 0 else {}
+        tex = maps.get("base_color")
         if tex is not None and not tex.is_file():
-            warnings.append(f"texture {tex} of material '{obj['materials'][m]}' not found: its {counts[k]} "
+            warnings.append(f"texture {tex} of material '{name}' not found: its {counts[k]} "
                             "faces are left untextured")
         if tex is None or not tex.is_file():
             continue
-        if tex not in page_of:
-            page_of[tex] = len(pages)
-            pages.append(tex)
-        material_page[m] = page_of[tex]
+        page = {"base_color": tex, **_other_maps(maps, name, warnings)}
+        key = tuple(sorted((role, str(p)) for role, p in page.items()))
+        if key not in page_of:
+            page_of[key] = len(pages)
+            pages.append(page)
+        material_page[m] = page_of[key]
     face_page = np.where(has_uv, material_page[obj["face_material"]], -1).astype(np.int32)
-    sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
-    return Scan(obj["positions"], tris, uvs, face_page, sizes, pages, [{"base_color": p} for p in pages],
-                files=[path] + [m for m in libraries if m.is_file()] + pages, warnings=warnings)
+    bases = [page["base_color"] for page in pages]
+    sizes = np.array([image_size(p) for p in bases], dtype=np.int32).reshape(-1, 2)
+    return Scan(obj["positions"], tris, uvs, face_page, sizes, bases, pages,
+                files=[path] + [m for m in libraries if m.is_file()] + [p for page in pages for p in page.values()],
+                warnings=warnings)
 
 
 # ---- PLY ------------------------------------------------------------------
