@@ -35,8 +35,8 @@ from atlas_defrag import batch, png_files
 fault = os.environ["ATLAS_FAULT"]
 if fault == "obj":
     export = batch.export_model
-    def cut_short(path, objects):
-        export(path, objects)
+    def cut_short(path, objects, **images):
+        export(path, objects, **images)
         size = os.path.getsize(path)
         with open(path, "r+b") as f:
             f.truncate(size // 10)
