@@ -685,8 +685,6 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, re
     unnamed = _verify_outputs(tmp, os.path.basename(dst), moving,
                               sum(len(o.data.polygons) for o in objects if o.type == "MESH"),
                               _base_colour_files(objects))
-    if not is_obj:  # once the file is known to be whole
-        _require_gltf_images(tmp_out, [n for n in os.listdir(tmp) if n.lower().endswith((".png", ".exr"))])
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
@@ -815,15 +813,18 @@ def _remove_quietly(path: str) -> None:
 
 def _verify_outputs(folder: str, model: str, others, polygons: int, base_colours=frozenset()) -> list:
     """BatchError unless every written file is whole: exporters report success
-    on a full disk and leave truncated or empty files. Returns the images
-    written beside an OBJ that its materials do not name. base_colours: the
-    files an OBJ's MTL must name (see _base_colour_files)."""
+    on a full disk and leave truncated or empty files; and unless a glTF
+    holds images where the job wrote some (_require_gltf_images). Returns the
+    images written beside an OBJ that its materials do not name.
+    base_colours: the files an OBJ's MTL must name (see _base_colour_files)."""
     for name in [model] + list(others):
         path = os.path.join(folder, name)
         problem = _file_problem(path, polygons if name == model else None)
         if problem:
             raise BatchError(f"writing {name} failed ({problem}): is the disk full?")
     if not model.lower().endswith(".obj"):
+        _require_gltf_images(os.path.join(folder, model),
+                             [n for n in os.listdir(folder) if n.lower().endswith((".png", ".exr"))])
         return []
     return _verify_obj_references(folder, model, [n for n in others if not n.lower().endswith(".mtl")],
                                   base_colours)
