@@ -379,7 +379,7 @@ def main() -> int:
 
     lines += ["## Cuts for packing: seam budget and padding", "",
               "The whole job at each `packing_cut_seam` (the seam the cuts may add, in the unit of seam: 3D length / "
-              "sqrt(area); default 1) with the padding as a ring of 4 texels each chart owns (default), a ring of 2, "
+              "sqrt(area); default 0) with the padding as a ring of 4 texels each chart owns (default), a ring of 2, "
               "or a gap of 4 between charts (`padding_between_charts`). Seconds: median of 3 runs of the cut and "
               "pack stages.", "",
               "| scan | padding | seam budget | efficiency | texels out | seam | charts | cuts | cut s | pack s |",
