@@ -119,19 +119,19 @@ def test_the_many_models_form_names_a_missing_blender(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
-def test_importer_errors_come_without_their_traceback():
+def test_operator_errors_come_without_their_traceback():
     wrapped = RuntimeError(
         "Error: Python: Traceback (most recent call last):\n"
         '  File "/usr/share/blender/scripts/addons/io_scene_gltf2/__init__.py", line 1245, in execute\n'
         "    return self.import_gltf2(context)\n"
         "RuntimeError: internal error setting the array\n\n"
         "Location: /usr/share/blender/scripts/modules/bpy/ops.py:113\n")
-    assert batch._importer_error(wrapped) == "RuntimeError: internal error setting the array"
+    assert batch._operator_error(wrapped) == "RuntimeError: internal error setting the array"
     plain = RuntimeError("Error: Couldn't parse glTF. Check that the file is valid\n\nLocation: ops.py:113")
-    assert batch._importer_error(plain) == "Error: Couldn't parse glTF. Check that the file is valid"
+    assert batch._operator_error(plain) == "Error: Couldn't parse glTF. Check that the file is valid"
     dotted = RuntimeError("Error: Python: Traceback (most recent call last):\n  File \"x.py\", line 3, in f\n"
                           "struct.error: unpack_from requires a buffer of at least 4 bytes\n\nLocation: ops.py:113")
-    assert batch._importer_error(dotted) == "struct.error: unpack_from requires a buffer of at least 4 bytes"
+    assert batch._operator_error(dotted) == "struct.error: unpack_from requires a buffer of at least 4 bytes"
 
 
 MESH = types.SimpleNamespace(type="MESH", data=types.SimpleNamespace(polygons=[0, 1]))
@@ -445,3 +445,55 @@ def test_image_format_and_quality_are_checked_before_any_work():
     many = batch.multi_parser().parse_args(["in.obj", "--out-dir", "o", "--image-format", "webp"])
     assert batch._passthrough(many)[-4:] == ["--image-format", "webp", "--image-quality", "90"]
     assert batch.main_multi(["in.obj", "--out-dir", "o", "--format", "obj", "--image-format", "jpeg"]) == 2
+
+
+def _gltf_file(path, materials, images=({"uri": "t.png"},)):
+    path.write_text(json.dumps({"asset": {"version": "2.0"}, "images": list(images), "materials": materials}))
+    return str(path)
+
+
+def test_a_gltf_giving_a_rebuilt_material_no_texture_is_refused(tmp_path):
+    """Blender's glTF exporter drops the texture of a material it cannot
+    export (specular-glossiness) while writing another's: the model would
+    come out with one material untextured."""
+    textured = {"name": "a", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}
+    bare = {"name": "b", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1]}}
+    path = _gltf_file(tmp_path / "m.gltf", [textured, bare])
+    batch._require_gltf_images(path, ["new.png"], {"a"})
+    with pytest.raises(batch.BatchError, match="the materials b without a texture"):
+        batch._require_gltf_images(path, ["new.png"], {"a", "b"})
+    with pytest.raises(batch.BatchError, match="none of the new images"):
+        batch._require_gltf_images(_gltf_file(tmp_path / "n.gltf", [textured], images=()), ["new.png"], {"a"})
+
+
+def test_input_images_copied_beside_an_obj_are_checked_by_their_size(tmp_path, png_bytes):
+    """A copy of an input image is whole when all its bytes are there, whatever
+    they hold (a JPEG named .png, say): it is not checked as a PNG Blender wrote."""
+    (tmp_path / "scan.obj").write_bytes(b"mtllib scan.mtl\nusemtl a\n" + OBJ)
+    (tmp_path / "scan.mtl").write_bytes(b"newmtl a\nmap_Kd scan_in.png\n")
+    jpeg = b"\xff\xd8\xff\xe0" + b"\0" * 60 + b"\xff\xd9"
+    (tmp_path / "scan_in.png").write_bytes(jpeg)
+    names = ["scan.mtl", "scan_in.png"]
+    assert batch._verify_outputs(str(tmp_path), "scan.obj", names, 2, copies={"scan_in.png": len(jpeg)}) == []
+    with pytest.raises(batch.BatchError, match="66 of 70 bytes"):
+        batch._verify_outputs(str(tmp_path), "scan.obj", names, 2, copies={"scan_in.png": 70})
+
+
+def test_a_folder_where_the_output_sets_a_file_aside_is_never_moved(tmp_path, monkeypatch):
+    """An earlier output's image name taken by a folder: the run fails and
+    the folder keeps its files (set aside, it would go with the scratch folder)."""
+    out = earlier_output(tmp_path, b"newmtl a\nmap_Kd scan_tex.png\n")
+    (out / "scan_tex.png").mkdir()
+    (out / "scan_tex.png" / "keep.txt").write_text("mine")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    new_png = png_files.encode_png(np.zeros((2, 2, 3), np.uint8))
+    monkeypatch.setattr(batch, "export_model", fake_export(
+        "scan.mtl", b"newmtl a\nmap_Kd scan_tex.png\n", [("scan_tex.png", new_png)]))
+    with pytest.raises(batch.BatchError, match="is a folder"):
+        batch._export_and_move([MESH], str(tmp), str(out / "scan.obj"), set(), lambda: None,
+                               replaceable(out / "scan.obj"))
+    assert (out / "scan_tex.png" / "keep.txt").read_text() == "mine"
+    assert (out / "scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
+    with pytest.raises(batch.BatchError, match="is a folder"):
+        batch._refuse_folders(batch._model_files(str(out / "scan_tex.png")))

@@ -158,16 +158,16 @@ def import_model(path: str):
     try:
         _run_importer(path)
     except RuntimeError as exc:
-        raise BatchError(f"Blender's importer failed: {_importer_error(exc)}") from exc
+        raise BatchError(f"Blender's importer failed: {_operator_error(exc)}") from exc
     new = [o for o in bpy.data.objects if o not in before]
     if not any(o.type == "MESH" for o in new):
         raise BatchError(f"no mesh imported from {path}")
     return new
 
 
-def _importer_error(exc: RuntimeError) -> str:
-    """The error an import operator raised, without the traceback and the
-    operator's location that Blender wraps it in."""
+def _operator_error(exc: RuntimeError) -> str:
+    """The error an import or export operator raised, without the traceback
+    and the operator's location that Blender wraps it in."""
     lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip() and not ln.startswith("Location:")]
     errors = [ln for ln in lines if re.match(r"^([\w.]+(Error|Exception|error)|Error):", ln)
               and not ln.startswith("Error: Python: Traceback")]
@@ -243,6 +243,14 @@ def _drop_source_uv(obj, name: str, report: dict) -> None:
 
 
 def export_model(path: str, objects, image_format: str = "auto", quality: int = 90) -> None:
+    """Writes objects to path with Blender's exporter; BatchError naming what failed."""
+    try:
+        _run_exporter(path, objects, image_format, quality)
+    except RuntimeError as exc:  # a full disk, say: the operator raises with its traceback inside
+        raise BatchError(f"Blender's exporter failed: {_operator_error(exc)}") from exc
+
+
+def _run_exporter(path: str, objects, image_format: str, quality: int) -> None:
     import bpy
     ext = os.path.splitext(path)[1].lower()
     for o in bpy.context.view_layer.objects:
@@ -319,6 +327,7 @@ def run_one(args, cancel=None) -> dict:
     pkg = _package()
     t0 = time.perf_counter()
     src, dst = os.path.abspath(args.input), os.path.abspath(args.output)
+    _refuse_folders(_model_files(dst))
     if not dst.lower().endswith(".obj"):
         _exporter_image_format(args.image_format)  # before the work: WebP needs Blender 4.0
     inputs, faces_in_file = _input_files(src)
@@ -340,11 +349,12 @@ def run_one(args, cancel=None) -> dict:
     keep_scratch = False
     try:
         _defragment_meshes(pkg, args, meshes, tmp, report, cancel)
+        copied = _bring_input_maps(objects, tmp, out_dir) if dst.lower().endswith(".obj") else {}
         _name_images_after(dst, tmp, owned)
         t_export = time.perf_counter()
         unnamed = _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),  # --texture's too
                                    lambda: _stop_if_cancelled(pkg, cancel), owned | libraries,
-                                   dict(image_format=args.image_format, quality=args.image_quality))
+                                   dict(image_format=args.image_format, quality=args.image_quality), copied)
         if unnamed:
             report["warnings"].append(
                 f"{', '.join(unnamed)} written beside {os.path.basename(dst)}, but its materials do not name "
@@ -427,6 +437,14 @@ def _model_files(dst: str) -> set:
     if dst.lower().endswith(".obj"):
         files.add(os.path.splitext(dst)[0] + ".mtl")
     return files
+
+
+def _refuse_folders(paths) -> None:
+    """BatchError when a path the output takes is a folder: the run would
+    set it aside with the earlier output's files and remove it."""
+    for path in sorted(paths):
+        if os.path.isdir(path):
+            raise BatchError(f"{path} is a folder: choose another output path")
 
 
 def _input_files(src: str) -> tuple:
@@ -665,31 +683,32 @@ def _stop_if_cancelled(pkg, cancel) -> None:
 
 
 def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, replaceable: set,
-                     export_images=None) -> list:
+                     export_images=None, copied=None) -> list:
     """Exports into tmp, checks every file there, calls before_moving (which
     may raise), then moves them beside dst: images next to an OBJ (a glTF
     carries them), the model file last. Images and the MTL may replace only
     the files named in replaceable: the earlier output's at dst (its
     libraries and their images). Returns the images moved beside an OBJ that
     its materials do not name. export_images: export_model's image_format and
-    quality."""
+    quality; copied: what _bring_input_maps copied into tmp."""
     export_images = export_images or {}
     out_dir = os.path.dirname(dst) or "."
     tmp_out = os.path.join(tmp, os.path.basename(dst))
     export_model(tmp_out, objects, **export_images)
     is_obj = dst.lower().endswith(".obj")
-    if is_obj:
-        _copy_maps_left_behind(tmp, out_dir)
+    copies = _copies_named(tmp, copied) if is_obj and copied else {}
     moving = [name for name in sorted(os.listdir(tmp))
               if name != os.path.basename(dst) and (is_obj or name.lower().endswith(".bin"))]
     unnamed = _verify_outputs(tmp, os.path.basename(dst), moving,
                               sum(len(o.data.polygons) for o in objects if o.type == "MESH"),
-                              _base_colour_files(objects))
+                              _base_colour_files(objects), copies, _rebuilt_materials(objects, tmp))
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
 
     def set_aside(target: str) -> None:
+        if os.path.isdir(target) and not os.path.islink(target):
+            raise BatchError(f"{target} is a folder: nothing was replaced; choose another output path")
         if os.path.lexists(target):
             previous = os.path.join(tmp, _SET_ASIDE_PREFIX + os.path.basename(target))
             os.replace(target, previous)
@@ -762,33 +781,94 @@ def _move_new(src: str, dst: str) -> None:
     os.remove(src)
 
 
-def _copy_maps_left_behind(folder: str, out_dir: str) -> None:
-    """Copies into folder the image files its MTLs name that are neither there
-    nor in out_dir, from where their Blender images read them: the maps of
-    materials the job left unchanged (a texture transform, say) still name
-    the input's images, by file name only (path_mode STRIP)."""
+_IMAGE_EXTENSIONS = {"PNG": ".png", "JPEG": ".jpg", "TARGA": ".tga", "TARGA_RAW": ".tga", "BMP": ".bmp",
+                     "OPEN_EXR": ".exr", "TIFF": ".tif", "WEBP": ".webp", "HDR": ".hdr"}
+
+
+def _bring_input_maps(objects, folder: str, out_dir: str) -> dict:
+    """For an OBJ output: copies into folder (the scratch folder of the new
+    images) the input images that the objects' materials still show
+    (materials the job left unchanged: a texture transform, say), from their
+    files or, packed in a GLB, from the bytes Blender holds, and points their
+    Blender images at the copies. Blender's OBJ exporter names a map by its
+    file name only, so the MTL must find it beside the OBJ: a packed image
+    has no file to name, and a file of that name already beside the output
+    may be another model's. Images whose file is in folder or out_dir stay.
+    Returns {Blender image name: bytes its file holds}."""
+    import bpy
+    copied = {}
+    for img in dict.fromkeys(img for m in _materials_of(objects) for img in _shown_images(m)):
+        path = bpy.path.abspath(img.filepath, library=img.library) if img.filepath else ""
+        here = path and os.path.isfile(path)
+        if here and _real(os.path.dirname(path)) in (_real(folder), _real(out_dir)) or img.name in copied:
+            continue
+        if not here and img.packed_file is None:
+            continue  # no pixels to bring: the MTL names the file the input named, as before
+        name = os.path.basename(path) if path else bpy.path.clean_name(img.name) + _IMAGE_EXTENSIONS.get(
+            img.file_format, ".png")
+        target = _free_name(folder, name)
+        if here:
+            shutil.copyfile(path, target)
+        else:
+            with open(target, "wb") as f:
+                f.write(img.packed_file.data)
+        img.filepath_raw = target
+        copied[img.name] = os.path.getsize(target)
+    return copied
+
+
+def _materials_of(objects) -> list:
+    """The materials in the objects' slots, each once."""
+    return list(dict.fromkeys(slot.material for o in objects for slot in getattr(o, "material_slots", [])
+                              if slot.material))
+
+
+def _shown_images(material) -> list:
+    """The images of the image nodes that feed the material's output."""
+    tree = _package().compat.node_tree(material)
+    if tree is None:
+        return []
+    shown = _nodes_feeding_outputs(tree)
+    return [n.image for n in tree.nodes
+            if n.name in shown and n.bl_idname == "ShaderNodeTexImage" and n.image is not None]
+
+
+def _free_name(folder: str, name: str) -> str:
+    """folder/name, or with a number before its extension when taken."""
+    base, ext = os.path.splitext(name)
+    target, k = os.path.join(folder, name), 1
+    while os.path.lexists(target):
+        target, k = os.path.join(folder, f"{base}.{k:03d}{ext}"), k + 1
+    return target
+
+
+def _copies_named(folder: str, copied: dict) -> dict:
+    """{file in folder: bytes it must hold} of the copies _bring_input_maps
+    made (copied, by Blender image) that the MTLs in folder name; those they
+    do not name are removed (Blender's OBJ exporter writes only maps wired
+    straight into the shader)."""
     import bpy
     named = set()
     for name in os.listdir(folder):
         if name.lower().endswith(".mtl"):
             with open(os.path.join(folder, name), "rb") as f:
                 named |= _map_files(f.read())
-    sources = {}
-    for img in bpy.data.images:
-        path = bpy.path.abspath(img.filepath, library=img.library) if img.filepath else ""
-        if path and os.path.isfile(path):
-            sources.setdefault(os.path.basename(path), path)
-    for name in sorted(named):
-        if name and name == os.path.basename(name) and name in sources and \
-                not os.path.exists(os.path.join(folder, name)) and not os.path.exists(os.path.join(out_dir, name)):
-            shutil.copyfile(sources[name], os.path.join(folder, name))
+    kept = {}
+    for image_name, size in copied.items():
+        path = bpy.path.abspath(bpy.data.images[image_name].filepath)
+        if os.path.basename(path) in named:
+            kept[os.path.basename(path)] = size
+        else:
+            _remove_quietly(path)
+    return kept
 
 
-def _require_gltf_images(path: str, written) -> None:
+def _require_gltf_images(path: str, written, rebuilt=frozenset()) -> None:
     """BatchError when the glTF at path holds no image although the job wrote
-    some (written: their files): Blender's glTF exporter drops textures
-    behind shader nodes it cannot export, and the model would come out
-    without its new atlas."""
+    some (written: their files), or gives a material the job rebuilt
+    (rebuilt: their names) no texture: Blender's glTF exporter drops
+    textures behind shader nodes it cannot export, and the model would come
+    out without its new atlas."""
     if not written:
         return
     with open(path, "rb") as f:
@@ -797,11 +877,34 @@ def _require_gltf_images(path: str, written) -> None:
             data = f.read(struct.unpack_from("<I", head, 12)[0]) if len(head) == 20 else b"{}"
         else:
             data = f.read()
-    if not json.loads(data).get("images"):
+    gltf = json.loads(data)
+    bare = sorted(m["name"] for m in gltf.get("materials", [])
+                  if m.get("name") in rebuilt and not _names_a_texture(m))
+    if not gltf.get("images") or bare:
+        lost = f"the materials {', '.join(bare)} without a texture" if gltf.get("images") else \
+            f"none of the new images ({', '.join(sorted(written))})"
         raise BatchError(
-            f"Blender's glTF exporter wrote none of the new images ({', '.join(sorted(written))}): the materials "
-            "use shader nodes it cannot export (a specular-glossiness material, say), so the model would lose "
-            "its texture; nothing was written. Write an OBJ instead, or wire the textures into a Principled BSDF")
+            f"Blender's glTF exporter wrote {lost}: the materials use shader nodes it cannot export (a "
+            "specular-glossiness material, say), so the model would lose its texture; nothing was written. "
+            "Write an OBJ instead, or wire the textures into a Principled BSDF")
+
+
+def _names_a_texture(value) -> bool:
+    """Whether glTF JSON (a material's) holds a texture reference anywhere:
+    an object with an index."""
+    if isinstance(value, dict):
+        return "index" in value or any(_names_a_texture(v) for v in value.values())
+    return isinstance(value, list) and any(_names_a_texture(v) for v in value)
+
+
+def _rebuilt_materials(objects, folder: str) -> set:
+    """The names of the objects' materials that show an image whose file is
+    in folder: the ones the job rebuilt around its new images."""
+    import bpy
+    real = _real(folder)
+    return {m.name for m in _materials_of(objects)
+            if any(img.filepath and _real(os.path.dirname(bpy.path.abspath(img.filepath))) == real
+                   for img in _shown_images(m))}
 
 
 def _remove_quietly(path: str) -> None:
@@ -811,20 +914,26 @@ def _remove_quietly(path: str) -> None:
         pass
 
 
-def _verify_outputs(folder: str, model: str, others, polygons: int, base_colours=frozenset()) -> list:
+def _verify_outputs(folder: str, model: str, others, polygons: int, base_colours=frozenset(), copies=None,
+                    rebuilt=frozenset()) -> list:
     """BatchError unless every written file is whole: exporters report success
     on a full disk and leave truncated or empty files; and unless a glTF
-    holds images where the job wrote some (_require_gltf_images). Returns the
-    images written beside an OBJ that its materials do not name.
-    base_colours: the files an OBJ's MTL must name (see _base_colour_files)."""
+    holds images where the job wrote some and gives every material the job
+    rebuilt a texture (_require_gltf_images). Returns the images written
+    beside an OBJ that its materials do not name. base_colours: the files an
+    OBJ's MTL must name (see _base_colour_files); copies: {file: bytes} of
+    input images copied as they were, whole when all their bytes are there;
+    rebuilt: the names of the materials the job rebuilt."""
+    copies = copies or {}
     for name in [model] + list(others):
         path = os.path.join(folder, name)
-        problem = _file_problem(path, polygons if name == model else None)
+        problem = _copy_problem(path, copies[name]) if name in copies else \
+            _file_problem(path, polygons if name == model else None)
         if problem:
             raise BatchError(f"writing {name} failed ({problem}): is the disk full?")
     if not model.lower().endswith(".obj"):
         _require_gltf_images(os.path.join(folder, model),
-                             [n for n in os.listdir(folder) if n.lower().endswith((".png", ".exr"))])
+                             [n for n in os.listdir(folder) if n.lower().endswith((".png", ".exr"))], rebuilt)
         return []
     return _verify_obj_references(folder, model, [n for n in others if not n.lower().endswith(".mtl")],
                                   base_colours)
@@ -844,6 +953,14 @@ def _base_colour_files(objects) -> set:
                         link.from_node.type == "TEX_IMAGE" and image is not None and image.filepath:
                     files.add(os.path.basename(image.filepath))
     return files
+
+
+def _copy_problem(path: str, size: int) -> str:
+    """What is wrong with a file copied as it was, or '' when all its bytes are there."""
+    if not os.path.isfile(path):
+        return "missing"
+    written = os.path.getsize(path)
+    return f"{written} of {size} bytes" if written != size else ""
 
 
 def _file_problem(path: str, polygons) -> str:
@@ -1110,7 +1227,7 @@ def main_single(argv) -> int:
     if problem:
         print(f"atlas_defrag: error: {problem}", file=sys.stderr)
         return 2
-    if args.skip_existing and os.path.exists(args.output):
+    if args.skip_existing and os.path.isfile(args.output):
         print(f"atlas_defrag: skipped, {args.output} exists")
         return 0
     try:
@@ -1318,7 +1435,7 @@ class _Runner:
 
     def run(self, f, out, rep):
         """(input, output, status, error line)."""
-        if os.path.exists(out):
+        if os.path.isfile(out):
             return f, out, "skipped", ""
         with self.lock:
             if self.stopping:

@@ -6,10 +6,14 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import struct
 import subprocess
 import sys
 import time
+import urllib.parse
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 import blhelp as H
@@ -190,41 +194,90 @@ def test_batch_glb_whose_exporter_drops_the_new_texture_fails(tmp_path, runner):
     assert list(out.parent.iterdir()) == []
 
 
-def test_batch34_obj_carries_the_maps_of_materials_it_left_unchanged(tmp_path):
-    """Materials read through a texture transform are left as they are, and
-    their MTL entries name the input's images: those are copied beside the
-    OBJ, so that every map the MTL names is there."""
+@pytest.mark.parametrize("packed", [False, True])
+def test_batch34_obj_carries_the_maps_of_materials_it_left_unchanged(tmp_path, packed):
+    """Materials read through a texture transform are left as they are: their
+    images are copied beside the OBJ, named after it, so that every map the
+    MTL names is there. Packed in a GLB, such an image has no file, and
+    Blender's exporter would name none."""
+    source = H.ASSIMP / "glTF2" / "textureTransform" / "TextureTransformTest.gltf"
+    if packed:
+        source = _as_glb(source, tmp_path / "tt.glb")
     out = tmp_path / "out" / "tt.obj"
-    proc = blender34_batch(H.ASSIMP / "glTF2" / "textureTransform" / "TextureTransformTest.gltf", out)
+    proc = blender34_batch(source, out)
     assert proc.returncode == 0, proc.stderr[-3000:]
     text, maps = _read_obj_output(out)
     names = {m.split()[-1] for m in maps}
-    assert {"Arrow.png", "UV.png"} <= names, names
+    mtl = (out.parent / "tt.mtl").read_text()
+    assert len(maps) == mtl.count("newmtl"), mtl  # every material keeps its map
+    assert {"tt_Arrow.png", "tt_UV.png"} <= names or packed, names
     assert all((out.parent / n).is_file() for n in names), sorted(p.name for p in out.parent.iterdir())
 
 
-def test_batch_glb_images_as_jpeg_or_webp(tmp_path):
-    """--image-format has Blender's glTF exporter store the images as JPEG
-    (or WebP where it offers that, Blender 4.0 and later) at --image-quality;
-    Blender 3.4 refuses WebP before doing the work, and an OBJ output refuses
-    the option at once."""
-    proc = blender34_batch(BOX_GLB, tmp_path / "box34.glb", "--image-format", "jpeg")
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    assert [im["mimeType"] for im in _check_glb(tmp_path / "box34.glb")["images"]] == ["image/jpeg"]
-    proc = blender34_batch(BOX_GLB, tmp_path / "w" / "box34.glb", "--image-format", "webp")
-    assert proc.returncode == 1 and "offers auto, jpeg only" in proc.stderr, proc.stderr[-2000:]
-    assert not (tmp_path / "w").exists() or list((tmp_path / "w").iterdir()) == []
-    sizes = {}
-    for fmt, quality in (("jpeg", 20), ("jpeg", 95), ("webp", 80)):
-        out = tmp_path / f"box45_{fmt}_{quality}.glb"
-        proc = bpy45_batch(BOX_GLB, out, "--image-format", fmt, "--image-quality", quality)
+def test_batch34_obj_maps_left_unchanged_never_share_a_file_with_another_models(tmp_path):
+    """Two models whose unchanged materials read images of one name with
+    other pixels, written into one folder: each MTL names its own model's."""
+    from atlas_defrag import png_files
+
+    out = tmp_path / "out"
+    for k, model in enumerate(("one", "two")):
+        folder = tmp_path / model
+        folder.mkdir()
+        (folder / "tex.png").write_bytes(png_files.encode_png(np.full((8, 8, 3), 60 + 100 * k, np.uint8)))
+        (folder / "m.mtl").write_text("newmtl a\nmap_Kd tex.png\nnewmtl b\nmap_Kd -s 2 2 1 tex.png\n")
+        (folder / "m.obj").write_text(
+            "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\n"
+            "vt 0.1 0.1\nvt 0.9 0.1\nvt 0.9 0.9\nvt 0.1 0.9\n"
+            "usemtl a\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\nusemtl b\nf 2/1 5/2 6/3\nf 2/1 6/3 3/4\n")
+        proc = blender34_batch(folder / "m.obj", out / f"{model}.obj")
         assert proc.returncode == 0, proc.stderr[-3000:]
-        assert [im["mimeType"] for im in _check_glb(out)["images"]] == [f"image/{fmt}"]
-        sizes[fmt, quality] = out.stat().st_size
-    assert sizes["jpeg", 20] < sizes["jpeg", 95], sizes
-    proc = bpy45_batch(BOX_GLB, tmp_path / "box.obj", "--image-format", "jpeg")
-    assert proc.returncode == 2 and "applies to glTF outputs" in proc.stderr, proc.stderr[-2000:]
-    assert not (tmp_path / "box.obj").exists()
+    for model in ("one", "two"):
+        _, maps = _read_obj_output(out / f"{model}.obj")
+        scaled = [m.split()[-1] for m in maps if m.startswith("-s")]
+        assert len(scaled) == 1, maps
+        assert (out / scaled[0]).read_bytes() == (tmp_path / model / "tex.png").read_bytes(), model
+
+
+def test_batch34_refuses_an_output_that_is_a_folder(tmp_path):
+    """A folder at OUT (or at the MTL's name) is refused, its files kept: a
+    run sets an earlier output aside in its scratch folder and removes it."""
+    for name in ("tetra.obj", "tetra.mtl"):
+        folder = tmp_path / name.split(".")[1] / name
+        folder.mkdir(parents=True)
+        (folder / "keep.txt").write_text("mine")
+        proc = blender34_batch(H.model_path("tetra"), folder.parent / "tetra.obj")
+        assert proc.returncode == 1 and "is a folder" in proc.stderr, proc.stderr[-2000:]
+        assert (folder / "keep.txt").read_text() == "mine"
+        assert sorted(p.name for p in folder.parent.iterdir()) == [name]
+
+
+def _as_glb(source: Path, target: Path) -> Path:
+    """source, a .gltf whose buffers and images are files beside it, as one
+    GLB that holds them all (its images packed, with no file name)."""
+    gltf = json.loads(source.read_text())
+    blob = bytearray()
+
+    def append(data: bytes) -> int:
+        blob.extend(b"\0" * (-len(blob) % 4))
+        blob.extend(data)
+        return len(blob) - len(data)
+
+    starts = [append((source.parent / b["uri"]).read_bytes()) for b in gltf["buffers"]]
+    for view in gltf.get("bufferViews", []):
+        view["byteOffset"] = view.get("byteOffset", 0) + starts[view["buffer"]]
+        view["buffer"] = 0
+    for image in gltf.get("images", []):
+        data = (source.parent / urllib.parse.unquote(image.pop("uri"))).read_bytes()
+        gltf["bufferViews"].append({"buffer": 0, "byteOffset": append(data), "byteLength": len(data)})
+        image.update(bufferView=len(gltf["bufferViews"]) - 1,
+                     mimeType="image/png" if data.startswith(b"\x89PNG") else "image/jpeg")
+    blob.extend(b"\0" * (-len(blob) % 4))
+    gltf["buffers"] = [{"byteLength": len(blob)}]
+    text = json.dumps(gltf).encode()
+    text += b" " * (-len(text) % 4)
+    target.write_bytes(b"glTF" + struct.pack("<II", 2, 28 + len(text) + len(blob)) + struct.pack("<I", len(text))
+                       + b"JSON" + text + struct.pack("<I", len(blob)) + b"BIN\0" + bytes(blob))
+    return target
 
 
 def test_batch_many_in_parallel(tmp_path):
