@@ -7,6 +7,7 @@
 #include <pybind11/stl.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdint>
 #include <new>
 #include <sstream>
@@ -819,6 +820,16 @@ py::dict pack_charts_py(const py::list& charts, const py::object& options, const
 PYBIND11_MODULE(_native, m) {
   m.doc() = "Atlas Defrag native core: chart aggregation, SLIM flattening, packing, baking and metrics.";
   py::register_exception<Cancelled>(m, "Cancelled");
+  // A file the module could not write is an OSError with its errno, as
+  // Python's own writes raise: callers handle a full disk one way.
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const obj::FileError& e) {
+      errno = e.error_number;
+      PyErr_SetFromErrnoWithFilename(PyExc_OSError, e.path.c_str());
+    }
+  });
 
   py::class_<CancelToken>(m, "CancelToken", "Pass to a call; cancel() from any thread stops it early.")
       .def(py::init<>())

@@ -1,5 +1,6 @@
 """The command-line entry, tools/defrag_scan.py, run as users run it: on a real
 scan, without Blender, and its output read back from disk."""
+import errno
 import os
 import re
 import struct
@@ -161,6 +162,9 @@ def test_gltf_primitive_without_indices_reads_its_vertices_in_order(tmp_path):
     ({"accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "MAT9"}]}, "malformed glTF"),
     ({"scenes": [{}]}, "no triangle mesh"),
     ({"extensionsRequired": ["EXT_nonexistent"]}, "uses EXT_nonexistent, which this reader does not support"),
+    ({"asset": "2.0"}, "not a glTF 2.0 file"),
+    ({"extensionsRequired": 5}, "extensionsRequired is not a list of names"),
+    ({"extensionsUsed": None}, "extensionsUsed is not a list of names"),
     # The buffer holds the 36 bytes the accessor reads, its view only 24.
     ({"bufferViews": [{"buffer": 0, "byteLength": 24}]}, "reads 36 bytes of bufferView 0, which holds 24"),
     ({"buffers": [{"byteLength": 36, "uri": "pipe.bin"}]}, "pipe.bin is not a regular file"),
@@ -265,6 +269,21 @@ def test_gltf_diffuse_texture_and_webp_images_are_read(tmp_path):
                                              ktx2_only))
 
 
+def test_cli_names_an_emission_map_and_warns_of_a_metallic_roughness_one(tmp_path, tool_env):
+    """An MTL names emission (map_Ke), and has no statement for a map of two
+    packed channels: that one is written all the same, and the run says so."""
+    material = {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicRoughnessTexture": {"index": 0}},
+                "emissiveTexture": {"index": 0}}
+    source = _textured_triangle_gltf(tmp_path, material, {"extensions": {"EXT_texture_webp": {"source": 0}}})
+    run = subprocess.run([sys.executable, str(CLI), str(source), str(tmp_path / "out")], capture_output=True,
+                         text=True, timeout=300, env=tool_env)
+    assert run.returncode == 0, run.stderr
+    mtl = (tmp_path / "out" / "textured_defrag.mtl").read_text()
+    assert "map_Ke textured_defrag_page0_emission.png" in mtl and "metallic" not in mtl, mtl
+    assert "textured_defrag_page0_metallic_roughness.png written, but the MTL does not name" in run.stderr
+    assert (tmp_path / "out" / "textured_defrag_page0_metallic_roughness.png").is_file()
+
+
 @pytest.mark.parametrize("mode", ["L", "I;16"])
 def test_grey_images_load_as_one_channel(mode):
     """8-bit grey as it is; 16-bit grey scaled to 8 bits (Pillow's own
@@ -318,7 +337,7 @@ def _two_material_obj(folder: Path, mtl: str, mtllib: str = "m.mtl", textures=("
         if name:
             (folder / name).parent.mkdir(parents=True, exist_ok=True)
             (folder / name).write_bytes(png_files.encode_png(np.full((8, 8, 3), colour, np.uint8)))
-    (folder / mtllib.split()[-1]).write_text(mtl, encoding="utf-8")
+    (folder / (mtllib.strip('"') if mtllib.startswith('"') else mtllib.split()[-1])).write_text(mtl, encoding="utf-8")
     (folder / "m.obj").write_text(
         f"mtllib {mtllib}\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\n"
         "vt 0.1 0.1\nvt 0.9 0.1\nvt 0.9 0.9\nvt 0.1 0.9\n"
@@ -330,11 +349,12 @@ def _two_material_obj(folder: Path, mtl: str, mtllib: str = "m.mtl", textures=("
     ("newmtl a\nmap_Kd -s 1 1 1 my t0.png\nnewmtl b\nmap_Kd t1.png # diffuse\n", "m.mtl", ("my t0.png", "t1.png")),
     ("\ufeffnewmtl a\nmap_kd t0.png\nnewmtl b\nmap_Kd C:\\scans\\t1.png\n", "m.mtl", ("t0.png", "t1.png")),
     ("newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n", "mat/m.mtl", ("mat/t0.png", "t1.png")),
+    ('newmtl a\nmap_Kd -bm 1 "my t0.png"\nnewmtl b\nmap_Kd "t1.png"\n', '"my m.mtl"', ("my t0.png", "t1.png")),
 ])
 def test_mtl_textures_are_found_as_writers_name_them(tmp_path, mtl, mtllib, textures):
     """Names with spaces after options, a trailing comment, a byte-order
     mark, lower-case keywords, a path from another machine, a texture
-    beside an MTL in a subfolder."""
+    beside an MTL in a subfolder, names in quotes (Blender reads them)."""
     import scan_io
 
     scan = scan_io.load(_two_material_obj(tmp_path, mtl, mtllib, textures))
@@ -536,20 +556,39 @@ def test_cli_lays_a_mesh_drawn_by_several_nodes_out_once(native, scans, scan_pat
     assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
 
 
-def test_a_failed_image_write_leaves_no_files_behind(tmp_path, tool_env):
-    """Whatever stops the writing (here the PNG encoder, not the file system),
-    no OBJ is left naming images that were not written."""
+@pytest.mark.parametrize("broken, failure, message", [
+    ("png_files.write_pngs", "RuntimeError('the encoder broke')", "the encoder broke"),
+    ("_native.write_obj", "OSError(28, 'No space left on device')", "writing into"),
+])
+def test_a_failed_write_leaves_the_earlier_runs_files_as_they_were(tmp_path, tool_env, broken, failure, message):
+    """Whatever stops the writing (the PNG encoder, a full disk), no OBJ is
+    left naming images that were not written, and a run over an earlier
+    one's output leaves those files whole: it writes beside them first."""
     source = _two_material_obj(tmp_path / "in", "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
     out = tmp_path / "out"
-    code = ("import sys, defrag_scan\n"
-            "def broken(files): raise RuntimeError('the encoder broke')\n"
-            "defrag_scan.png_files.write_pngs = broken\n"
-            "sys.exit(defrag_scan.main(sys.argv[1:]))\n")
+    assert subprocess.run([sys.executable, str(CLI), str(source), str(out)], capture_output=True,
+                          timeout=300, env=tool_env).returncode == 0
+    earlier = {p.name: p.read_bytes() for p in out.iterdir()}
+    code = (f"import sys, defrag_scan\ndef broken(*args): raise {failure}\n"
+            f"defrag_scan.{broken} = broken\nsys.exit(defrag_scan.main(sys.argv[1:]))\n")
     env = dict(tool_env, PYTHONPATH=os.pathsep.join([str(CLI.parent), tool_env["PYTHONPATH"]]))
-    run = subprocess.run([sys.executable, "-c", code, str(source), str(out)], capture_output=True, text=True,
-                         timeout=300, env=env)
-    assert run.returncode != 0 and "the encoder broke" in run.stderr
-    assert list(out.iterdir()) == []
+    for folder in (out, tmp_path / "fresh"):
+        run = subprocess.run([sys.executable, "-c", code, str(source), str(folder)], capture_output=True, text=True,
+                             timeout=300, env=env)
+        assert run.returncode == 1 and message in run.stderr, run.stderr
+        assert "Traceback" not in run.stderr or "OSError" not in failure, run.stderr  # a full disk: one line
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == earlier
+    assert list((tmp_path / "fresh").iterdir()) == []
+
+
+def test_the_native_obj_writer_fails_as_python_writes_do(native, tmp_path):
+    """A file the writer cannot write is an OSError with its errno (a full disk here)."""
+    args = (np.zeros((3, 3)), np.array([[0, 1, 2]]), np.zeros((1, 3, 2)), np.zeros(1, np.int64), ["a"])
+    with pytest.raises(OSError) as caught:
+        native.write_obj("/dev/full", "m.mtl", *args)
+    assert caught.value.errno == errno.ENOSPC and caught.value.filename == "/dev/full"
+    with pytest.raises(FileNotFoundError):
+        native.write_obj(str(tmp_path / "no" / "m.obj"), "m.mtl", *args)
 
 
 def test_obj_maps_beside_the_base_colour_are_carried_over(tmp_path, tool_env):

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
+import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -35,12 +37,18 @@ def progress_line(stage: str, fraction: float) -> None:
         print(f"\r  {stage:<10} {fraction:6.1%}", end="", file=sys.stderr, flush=True)
 
 
-def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: list[dict]) -> None:
+# MTL statements of the maps an MTL can name; a metallic-roughness map (two
+# channels of one image) has none.
+MTL_MAPS = {"base_color": "map_Kd", "normal": "norm", "occlusion": "map_ao", "emission": "map_Ke"}
+
+
+def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: list[dict]) -> list[str]:
     """One vt per face corner keeps the writer trivial; importers weld them back.
     The OBJ text is written natively (_native.write_obj) while the maps' PNGs
-    are encoded side by side (png_files, as the add-on does)."""
+    are encoded side by side (png_files, as the add-on does). Returns the
+    images written that the MTL does not name."""
     stem = path.stem
-    images = []
+    images, unnamed = [], []
     with open(path.with_suffix(".mtl"), "w") as mtl:
         mtl.write("newmtl untextured\nKd 0.8 0.8 0.8\n")  # faces without a page use it
         for page, roles in enumerate(maps):
@@ -48,15 +56,17 @@ def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: li
             for role, image in roles.items():
                 name = f"{stem}_page{page}_{role}.png"
                 images.append((path.parent / name, image))
-                key = {"base_color": "map_Kd", "normal": "norm", "occlusion": "map_ao"}.get(role)
-                if key:
-                    mtl.write(f"{key} {name}\n")
+                if role in MTL_MAPS:
+                    mtl.write(f"{MTL_MAPS[role]} {name}\n")
+                else:
+                    unnamed.append(name)
     with ThreadPoolExecutor(max_workers=1) as pool:
         pngs = pool.submit(png_files.write_pngs, images)
         # Material 0 is "untextured" (page -1), material p + 1 is page p.
         _native.write_obj(str(path), f"{stem}.mtl", scan.positions, scan.triangles, uvs, face_page + 1,
                           ["untextured"] + [f"page{p}" for p in range(len(maps))])
         pngs.result()
+    return unnamed
 
 
 def decoded(source, label: str) -> np.ndarray:
@@ -223,10 +233,13 @@ def every_instance(result: job.JobResult, rows) -> tuple:
 
 
 def write_checked(args, scan, laid, rows, inp, result, old):
-    """Writes the files, never over one the scan was read from, none left
-    when writing fails; the metrics of the faces laid out (measured natively
-    without the GIL, beside the writing) or (None, None). laid, rows: see
-    Scan.first_instances; every face is written with its source's new UVs."""
+    """Writes the files, never over one the scan was read from, into a
+    scratch folder in OUT_DIR first and then into place, the OBJ last: a run
+    that fails leaves an earlier run's files as they were. Returns the
+    metrics of the faces laid out (measured natively without the GIL, beside
+    the writing) or (None, None), and the images the MTL does not name.
+    laid, rows: see Scan.first_instances; every face is written with its
+    source's new UVs."""
     maps = page_maps(result)
     outputs = output_files(args.output, f"{args.input.stem}_defrag", maps)
     replaced = overwritten_input(outputs, scan.files)
@@ -236,15 +249,18 @@ def write_checked(args, scan, laid, rows, inp, result, old):
         measured = pool.submit(quality, laid, inp, result, old.result()) if args.metrics else None
         try:
             args.output.mkdir(parents=True, exist_ok=True)
-            write_obj(outputs[0], scan, *every_instance(result, rows), maps)
-        except BaseException as exc:  # Ctrl-C and encoder errors too
-            for path in outputs:  # no OBJ left naming a PNG that was not written
-                if path.is_file():
-                    path.unlink()
-            if isinstance(exc, OSError):
-                raise Failed(f"writing into {args.output} failed: {exc}") from exc
-            raise
-        return measured.result() if measured else (None, None)
+            scratch = Path(tempfile.mkdtemp(prefix=".defrag_scan_", dir=args.output))
+        except OSError as exc:
+            raise Failed(f"writing into {args.output} failed: {exc}") from exc
+        try:
+            unnamed = write_obj(scratch / outputs[0].name, scan, *every_instance(result, rows), maps)
+            for path in outputs[1:] + outputs[:1]:
+                os.replace(scratch / path.name, path)
+        except OSError as exc:
+            raise Failed(f"writing into {args.output} failed: {exc}") from exc
+        finally:  # Ctrl-C and encoder errors too: nothing half written is left
+            shutil.rmtree(scratch, ignore_errors=True)
+        return (measured.result() if measured else (None, None)), unnamed
 
 
 def main(argv=None) -> int:
@@ -255,7 +271,7 @@ def main(argv=None) -> int:
         t_load = time.perf_counter() - t0
         laid, rows = scan.first_instances()  # a mesh several nodes draw is laid out once
         inp, result, old = run_job(args, laid)
-        m, fidelity = write_checked(args, scan, laid, rows, inp, result, old)
+        (m, fidelity), unnamed = write_checked(args, scan, laid, rows, inp, result, old)
     except Failed as exc:
         print(f"defrag_scan: error: {exc}", file=sys.stderr)
         return 1
@@ -266,6 +282,9 @@ def main(argv=None) -> int:
     print(f"  written to    {args.output}")
     for warning in result.report.get("warnings", []):
         print(f"defrag_scan: warning: {warning}", file=sys.stderr)
+    if unnamed:
+        print(f"defrag_scan: warning: {', '.join(unnamed)} written, but the MTL does not name "
+              "them: an MTL has no metallic-roughness map", file=sys.stderr)
     return 0
 
 

@@ -11,6 +11,7 @@ import base64
 import io
 import json
 import os
+import re
 import struct
 import urllib.parse
 from dataclasses import dataclass, field
@@ -165,9 +166,16 @@ def _material_libraries(obj_path: Path, mtllibs: list[str]) -> list[Path]:
     name may hold spaces, or several (the OBJ format allows both)."""
     found = []
     for lib in mtllibs:
-        whole = obj_path.parent / lib.replace("\\", "/")
-        found += [whole] if whole.is_file() else [obj_path.parent / n for n in lib.split()]
+        whole = obj_path.parent / _unquoted(lib).replace("\\", "/")
+        words = [quoted or bare for quoted, bare in re.findall(r'"([^"]*)"|(\S+)', lib)]
+        found += [whole] if whole.is_file() else [obj_path.parent / w.replace("\\", "/") for w in words if w]
     return found
+
+
+def _unquoted(name: str) -> str:
+    """A file name without the double quotes some writers put around it (Blender reads both)."""
+    name = name.strip()
+    return name[1:-1] if len(name) >= 2 and name[0] == name[-1] == '"' else name
 
 
 def _texture_path(reference: str, folders: list[Path]) -> Path:
@@ -177,7 +185,7 @@ def _texture_path(reference: str, folders: list[Path]) -> Path:
     from another machine (C:\\...) by its file name there."""
     from atlas_defrag import mtl_text
 
-    whole = mtl_text.map_file(reference).replace("\\", "/")
+    whole = _unquoted(mtl_text.map_file(reference)).replace("\\", "/")
     names = [whole, whole.split(" #")[0].strip(), whole.split()[-1] if whole.split() else ""]
     names += [n.rsplit("/", 1)[-1] for n in names]
     for name in filter(None, names):
@@ -466,11 +474,12 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
     """The scan of a parsed glTF, or ValueError saying what is wrong with it:
     a glTF 1.0 file, a missing buffer or a malformed field would otherwise
     surface as a bare KeyError or TypeError, and a cycle of nodes as a hang."""
-    version = str(gltf.get("asset", {}).get("version", "")) if isinstance(gltf, dict) else ""
+    asset = gltf.get("asset") if isinstance(gltf, dict) else None
+    version = str(asset.get("version", "")) if isinstance(asset, dict) else ""
     if not version.startswith("2"):
         raise ValueError(f"not a glTF 2.0 file (asset version {version or 'missing'})")
-    used = set(gltf.get("extensionsRequired", [])) | set(gltf.get("extensionsUsed", []))
-    unread = (used & _UNREAD_EXTENSIONS) | (set(gltf.get("extensionsRequired", [])) - _READ_EXTENSIONS)
+    required, listed = (_names(gltf, "extensionsRequired"), _names(gltf, "extensionsUsed"))
+    unread = ((required | listed) & _UNREAD_EXTENSIONS) | (required - _READ_EXTENSIONS)
     if unread:
         raise ValueError(f"uses {', '.join(sorted(unread))}, which this reader does not support")
     try:
@@ -491,6 +500,14 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
            for name in prim.get("attributes", {})):
         scan.warnings.append(_VERTEX_COLOURS)
     return scan
+
+
+def _names(gltf: dict, key: str) -> set:
+    """The strings a glTF lists under key (a list of extension names), or ValueError."""
+    names = gltf.get(key, [])
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise ValueError(f"malformed glTF ({key} is not a list of names)")
+    return set(names)
 
 
 _TRIANGLES, _STRIP, _FAN = 4, 5, 6

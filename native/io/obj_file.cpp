@@ -1,5 +1,6 @@
 #include "io/obj_file.hpp"
 
+#include <cerrno>
 #include <charconv>
 #include <cstdio>
 #include <filesystem>
@@ -191,7 +192,7 @@ void read_line(std::string_view line, int number, Lists& lists) {
 class TextOut {
  public:
   explicit TextOut(const std::string& path) : file_(std::fopen(path.c_str(), "wb"), &std::fclose), path_(path) {
-    if (!file_) throw InputError("cannot write " + path);
+    if (!file_) throw FileError(path, errno);
   }
   TextOut& text(std::string_view s) {
     buffer_.append(s);
@@ -222,7 +223,7 @@ class TextOut {
   }
   void close() {
     flush();
-    if (std::fclose(file_.release()) != 0) throw InputError("cannot write " + path_);
+    if (std::fclose(file_.release()) != 0) throw FileError(path_, errno);
   }
 
  private:
@@ -232,7 +233,7 @@ class TextOut {
   }
   void flush() {
     if (std::fwrite(buffer_.data(), 1, buffer_.size(), file_.get()) != buffer_.size())
-      throw InputError("cannot write " + path_);
+      throw FileError(path_, errno);
     buffer_.clear();
   }
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> file_;

@@ -3,12 +3,22 @@
 // positions, texture coordinates, faces (triangulated) and the material
 // each face uses; normals, groups, lines and points are skipped.
 #pragma once
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "core/mesh.hpp"
 
 namespace atlas::obj {
+
+// A file that could not be opened, written or closed; errno said why (a full
+// disk, say). Not an InputError: nothing is wrong with the data.
+struct FileError : std::runtime_error {
+  FileError(const std::string& file, int error) : std::runtime_error("cannot write " + file), path(file),
+                                                  error_number(error ? error : EIO) {}
+  std::string path;
+  int error_number;
+};
 
 struct ObjFile {
   RowMatrixX3d positions;                      // V x 3, the x y z of each `v` line (a colour after them is ignored)
@@ -35,7 +45,7 @@ ObjFile read_obj(const std::string& path);
 // `usemtl materials[m]` (face_material, F, indexes materials), after a line
 // `mtllib library`. Positions are written exactly (the shortest digits that
 // read back as the same double), UVs with 9 significant digits (%.9g, what
-// a float32 holds). Throws InputError if the file cannot be written.
+// a float32 holds). Throws FileError if the file cannot be written.
 void write_obj(const std::string& path, const std::string& library, const RowMatrixX3d& positions,
                const RowMatrixX3i& triangles, const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_material,
                const std::vector<std::string>& materials);
