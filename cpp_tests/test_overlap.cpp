@@ -6,6 +6,7 @@
 
 #include "charts/aggregate.hpp"
 #include "charts/chart_graph.hpp"
+#include "core/bucket_grid.hpp"
 #include "core/corners.hpp"
 #include "core/geometry.hpp"
 #include "flatten/cut_to_disk.hpp"
@@ -402,4 +403,22 @@ TEST(ReliefCut, SplitUndoesTheLastMerge) {
   }
   EXPECT_NE(before.find(split.face_chart[split.pieces[0].faces.front()]),
             before.find(split.face_chart[split.pieces[1].faces.front()]));
+}
+
+// A query box far larger than the cells (a clearance of fixed texels around
+// a chart a hundred-billionth of a texel across) reaches every cell: the cell
+// indices are clamped before they become ints, which they would overflow.
+TEST(BucketGrid, AQueryBoxFarLargerThanTheGridVisitsEveryItem) {
+  const double side = 1e-11;
+  BucketGrid grid(Eigen::Vector2d::Zero(), Eigen::Vector2d::Constant(side), 100);
+  for (int i = 0; i < 100; ++i) {
+    const Eigen::Vector2d at((i % 10 + 0.5) * side / 10, (i / 10 + 0.5) * side / 10);
+    grid.insert(i, at, at);
+  }
+  std::vector<int> seen(100, 0);
+  grid.any_near(Eigen::Vector2d::Constant(-0.05), Eigen::Vector2d::Constant(0.05), [&](int i) {
+    seen[i] = 1;
+    return false;
+  });
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), 100);
 }

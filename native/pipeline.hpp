@@ -79,7 +79,8 @@ struct PipelineReport {
   double scale = 1;            // smallest uniform texel scale the packer applied
   bool shrunk = false;         // some group's charts got less than the density asked for (scale says how much)
   // Symmetric Dirichlet energy per unit reference area of the solved charts
-  // (4 is isometric): median at the initial embedding, then median and max after SLIM.
+  // (4 is isometric): median at the initial embedding, then median and max after SLIM
+  // (as solved: the border refinements after it move faces and vertices).
   double energy_initial_median = 0, energy_median = 0, energy_max = 0;
   // The chart with the most faces that plain SLIM solved: its faces, and the
   // wall time of its SLIM iterations over that of the numeric factorizations

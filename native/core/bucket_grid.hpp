@@ -45,7 +45,12 @@ class BucketGrid {
         if (visit(static_cast<size_t>(y) * n_ + x)) return true;
     return false;
   }
-  int axis(double v, int d) const { return std::clamp(static_cast<int>((v - lo_[d]) / cell_[d]), 0, n_ - 1); }
+  // Clamped before the cast: a query box far larger than the cells (a margin
+  // of fixed texels around a chart of 1e-11 texels) would overflow an int.
+  int axis(double v, int d) const {
+    const double cell = (v - lo_[d]) / cell_[d];
+    return cell > 0 ? static_cast<int>(std::min(cell, n_ - 1.0)) : 0;  // NaN: cell 0
+  }
 
   Eigen::Vector2d lo_, cell_;
   int n_;
