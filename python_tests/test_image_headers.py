@@ -150,6 +150,15 @@ def test_a_jpeg_cut_short_is_told_from_a_whole_one():
     assert not image_headers.cut_short(io.BytesIO(whole[:2] + app1 + whole[2:]))
 
 
+def test_a_jpeg_cut_anywhere_in_its_header_is_read_without_an_error():
+    """Cut one byte into a segment's length, say: the walk over the segments
+    ends there, as the file does (Blender then cannot decode it, and says so)."""
+    whole = _saved("JPEG", size=(64, 64))
+    for end in range(2, whole.find(b"\xff\xda") + 8):
+        image_headers.cut_short(io.BytesIO(whole[:end]))
+        image_headers.claimed_size(io.BytesIO(whole[:end]), "t.jpg")
+
+
 def test_formats_that_pack_flat_images_tightly_are_not_taken_for_forged():
     """A flat lossless WebP is a few dozen bytes at any size (as a black
     metallic map may be); a JPEG of that size cannot be."""

@@ -6,10 +6,14 @@ from __future__ import annotations
 import contextlib
 
 import bpy
+import numpy as np
 
 
 # Blender allows at most this many UV maps on a mesh (MAX_MTFACE).
 MAX_UV_MAPS = 8
+# The longest UV map name (UTF-8 bytes) a UV Map node or a modifier holds;
+# 4.x lets the maps themselves have longer names.
+NAME_BYTES = 63
 
 # Principled BSDF input names (3.x and 4.x) -> role names used by the job.
 PRINCIPLED_ROLES = {
@@ -83,3 +87,43 @@ def status_text_set(context, text) -> None:
             ws.status_text_set(text)
         except Exception:
             pass
+
+
+# Per-corner flags of a UV map: 4.x keeps them in attributes named after the
+# map (created on first write, renamed with it), 3.x in the map's loop data.
+_UV_FLAGS_4 = (("pin", ".pn."), ("vertex_selection", ".vs."), ("edge_selection", ".es."))
+_UV_FLAGS_3 = ("pin_uv", "select", "select_edge")
+
+
+def uv_flags(me, name: str) -> dict:
+    """{flag: (corners,) bool} of the pins and UV selection of me's UV map
+    name; reading creates no attribute."""
+    layer = me.uv_layers[name]
+    out = {}
+    if not hasattr(layer, "pin"):
+        for flag in _UV_FLAGS_3:
+            out[flag] = np.zeros(len(layer.data), dtype=bool)
+            layer.data.foreach_get(flag, out[flag])
+        return out
+    for flag, prefix in _UV_FLAGS_4:
+        out[flag] = np.zeros(len(me.loops), dtype=bool)
+        attribute = me.attributes.get(prefix + name)
+        if attribute is not None:
+            attribute.data.foreach_get("value", out[flag])
+    return out
+
+
+def set_uv_flags(me, name: str, flags: dict) -> None:
+    """Sets what uv_flags gave on me's UV map name (as many corners),
+    creating no attribute to hold flags that are all off."""
+    layer = me.uv_layers[name]
+    for flag, values in flags.items():
+        if not hasattr(layer, "pin"):
+            layer.data.foreach_set(flag, values)
+            continue
+        attribute_name = dict(_UV_FLAGS_4)[flag] + name
+        attribute = me.attributes.get(attribute_name)
+        if attribute is None and values.any():
+            attribute = me.attributes.new(attribute_name, "BOOLEAN", "CORNER")
+        if attribute is not None:
+            attribute.data.foreach_set("value", values)

@@ -101,7 +101,10 @@ def _jpeg_markers(f: BinaryIO):
             return
         if marker[0] in _JPEG_BARE or marker[0] == 0:
             continue
-        length, = struct.unpack(">H", f.read(2))
+        raw = f.read(2)
+        if len(raw) < 2:  # the file ends inside the segment's length
+            return
+        length, = struct.unpack(">H", raw)
         start = f.tell()
         yield marker[0]
         f.seek(start + length - 2)

@@ -255,6 +255,8 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
                 api.read_bpy.check_textures(obj, self.uv_map if obj == objects[0] else None)
         except DefragError as exc:
             return self._fail("error", str(exc))
+        except Exception as exc:  # a message, not a traceback in the UI
+            return self._fail("error", _internal_error(exc))
         if not self.uv_map:
             self.uv_map = api.read_bpy.check_object(objects[0]).name
         return context.window_manager.invoke_props_dialog(self, width=360)
@@ -305,6 +307,8 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
             return self._end(context, reports, "Cancelled: nothing was changed" if not reports else "Cancelled")
         except DefragError as exc:
             return self._end(context, reports, str(exc))
+        except Exception as exc:  # the write rolled its object back; the objects done stay
+            return self._end(context, reports, _internal_error(exc))
         finally:
             wm.progress_end()
         return self._end(context, reports, None)
@@ -489,6 +493,11 @@ def _finish(unit, read, result):
             yield api.finish(unit[0][0], read, result, unit[0][1])
             return
         yield from api.finish_shared([obj for obj, _ in unit], read, result, [s for _, s in unit])
+
+
+def _internal_error(exc: Exception) -> str:
+    """The message for an error the add-on did not foresee."""
+    return f"Internal error ({type(exc).__name__}: {exc}): nothing more was changed; please report it"
 
 
 def _done_before(reports) -> str:

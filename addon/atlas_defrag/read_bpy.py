@@ -35,9 +35,6 @@ class MaterialInfo:
     slots: List[int]  # slot indices holding it
     page: int = -1  # source page, -1 when the material has no usable image map
     maps: List[NodeMap] = field(default_factory=list)
-    pin_images: List[str] = field(default_factory=list)  # image nodes on the render UV map (implicitly)
-    pin_uv_nodes: List[str] = field(default_factory=list)  # UV Map nodes with an empty name
-    pin_normal_nodes: List[str] = field(default_factory=list)  # Normal Map nodes with an empty UV map
 
 
 @dataclass
@@ -83,6 +80,10 @@ def check_object(obj, uv_map: Optional[str] = None):
         raise DefragError(
             f"Mesh '{me.name}' already has {len(me.uv_layers)} UV maps, the most Blender allows: "
             "remove one to make room for the new map")
+    for name in {_render_uv_name(me), me.uv_layers.active.name if me.uv_layers.active else ""}:
+        if len(name.encode("utf-8")) > compat.NAME_BYTES:
+            raise DefragError(f"UV map '{name}' of mesh '{me.name}' has a name longer than {compat.NAME_BYTES} "
+                              "bytes, which shader nodes and modifiers cannot hold: rename it")
     return layer
 
 
@@ -386,17 +387,13 @@ def _is_float(img) -> bool:
     return False if _plain_png(img) else bool(img.is_float)
 
 
-def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
-    """Image maps of one material that use uv_map, and the nodes to pin to the
-    render UV map (they would otherwise follow the new render-active map)."""
+def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]) -> List[NodeMap]:
+    """Image maps of one material that use uv_map. (What reads the render UV
+    map without naming it is pinned to it when the result is written.)"""
     maps: List[NodeMap] = []
-    pin_images: List[str] = []
-    pin_uv_nodes: List[str] = []
-    pin_normal_nodes: List[str] = []
     tree = compat.node_tree(mat)
     if tree is None:
-        return maps, pin_images, pin_uv_nodes, pin_normal_nodes
-    rewired_normals = set()
+        return maps
     for node in tree.nodes:
         if node.bl_idname != "ShaderNodeTexImage":
             continue
@@ -413,19 +410,10 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]):
         if usable:
             maps.append(NodeMap(node=node.name, role="+".join(roles), image=img.name,
                                 normal_nodes=normal_nodes))
-            rewired_normals.update(normal_nodes)
-        elif kind == "implicit" and img is not None:
-            pin_images.append(node.name)
         elif img is not None and kind == "other" and roles and node.projection == "FLAT":
             warnings.append(f"Image '{img.name}' in material '{mat.name}' is read through a "
                             "coordinate transform: left unchanged")
-    for node in tree.nodes:
-        if node.bl_idname == "ShaderNodeUVMap" and not node.uv_map:
-            pin_uv_nodes.append(node.name)
-        elif (node.bl_idname == "ShaderNodeNormalMap" and node.space == "TANGENT"
-              and not node.uv_map and node.name not in rewired_normals):
-            pin_normal_nodes.append(node.name)
-    return maps, pin_images, pin_uv_nodes, pin_normal_nodes
+    return maps
 
 
 def read_pixels(img) -> np.ndarray:
@@ -580,9 +568,8 @@ def _analyse_slots(obj, uv_name: str, render_uv: str, warnings: List[str]) -> Di
         if mat.name in materials:
             materials[mat.name].slots.append(i)
             continue
-        maps, pins, pin_uv, pin_n = analyse_material(mat, uv_name, render_uv, warnings)
-        materials[mat.name] = MaterialInfo(name=mat.name, slots=[i], maps=maps, pin_images=pins,
-                                           pin_uv_nodes=pin_uv, pin_normal_nodes=pin_n)
+        materials[mat.name] = MaterialInfo(name=mat.name, slots=[i],
+                                           maps=analyse_material(mat, uv_name, render_uv, warnings))
     return materials
 
 

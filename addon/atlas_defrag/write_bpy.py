@@ -159,8 +159,7 @@ def _set_attr(obj, attr, value, journal: _Journal):
     journal.add(lambda: setattr(obj, attr, old))
 
 
-def _rewire_material(mat, info, new_uv: str, page_images: Dict[str, object], read: ReadResult,
-                     journal: _Journal) -> None:
+def _rewire_material(mat, info, new_uv: str, page_images: Dict[str, object], journal: _Journal) -> None:
     tree = mat.node_tree
     uv_node = None
     for nm in info.maps:
@@ -173,19 +172,74 @@ def _rewire_material(mat, info, new_uv: str, page_images: Dict[str, object], rea
         _relink(tree, uv_node.outputs["UV"], node.inputs["Vector"], journal)
         for name in nm.normal_nodes:
             _set_attr(tree.nodes[name], "uv_map", new_uv, journal)
-    # Nodes that used the render-active map implicitly keep using the old one.
+
+
+def _pin_to_old_map(mat, render_uv: str, journal: _Journal) -> None:
+    """The nodes of mat that read the render-active UV map without naming it
+    (image nodes with nothing in their Vector input, the UV output of Texture
+    Coordinate nodes, UV Map and tangent Normal Map nodes with no map named)
+    name the old one: the new map is render-active now."""
+    tree = compat.node_tree(mat)
+    if tree is None:
+        return
     pin = None
-    for name in info.pin_images:
-        node = tree.nodes[name]
+
+    def pinned(near):
+        nonlocal pin
         if pin is None:
             pin = _add_node(tree, "ShaderNodeUVMap", PIN_NODE_LABEL, journal)
-            pin.uv_map = read.render_uv
-            _place_left_of(node, pin, 260.0)
-        _relink(tree, pin.outputs["UV"], node.inputs["Vector"], journal)
-    for name in info.pin_uv_nodes:
-        _set_attr(tree.nodes[name], "uv_map", read.render_uv, journal)
-    for name in info.pin_normal_nodes:
-        _set_attr(tree.nodes[name], "uv_map", read.render_uv, journal)
+            pin.uv_map = render_uv
+            _place_left_of(near, pin, 260.0)
+        return pin.outputs["UV"]
+
+    for node in list(tree.nodes):
+        if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and not node.inputs["Vector"].is_linked:
+            _relink(tree, pinned(node), node.inputs["Vector"], journal)
+        elif node.bl_idname == "ShaderNodeTexCoord":
+            for link in list(node.outputs["UV"].links):
+                _relink(tree, pinned(node), link.to_socket, journal)
+        elif (node.bl_idname == "ShaderNodeUVMap" or node.bl_idname == "ShaderNodeNormalMap"
+              and node.space == "TANGENT") and not node.uv_map:
+            _set_attr(node, "uv_map", render_uv, journal)
+
+
+def _pin_default_uv_users(target: _Target, active_uv: Optional[str]) -> None:
+    """What read the mesh's render-active or active UV map without naming it
+    keeps reading the old one, now that the new map is both: the materials of
+    every object drawing the mesh (see _pin_to_old_map) and the modifiers'
+    empty UV map fields. A material that meshes with another render-active
+    map also draw is left alone (pinning would change them) and named in a
+    warning."""
+    me, render_uv, journal = target.obj.data, target.read.render_uv, target.journal
+    users = [o for o in bpy.data.objects if o.data == me]
+    shared = []
+    for mat in dict.fromkeys(s.material for o in users for s in o.material_slots if s.material):
+        if _drawn_elsewhere_through_another_map(mat, me, render_uv):
+            shared.append(mat.name)
+        else:
+            _pin_to_old_map(mat, render_uv, journal)
+    for mod in (m for o in users for m in o.modifiers):
+        for attr in ("uv_layer", "mask_tex_uv_layer"):
+            if active_uv and getattr(mod, attr, None) == "":
+                _set_attr(mod, attr, active_uv, journal)
+    if shared:
+        target.warnings.append(f"Material(s) {', '.join(sorted(shared))} read the render-active UV map "
+                               f"without naming it, and other meshes draw them through maps not named "
+                               f"'{render_uv}': on this mesh they now read the new map (name the map in "
+                               "their UV Map nodes to keep the old one)")
+
+
+def _drawn_elsewhere_through_another_map(mat, me, render_uv: str) -> bool:
+    """Whether an object drawing something other than me has mat in a slot
+    and no render-active UV map named render_uv."""
+    for o in bpy.data.objects:
+        if o.data == me or not any(s.material == mat for s in getattr(o, "material_slots", [])):
+            continue
+        layers = getattr(o.data, "uv_layers", None)
+        render = next((u.name for u in layers if u.active_render), None) if layers is not None else None
+        if render != render_uv:
+            return True
+    return False
 
 
 @dataclass
@@ -279,8 +333,10 @@ def _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_f
         page_role_image, created_images = shared.by_page_role, list(shared.names)
     else:
         page_role_image, created_images = _write_images(target, storage, image_dir)
+    active_uv = obj.data.uv_layers.active.name if obj.data.uv_layers.active else None
     new_uv = _write_uv_map(target, new_map_first)
     created_materials, rewired = _rewire_materials(target, new_uv, page_role_image, duplicate_materials)
+    _pin_default_uv_users(target, active_uv)
     _keep_originals(target, duplicate_materials)
     obj.data.update()
     shared.by_page_role, shared.names = page_role_image, created_images
@@ -341,10 +397,14 @@ def _write_uv_map(target: _Target, first: bool) -> str:
                                "mesh first, Ctrl+T, to avoid this)")
     active_name = me.uv_layers.active.name if me.uv_layers.active else None
     render_name = read.render_uv
-    layer = me.uv_layers.new(name=read.uv_map + SUFFIX, do_init=False)
+    layer = me.uv_layers.new(name=_node_sized(read.uv_map, SUFFIX), do_init=False)
     if layer is None:
         raise DefragError(f"Mesh '{me.name}' cannot take another UV map")
     new_uv = layer.name
+    if len(new_uv.encode("utf-8")) > compat.NAME_BYTES:  # numbered past a taken name
+        me.uv_layers.remove(layer)
+        raise DefragError(f"Mesh '{me.name}' has UV maps of the new map's names up to {new_uv}: "
+                          "remove or rename some")
 
     def undo_uv():
         m = bpy.data.meshes[read.mesh_name]
@@ -364,6 +424,13 @@ def _write_uv_map(target: _Target, first: bool) -> str:
     return new_uv
 
 
+def _node_sized(base: str, suffix: str) -> str:
+    """base + suffix, base cut (at a character) so that the name fits a UV Map node."""
+    while base and len((base + suffix).encode("utf-8")) > compat.NAME_BYTES:
+        base = base[:-1]
+    return base + suffix
+
+
 def _uv_array(layer) -> np.ndarray:
     """(loops * 2,) float32 coordinates of a UV layer."""
     arr = np.empty(len(layer.data) * 2, dtype=np.float32)
@@ -372,25 +439,33 @@ def _uv_array(layer) -> np.ndarray:
 
 
 def _move_to_front(me, name: str, journal: _Journal) -> None:
-    """Swaps UV map name (the last one) with the first by name and data:
-    Blender cannot reorder UV maps, and nodes refer to maps by name."""
-    first, new = me.uv_layers[0], me.uv_layers[name]
-    first_name, first_data = first.name, _uv_array(first)
+    """Swaps UV map name (the last one) with the first by name, data, pins
+    and UV selection: Blender cannot reorder UV maps, and nodes refer to
+    maps by name. Maps are looked up by name after each rename: 4.x may
+    move what an older reference points at."""
+    first_name = me.uv_layers[0].name
+    first_data = _uv_array(me.uv_layers[0])
+    first_flags, new_flags = compat.uv_flags(me, first_name), compat.uv_flags(me, name)
     # Short and unused: Blender would cut a long name or rename a taken one.
     parking = next(p for p in (f"swap.{k}" for k in range(len(me.uv_layers) + 1)) if p not in me.uv_layers)
-    first.name = parking
-    new.name = first_name
-    first.name = name
-    new.data.foreach_set("uv", first_data)
+    _rename_in_turn(me, [(first_name, parking), (name, first_name), (parking, name)])
+    me.uv_layers[first_name].data.foreach_set("uv", first_data)
+    compat.set_uv_flags(me, first_name, first_flags)
+    compat.set_uv_flags(me, name, new_flags)
     mesh_name = me.name
 
     def undo():
         m = bpy.data.meshes[mesh_name]
         m.uv_layers[name].data.foreach_set("uv", _uv_array(m.uv_layers[first_name]))
-        m.uv_layers[name].name = parking
-        m.uv_layers[first_name].name = name
-        m.uv_layers[parking].name = first_name
+        _rename_in_turn(m, [(name, parking), (first_name, name), (parking, first_name)])
+        compat.set_uv_flags(m, first_name, first_flags)
+        compat.set_uv_flags(m, name, new_flags)
     journal.add(undo)
+
+
+def _rename_in_turn(me, renames) -> None:
+    for old, new in renames:
+        me.uv_layers[old].name = new
 
 
 def _rewire_materials(target: _Target, new_uv: str, page_role_image, duplicate_materials: bool):
@@ -416,7 +491,7 @@ def _rewire_materials(target: _Target, new_uv: str, page_role_image, duplicate_m
         mats = _materials_for(base, len(pages), duplicate_materials, journal, created_materials)
         for k, (q, mat) in enumerate(zip(pages, mats)):
             images = {nm.role: page_role_image[(q, nm.role)] for nm in info.maps}
-            _rewire_material(mat, info, new_uv, images, read, journal)
+            _rewire_material(mat, info, new_uv, images, journal)
             rewired.append(mat.name)
             if k == 0:
                 if duplicate_materials:

@@ -1010,6 +1010,84 @@ def source_uv_warning_names_rendered_nodes(pkg):
     assert f"/{rendered.name}" in warning and f"/{loose.name}" not in warning, warning
 
 
+def default_uv_readers_keep_the_old_map(pkg):
+    """The new map becomes active and render-active: whatever read the old
+    ones without naming them keeps reading them by name. A second material's
+    image node with nothing in its Vector input, a Texture Coordinate node's
+    UV output through a Mapping node, a Displace modifier with no UV map
+    named; and the old map keeps its pins. One undo step takes it all back."""
+    H.reset()
+    obj = H.textured_plane("Readers", uv_maps=2)
+    me = obj.data
+    me.uv_layers[1].name = "Scan"
+    me.uv_layers.active = me.uv_layers["Scan"]
+    me.uv_layers["UVMap"].active_render = True
+    scan_mat = me.materials[0]
+    label = scan_mat.copy()  # its image node reads the render-active map
+    label.name = "Label"
+    uv_node = scan_mat.node_tree.nodes.new("ShaderNodeUVMap")
+    uv_node.uv_map = "Scan"
+    scan_mat.node_tree.links.new(uv_node.outputs["UV"], H.image_nodes(scan_mat)[0].inputs["Vector"])
+    tree = label.node_tree
+    detail = tree.nodes.new("ShaderNodeTexImage")
+    detail.image = H.image_nodes(label)[0].image
+    coords, mapping = tree.nodes.new("ShaderNodeTexCoord"), tree.nodes.new("ShaderNodeMapping")
+    tree.links.new(coords.outputs["UV"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], detail.inputs["Vector"])
+    me.materials.append(label)
+    me.polygons.foreach_set("material_index", np.arange(len(me.polygons), dtype=np.int32) % 2)
+    displace = obj.modifiers.new("Displace", "DISPLACE")
+    displace.texture_coords = "UV"
+    flags = pkg.compat.uv_flags(me, "Scan")
+    pins = next(iter(flags.values()))  # the pins, in either version
+    pins[:3] = True
+    pkg.compat.set_uv_flags(me, "Scan", flags)
+    H.make_active(obj)
+    before = H.object_state(obj.name)
+    H.undo_push("before defragment")
+    assert run_operator(pkg, undo=True, uv_map="Scan") == {"FINISHED"}
+    assert me.uv_layers.active.name == "Scan_defrag" and me.uv_layers["Scan_defrag"].active_render
+    assert H.vector_uv_map(H.image_nodes(label)[0]) == "UVMap"
+    assert mapping.inputs["Vector"].links[0].from_node.bl_idname == "ShaderNodeUVMap"
+    assert mapping.inputs["Vector"].links[0].from_node.uv_map == "UVMap"
+    assert displace.uv_layer == "Scan"
+    flags = pkg.compat.uv_flags(me, "Scan")
+    assert np.array_equal(next(iter(flags.values())), pins), "the old map lost its pins"
+    assert not next(iter(pkg.compat.uv_flags(me, "Scan_defrag").values())).any()
+    H.undo()
+    after_undo = H.object_state("Readers")  # undo made new Python objects of everything
+    assert after_undo == before, _diff(before, after_undo)
+    assert bpy.data.objects["Readers"].modifiers["Displace"].uv_layer == ""
+
+
+def long_uv_map_names_fit_the_nodes(pkg):
+    """A UV Map node holds 63 bytes of a map's name (4.x maps may be longer):
+    the new map's name is cut to fit, and a render map longer than that is
+    refused before anything changes."""
+    H.reset()
+    obj = H.textured_plane("Long")
+    obj.data.uv_layers[0].name = "texture_coordinates_from_the_photogrammetry_package_v2"  # 56 bytes
+    H.make_active(obj)
+    r = pkg.defragment(obj)
+    node = next(n for n in obj.material_slots[0].material.node_tree.nodes
+                if n.bl_idname == "ShaderNodeUVMap" and n.uv_map.endswith("_defrag"))
+    assert node.uv_map == r["uv_map"] and r["uv_map"] in obj.data.uv_layers, (node.uv_map, r["uv_map"])
+    assert len(r["uv_map"].encode()) <= 63
+    if bpy.app.version < (4, 0, 0):
+        return  # 3.x cuts map names at 63 bytes itself
+    obj = H.textured_plane("Longer")
+    obj.data.uv_layers[0].name = "x" * 70
+    H.make_active(obj)
+    before = H.object_state(obj.name)
+    try:
+        pkg.defragment(obj)
+    except pkg.DefragError as exc:
+        assert "longer than 63 bytes" in str(exc), exc
+    else:
+        raise AssertionError("a render map name of 70 bytes was not refused")
+    assert H.object_state(obj.name) == before
+
+
 SCENARIOS = {
     "operator_tetra": lambda pkg: operator_on_model(pkg, "tetra"),
     "operator_smithsonian": lambda pkg: operator_on_model(pkg, "smithsonian"),
@@ -1036,6 +1114,8 @@ SCENARIOS = {
     "one_atlas_for_all_selected": one_atlas_for_all_selected,
     "one_atlas_shared_material": one_atlas_shared_material,
     "source_uv_warning_names_rendered_nodes": source_uv_warning_names_rendered_nodes,
+    "default_uv_readers_keep_the_old_map": default_uv_readers_keep_the_old_map,
+    "long_uv_map_names_fit_the_nodes": long_uv_map_names_fit_the_nodes,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)
