@@ -114,16 +114,20 @@ def _materials_in_common(reads) -> set:
     return common
 
 
-def shared_materials(objects) -> set:
-    """Names of the materials that several of the objects use. Objects done
-    one at a time duplicate them: the first object's rewiring would
-    otherwise leave the others reading, and rendering, through a UV map
-    they do not have."""
+def shared_materials(objects, among_them: bool = True) -> set:
+    """Names of the materials of the objects that objects drawing other
+    meshes use, and (among_them) that several of the objects use. The
+    objects duplicate them: the first object's rewiring would otherwise
+    leave the others reading, and rendering, through a UV map they do not
+    have. Objects drawing one of these meshes (linked duplicates) have it."""
     users = {}
     for obj in objects:
         for name in {slot.material.name for slot in obj.material_slots if slot.material}:
             users[name] = users.get(name, 0) + 1
-    return {name for name, count in users.items() if count > 1}
+    meshes = {obj.data for obj in objects}
+    outside = {slot.material.name for o in bpy.data.objects if o.data not in meshes
+               for slot in getattr(o, "material_slots", []) if slot.material}
+    return {name for name, count in users.items() if count > 1 and among_them or name in outside}
 
 
 def uses_any(obj, materials: set) -> bool:

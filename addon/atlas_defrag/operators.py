@@ -296,7 +296,7 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         units = self._units(jobs)
         wm = context.window_manager
         wm.progress_begin(0, 100)
-        reports = []
+        reports, k = [], 0
         try:
             for k, unit in enumerate(units):
                 run = _Run(_prepare(unit), unit[0][1], None)
@@ -306,17 +306,18 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         except DefragCancelled:
             return self._end(context, reports, "Cancelled: nothing was changed" if not reports else "Cancelled")
         except DefragError as exc:
-            return self._end(context, reports, str(exc))
+            return self._end(context, reports, str(exc) + _not_tried(units[k:], 1))
         except Exception as exc:  # the write rolled its object back; the objects done stay
-            return self._end(context, reports, _internal_error(exc))
+            return self._end(context, reports, _internal_error(exc) + _not_tried(units[k:], 1))
         finally:
             wm.progress_end()
         return self._end(context, reports, None)
 
     def _jobs(self, objects) -> list:
         """(object, settings) per object; objects done one at a time that
-        share a material rewire copies of it (api.shared_materials)."""
-        shared = set() if self.one_atlas and len(objects) > 1 else api.shared_materials(objects)
+        share a material, or share it with objects not selected, rewire
+        copies of it (api.shared_materials)."""
+        shared = api.shared_materials(objects, among_them=not (self.one_atlas and len(objects) > 1))
         jobs = []
         for obj in objects:
             settings = self._settings(obj)
@@ -427,6 +428,8 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
                     return {"RUNNING_MODAL"}
         except Exception as exc:  # reported, so that the timer and status text go with the modal
             error = f"{type(exc).__name__}: {exc}"
+        if error is not None and not error.startswith("Cancelled"):
+            error += _not_tried(self._queue, 0)
         self._end_modal(context)
         return self._end(context, self._reports, error)
 
@@ -498,6 +501,13 @@ def _finish(unit, read, result):
 def _internal_error(exc: Exception) -> str:
     """The message for an error the add-on did not foresee."""
     return f"Internal error ({type(exc).__name__}: {exc}): nothing more was changed; please report it"
+
+
+def _not_tried(units, skip: int) -> str:
+    """What an error message adds about the runs it stopped: units past the
+    first `skip` ones (the one that failed), as [(object or name, settings)]."""
+    names = [o if isinstance(o, str) else o.name for unit in units[skip:] for o, _ in unit]
+    return f" (not tried: {', '.join(names)})" if names else ""
 
 
 def _done_before(reports) -> str:

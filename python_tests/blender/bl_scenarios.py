@@ -776,6 +776,27 @@ def shared_material_one_at_a_time(pkg):
     return sorted(materials)
 
 
+def material_shared_with_an_unselected_object(pkg):
+    """A material that an object not selected (drawing another mesh) also
+    uses is copied for the object done, so that the other keeps rendering
+    as it did; objects drawing the same mesh need no copy."""
+    H.reset()
+    a = H.textured_plane(name="Done")
+    b = H.textured_plane(name="Untouched")
+    shared = a.data.materials[0]
+    b.data.materials[0] = shared
+    H.make_active(a)
+    before = H.tree_state(shared)
+    assert run_operator(pkg) == {"FINISHED"}, pkg.operators.last_outcome
+    assert a.material_slots[0].material != shared and H.tree_state(shared) == before
+    assert b.material_slots[0].material == shared
+    solo = H.textured_plane(name="Alone")
+    bpy.context.collection.objects.link(solo.copy())  # a linked duplicate: it draws Alone's mesh
+    H.make_active(solo)
+    mat = solo.material_slots[0].material
+    assert run_operator(pkg) == {"FINISHED"} and solo.material_slots[0].material == mat
+
+
 def quads_stay_whole(pkg):
     """A quad sphere cut into many charts by Smart UV Project: the seam
     refinement moves a quad's two triangles together or not at all, so no
@@ -844,14 +865,17 @@ def _shared_atlas_measures(pkg, names, uv_map):
 
 def several_objects_one_fails(pkg):
     """The second selected mesh has no image texture: the first is done, the
-    error names what was done, and one undo takes it back."""
+    error names what was done and the third mesh, not tried, and one undo
+    takes it back."""
     H.reset()
     a = H.import_model(H.model_path("tetra"))
     name = a.name
     b = make_error_case_object("no_image_texture", "Bare")
-    before = H.object_state(name)
+    c = H.textured_plane(name="Third")
+    before, third = H.object_state(name), H.object_state("Third")
     H.make_active(a)
     b.select_set(True)
+    c.select_set(True)
     H.undo_push("before")
     try:
         run_operator(pkg, undo=True)
@@ -859,7 +883,9 @@ def several_objects_one_fails(pkg):
         msg = str(exc)
     else:
         raise AssertionError("the operator did not report the second object's error")
-    assert f"Done for '{name}'" in msg and "No image texture" in msg, msg
+    assert f"Done for '{name}'" in msg and "No image texture" in msg and "(not tried: Third)" in msg, msg
+    now = H.object_state("Third")
+    assert all(now[k] == third[k] for k in ("uv_maps", "uv_hash", "slots")), "the mesh not tried changed"
     check_result(name, before, None)
     H.undo()
     assert H.object_state(name) == before, _diff(before, H.object_state(name))
@@ -1116,6 +1142,7 @@ SCENARIOS = {
     "source_uv_warning_names_rendered_nodes": source_uv_warning_names_rendered_nodes,
     "default_uv_readers_keep_the_old_map": default_uv_readers_keep_the_old_map,
     "long_uv_map_names_fit_the_nodes": long_uv_map_names_fit_the_nodes,
+    "material_shared_with_an_unselected_object": material_shared_with_an_unselected_object,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)

@@ -15,7 +15,7 @@ NATIVE_SCENARIOS = ["operator_tetra", "png_read_from_file", "edit_mode_undo", "p
                     "several_objects_one_fails", "one_atlas_for_all_selected", "one_atlas_shared_material",
                     "shared_material_one_at_a_time", "quads_stay_whole", "scan_quads_stay_whole",
                     "source_uv_warning_names_rendered_nodes", "default_uv_readers_keep_the_old_map",
-                    "long_uv_map_names_fit_the_nodes"]
+                    "long_uv_map_names_fit_the_nodes", "material_shared_with_an_unselected_object"]
 
 
 def test_is_blender_4():
