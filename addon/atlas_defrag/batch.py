@@ -944,14 +944,13 @@ def _base_colour_files(objects) -> set:
     the objects' materials: Blender's OBJ exporter always names those in the
     MTL (map_Kd, by file name with path_mode STRIP)."""
     files = set()
-    for o in objects:
-        for slot in getattr(o, "material_slots", []):
-            tree = slot.material.node_tree if slot.material and slot.material.use_nodes else None
-            for link in tree.links if tree else []:
-                image = getattr(link.from_node, "image", None)
-                if link.to_node.type == "BSDF_PRINCIPLED" and link.to_socket.name == "Base Color" and \
-                        link.from_node.type == "TEX_IMAGE" and image is not None and image.filepath:
-                    files.add(os.path.basename(image.filepath))
+    for mat in _materials_of(objects):
+        tree = _package().compat.node_tree(mat)
+        for link in tree.links if tree else []:
+            image = getattr(link.from_node, "image", None)
+            if link.to_node.type == "BSDF_PRINCIPLED" and link.to_socket.name == "Base Color" and \
+                    link.from_node.type == "TEX_IMAGE" and image is not None and image.filepath:
+                files.add(os.path.basename(image.filepath))
     return files
 
 
