@@ -106,7 +106,8 @@ def test_binary_polygons_of_several_sizes_are_fanned():
     head = _header("binary_big_endian", 5, 2, ["float x", "float y", "float z"], ["list uchar int vertex_indices"], [])
     vertices = struct.pack(">15f", 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 2, 2, 0)
     faces = struct.pack(">B4i", 4, 0, 1, 2, 3) + struct.pack(">B3i", 3, 1, 4, 2)
-    mesh = ply_io.read(head + vertices + faces + b"trailing bytes of an element not read")
+    with_edges = head.replace(b"end_header", b"element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header")
+    mesh = ply_io.read(with_edges + vertices + faces + struct.pack(">2i", 0, 1))  # an element after the faces
     assert mesh.triangles.tolist() == [[0, 1, 2], [0, 2, 3], [1, 4, 2]] and mesh.uvs is None
     with pytest.raises(ValueError, match="ends inside its 'face' element"):
         ply_io.read(head + vertices + faces[:-1])
@@ -186,6 +187,14 @@ def test_faces_without_two_values_per_corner_are_left_untextured():
     (lambda d: d.replace(b"1 1 0\n", b"1 x 0\n"), "not a number"),
     (lambda d: d.replace(b"format ascii", b"format utf8"), "unsupported PLY format"),
     (lambda d: d.replace(b"end_header", b"end"), "not a PLY file"),
+    (lambda d: d.replace(b"element face 2", b"element face 1"), "holds 4 values more than its header declares"),
+    (lambda d: d.replace(b"element vertex 4", b"element vertex 3"), "more than its header declares"),
+    (lambda d: d.replace(b"3 0 1 2", b"3 0 1.5 2"), "an integer, but the body gives a fraction"),
+    (lambda d: d.replace(b"3 0 2 3", b"2.5 0 2 3"), "claims 2.5 values"),
+    (lambda d: d.replace(b"element face 2", b"element face \xb2"), "bad header line"),  # a superscript two
+    (lambda d: d.replace(b"property float x", b"property list uchar float x").replace(b"0 0 0\n", b"1 0 0 0\n", 1)
+     .replace(b"\n1 0 0\n", b"\n1 1 0 0\n").replace(b"1 1 0\n", b"1 1 1 0\n").replace(b"0 1 0\n", b"1 0 1 0\n"),
+     "property 'x' must be a single value"),
 ])
 def test_broken_files_say_what_is_wrong(tmp_path, cut, message):
     from atlas_defrag import ply_io
@@ -255,3 +264,29 @@ def test_a_sixteen_bit_map_is_named_in_a_warning(scans, scan_path, tmp_path):
     warnings = scan_io.load(tmp_path / "tetra" / source.name).warnings
     assert any("16 bits" in w and texture.name in w for w in warnings), warnings
     assert not any("16 bits" in w for w in scan_io.load(source).warnings)
+
+
+def test_binary_counts_that_lie_are_refused_and_a_last_line_end_is_not():
+    from atlas_defrag import ply_io
+
+    head = _header("binary_little_endian", 3, 1, ["float x", "float y", "float z"],
+                   ["list uchar int vertex_indices"], [])
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], "<f4").tobytes()
+    face = b"\x03" + np.array([0, 1, 2], "<i4").tobytes()
+    assert len(ply_io.read(head + vertices + face + b"\n").triangles) == 1
+    with pytest.raises(ValueError, match="holds 13 bytes more than its header declares"):
+        ply_io.read(head + vertices + face + face)
+
+
+def test_texture_names_in_utf8_or_from_another_machine_are_found(tmp_path):
+    """Writers put file names in the header as UTF-8; a Windows path names the file beside the PLY."""
+    from atlas_defrag import ply_io
+
+    (tmp_path / "t\u00ebx ture.png").write_bytes(b"")
+    (tmp_path / "b.png").write_bytes(b"")
+    head = _header("ascii", 3, 2, ["float x", "float y", "float z"],
+                   ["list uchar int vertex_indices", "int texnumber"], ["t\u00ebx ture.png", "C:\\scans\\b.png"])
+    mesh = ply_io.read(head + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2 0\n3 0 2 1 1\n")
+    found, per_face, missing = ply_io.face_textures(mesh, str(tmp_path))
+    assert [Path(f).name for f in found] == ["t\u00ebx ture.png", "b.png"] and missing == []
+    assert per_face.tolist() == [0, 1]

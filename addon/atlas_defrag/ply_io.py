@@ -22,6 +22,8 @@ _TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2
           "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
           "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
 _VERTEX_UV_NAMES = (("s", "t"), ("u", "v"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
+# Vertex properties read as one value each.
+_SCALARS = {"x", "y", "z", "red", "green", "blue", "alpha"} | {n for pair in _VERTEX_UV_NAMES for n in pair}
 
 
 @dataclass
@@ -77,8 +79,16 @@ def _header_lines(data: bytes):
     raise ValueError("not a PLY file (no 'end_header' line)")
 
 
+def _utf8(name: str) -> str:
+    """A header word read as latin-1, as UTF-8 where its bytes are (writers put file names so)."""
+    try:
+        return name.encode("latin-1").decode("utf-8")
+    except UnicodeDecodeError:
+        return name
+
+
 def _element(words: list, line: str) -> Element:
-    if len(words) != 3 or not words[2].isdigit():
+    if len(words) != 3 or not (words[2].isascii() and words[2].isdigit()):
         raise ValueError(f"bad header line '{line}' (element NAME COUNT)")
     return Element(words[1], int(words[2]))
 
@@ -102,7 +112,7 @@ def parse_header(data: bytes):
         if words[0] == "format" and len(words) > 1:
             fmt = words[1]
         elif words[0] == "comment" and len(words) > 2 and words[1].lower() == "texturefile":
-            textures.append(line.split(None, 2)[2].strip())
+            textures.append(_utf8(line.split(None, 2)[2].strip()))
         elif words[0] == "element":
             elements.append(_element(words, line))
         elif words[0] == "property":
@@ -124,7 +134,7 @@ class _ImpossibleList(ValueError):
 
 def _list_length(element: Element, value) -> int:
     """value, a list's length as read from the file, as an int; _ImpossibleList otherwise."""
-    if not (np.isfinite(value) and 0 <= value <= _MAX_LIST):
+    if not (np.isfinite(value) and 0 <= value <= _MAX_LIST and value == int(value)):
         raise _ImpossibleList(f"a list of its '{element.name}' element claims {value} values")
     return int(value)
 
@@ -229,8 +239,10 @@ def _ascii_rows(element: Element, numbers: np.ndarray, at: int):
 
 
 def read_elements(data: bytes, fmt: str, elements: list, body: int) -> dict:
-    """name -> values of the vertex and face elements (later elements are not read)."""
-    out, wanted = {}, {"vertex", "face"}
+    """name -> values of every element. ValueError where the body holds
+    fewer or more values than the header declares (counts that lie would
+    shift every element after them), or a non-integer where an integer is."""
+    out = {}
     if fmt == "ascii":
         source, at, rows = _ascii_numbers(data[body:]), 0, _ascii_rows
     else:
@@ -239,15 +251,28 @@ def read_elements(data: bytes, fmt: str, elements: list, body: int) -> dict:
         def rows(element, data, at):
             return _binary_rows(element, data, at, order)
     for element in elements:
-        if wanted <= set(out):
-            break
         try:
             out[element.name], at = rows(element, source, at)
         except _ImpossibleList:
             raise
         except ValueError as exc:  # "past the end", or numpy's "buffer is smaller than requested size"
             raise ValueError(f"the file ends inside its '{element.name}' element") from exc
+        if fmt == "ascii":
+            _require_integers(element, out[element.name])
+    left = len(source) - at if fmt == "ascii" else len(data[at:].rstrip(b"\r\n "))
+    if left:
+        raise ValueError(f"its body holds {left} {'values' if fmt == 'ascii' else 'bytes'} more than "
+                         "its header declares")
     return out
+
+
+def _require_integers(element: Element, values: dict) -> None:
+    """ValueError where an ASCII body gives a non-integer to an integer property."""
+    for p in element.properties:
+        v = values[p.name] if p.count_type is None else values[p.name][0]
+        if np.dtype(p.type).kind in "iu" and len(v) and not (v == np.floor(v)).all():
+            raise ValueError(f"property '{p.name}' of its '{element.name}' element is an integer, "
+                             "but the body gives a fraction")
 
 
 def _ascii_numbers(body: bytes) -> np.ndarray:
@@ -302,6 +327,9 @@ def read(data: bytes) -> PlyMesh:
     fmt, elements, textures, body = parse_header(data)
     values = read_elements(data, fmt, elements, body)
     vertex, face = values.get("vertex", {}), values.get("face", {})
+    for name, value in vertex.items():
+        if isinstance(value, tuple) and name in _SCALARS:
+            raise ValueError(f"property '{name}' must be a single value, not a list")
     if not all(c in vertex for c in "xyz"):
         raise ValueError("no vertex positions (x, y, z)")
     positions = np.stack([vertex[c] for c in "xyz"], axis=1).astype(np.float64)
@@ -358,6 +386,8 @@ def face_textures(mesh: PlyMesh, folder: str):
     index = np.full(len(paths) + 1, -1, dtype=np.int64)  # the last: no such texture
     found, missing = [], []
     for k, path in enumerate(paths):
+        if not os.path.isfile(path):  # a path from another machine (C:\\...): the file by its name here
+            path = os.path.join(folder, os.path.basename(path))
         if os.path.isfile(path):
             index[k] = len(found)
             found.append(path)
