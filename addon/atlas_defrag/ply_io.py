@@ -13,6 +13,7 @@ entry through ply_import.
 from __future__ import annotations
 
 import os
+import struct
 import warnings
 from dataclasses import dataclass, field
 
@@ -176,35 +177,68 @@ def _binary_rows(element: Element, data: bytes, at: int, order: str):
                       (rows[f"v{i}"].reshape(-1), rows[f"n{i}"].astype(np.int64))
                       for i, p in enumerate(element.properties)}
             return values, at + element.count * dtype.itemsize
-    def take(i, kind, n):
-        return np.frombuffer(data, order + kind, n, i), i + n * np.dtype(kind).itemsize
-    return _rows_one_by_one(element, at, take)
+    return _rows_by_offsets(element, at, len(data), _BinaryCounts(data, order),
+                            lambda p, where: _gathered(data, order + p.type, where), binary=True)
 
 
-def _collected(element: Element, columns: dict, counts: dict) -> dict:
-    """The values of an element read row by row (lists of arrays per property)."""
-    def flat(arrays):
-        return np.concatenate(arrays) if arrays else np.zeros(0)
-    return {p.name: flat(columns[p.name]) if p.count_type is None else
-            (flat(columns[p.name]), np.array(counts[p.name], dtype=np.int64)) for p in element.properties}
-
-
-def _rows_one_by_one(element: Element, at, take):
-    """(values, position after the element), where take(at, type, n) gives
-    n values of numpy type `type` at position `at` and the position after
-    them, or raises ValueError past the end of the file."""
-    columns = {p.name: [] for p in element.properties}
+def _rows_by_offsets(element: Element, at: int, end: int, count_at, gather, binary: bool):
+    """(values, position after the element) of rows whose lists differ in
+    length: a loop walks the rows reading only the list counts, then every
+    property's values are gathered at once (one numpy call per property
+    instead of one per row). Positions are bytes of a binary body (binary)
+    or numbers of an ASCII one, up to end; count_at(p, i) gives the count of
+    list p at position i and the positions it takes, gather(p, where) the
+    values of p at the positions where (an int64 array)."""
+    step = {p.name: np.dtype(p.type).itemsize if binary else 1 for p in element.properties}
+    starts = {p.name: [] for p in element.properties}
     counts = {p.name: [] for p in element.properties if p.count_type is not None}
-    for _ in range(element.count):
-        for p in element.properties:
-            n = 1
-            if p.count_type is not None:
-                count, at = take(at, p.count_type, 1)
-                n = _list_length(element, count[0])
-                counts[p.name].append(n)
-            values, at = take(at, p.type, n)
-            columns[p.name].append(values)
-    return _collected(element, columns, counts), at
+    pos = at
+    try:
+        for _ in range(element.count):
+            for p in element.properties:
+                n = 1
+                if p.count_type is not None:
+                    value, taken = count_at(p, pos)
+                    n = _list_length(element, value)
+                    counts[p.name].append(n)
+                    pos += taken
+                starts[p.name].append(pos)
+                pos += step[p.name] * n
+    except (IndexError, struct.error) as exc:
+        raise ValueError("past the end") from exc
+    if pos > end:
+        raise ValueError("past the end")
+    values = {}
+    for p in element.properties:
+        first = np.array(starts[p.name], dtype=np.int64)
+        if p.count_type is None:
+            values[p.name] = gather(p, first)
+            continue
+        n = np.array(counts[p.name], dtype=np.int64)
+        where = np.repeat(first, n) + (np.arange(n.sum()) - np.repeat(_starts(n), n)) * step[p.name]
+        values[p.name] = (gather(p, where), n)
+    return values, pos
+
+
+class _BinaryCounts:
+    """count_at of _rows_by_offsets for a binary body: (count, bytes it takes)."""
+
+    def __init__(self, data: bytes, order: str):
+        self.data, self.order, self.readers = data, order, {}
+
+    def __call__(self, p: Property, at: int):
+        reader = self.readers.get(p.count_type)
+        if reader is None:
+            reader = self.readers[p.count_type] = struct.Struct(self.order + np.dtype(p.count_type).char)
+        return reader.unpack_from(self.data, at)[0], reader.size
+
+
+def _gathered(data: bytes, kind: str, first: np.ndarray) -> np.ndarray:
+    """The values of numpy type kind whose bytes start at the offsets first."""
+    if not len(first):
+        return np.zeros(0, kind)
+    raw = np.frombuffer(data, np.uint8)
+    return raw[first[:, None] + np.arange(np.dtype(kind).itemsize)].reshape(-1).view(kind)
 
 
 def _ascii_rows(element: Element, numbers: np.ndarray, at: int):
@@ -231,11 +265,8 @@ def _ascii_rows(element: Element, numbers: np.ndarray, at: int):
                 break
         else:
             return values, end
-    def take(i, _, n):
-        if i + n > len(numbers):
-            raise ValueError("past the end")
-        return numbers[i:i + n], i + n
-    return _rows_one_by_one(element, at, take)
+    return _rows_by_offsets(element, at, len(numbers), lambda p, i: (numbers[i], 1),
+                            lambda p, where: numbers[where], binary=False)
 
 
 def read_elements(data: bytes, fmt: str, elements: list, body: int) -> dict:
