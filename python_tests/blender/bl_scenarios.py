@@ -750,16 +750,21 @@ def one_atlas_shared_material(pkg):
     return read_maps
 
 
+def _planes_sharing_a_material(first: str, second: str):
+    """(first, second, their material) in a fresh scene, first active and alone selected."""
+    H.reset()
+    a = H.textured_plane(name=first)
+    b = H.textured_plane(name=second)
+    b.data.materials[0] = a.data.materials[0]
+    H.make_active(a)
+    return a, b, a.data.materials[0]
+
+
 def shared_material_one_at_a_time(pkg):
     """Two objects that share a material, each given its own atlas: both are
     done, each through a copy of the material that reads its own new UV map,
     and the original material is left as it was."""
-    H.reset()
-    a = H.textured_plane(name="First")
-    b = H.textured_plane(name="Second")
-    shared = a.data.materials[0]
-    b.data.materials[0] = shared
-    H.make_active(a)
+    a, b, shared = _planes_sharing_a_material("First", "Second")
     b.select_set(True)
     before = {n.name: (n.image.name, H.vector_uv_map(n)) for n in H.image_nodes(shared)}
     assert run_operator(pkg) == {"FINISHED"}, pkg.operators.last_outcome
@@ -780,12 +785,7 @@ def material_shared_with_an_unselected_object(pkg):
     """A material that an object not selected (drawing another mesh) also
     uses is copied for the object done, so that the other keeps rendering
     as it did; objects drawing the same mesh need no copy."""
-    H.reset()
-    a = H.textured_plane(name="Done")
-    b = H.textured_plane(name="Untouched")
-    shared = a.data.materials[0]
-    b.data.materials[0] = shared
-    H.make_active(a)
+    a, b, shared = _planes_sharing_a_material("Done", "Untouched")
     before = H.tree_state(shared)
     assert run_operator(pkg) == {"FINISHED"}, pkg.operators.last_outcome
     assert a.material_slots[0].material != shared and H.tree_state(shared) == before
