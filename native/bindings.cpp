@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstdint>
+#include <memory>
 #include <new>
 #include <sstream>
 #include <string>
@@ -18,6 +19,7 @@
 #include "bake/bake.hpp"
 #include "charts/chart_graph.hpp"
 #include "charts/degenerate_faces.hpp"
+#include "core/uv_layout.hpp"
 #include "io/byte_pixels.hpp"
 #include "io/obj_file.hpp"
 #include "io/png_rows.hpp"
@@ -428,7 +430,14 @@ py::list file_names(const std::vector<std::string>& names) {
   return out;
 }
 
+// A path with a NUL in it names another file to the C library (the part
+// before it): refused, as Python's own open() refuses it.
+void require_no_nul(const std::string& path) {
+  if (path.find('\0') != std::string::npos) throw py::value_error("embedded null character in path");
+}
+
 py::dict read_obj_py(const std::string& path) {
+  require_no_nul(path);
   obj::ObjFile f;
   {
     py::gil_scoped_release release;
@@ -448,6 +457,7 @@ py::dict read_obj_py(const std::string& path) {
 void write_obj_py(const std::string& path, const std::string& library, const py::object& positions,
                   const py::object& triangles, const py::object& uvs, const py::object& face_material,
                   const std::vector<std::string>& materials) {
+  require_no_nul(path);
   const auto p = checked<double>(positions, "positions", {3}, "(V, 3)");
   const RowMatrixX3i faces = triangle_indices(triangles, p.shape(0));
   const auto u = checked<double>(uvs, "uvs", {3, 2}, "(F, 3, 2)");
@@ -483,9 +493,11 @@ py::array_t<std::uint8_t> png_pixels_py(const py::buffer& idat, int width, int h
   png::check_sizes(scanline_bytes, width, height, channels);
   std::uint8_t* dst = out.mutable_data();
   py::gil_scoped_release release;
-  std::vector<std::uint8_t> scanlines(scanline_bytes);
-  zlib_stream::inflate(in.data(), in.size(), scanlines.data(), scanline_bytes);
-  png::unfilter_rows(scanlines.data(), scanline_bytes, width, height, channels, dst);
+  // Not zeroed: inflate fills it, or fails first, and a stream that claims a
+  // huge image but ends early then touches (and commits) only what it wrote.
+  const std::unique_ptr<std::uint8_t[]> scanlines(new std::uint8_t[scanline_bytes]);
+  zlib_stream::inflate(in.data(), in.size(), scanlines.get(), scanline_bytes);
+  png::unfilter_rows(scanlines.get(), scanline_bytes, width, height, channels, dst);
   return out;
 }
 
@@ -794,6 +806,9 @@ py::dict pack_charts_py(const py::list& charts, const py::object& options, const
     const std::string name = "charts[" + std::to_string(c) + "]";
     const auto a = checked<double>(charts[c], name.c_str(), {3, 2}, "(F_c, 3, 2)");
     uv.push_back(to_matrix<RowMatrixX2d>(a, 3 * a.shape(0), 2));
+    if (!uv.back().allFinite() || (uv.back().size() && uv.back().cwiseAbs().maxCoeff() > kMaxTexelCoordinate))
+      throw py::value_error(name + " has a corner that is no finite number or lies more than 2^30 texels from the "
+                                   "origin");
   }
   const PackOptions o = pipeline_options(options).pack;
   const RunControl control = control_from(py::none(), cancel);

@@ -79,19 +79,6 @@ size_t faces_in_aggregate(const Aggregation& aggregation, const std::vector<std:
   return n;
 }
 
-// Reports progress from any worker, one at a time: the Python callback takes
-// the GIL, and what it throws (Cancelled) must leave the critical section.
-void report_from_worker(const RunControl& control, const char* stage, double fraction) {
-  std::exception_ptr error;
-#pragma omp critical(atlas_worker_progress)
-  try {
-    control.progress(stage, fraction);
-  } catch (...) {
-    error = std::current_exception();
-  }
-  if (error) std::rethrow_exception(error);
-}
-
 // Flattens the aggregated charts `which` into pieces[c], stats[c], one chart
 // per task, in the given order. Every worker reports progress, by faces
 // flattened: time follows the face count, and thread 0 alone would stay
@@ -112,7 +99,7 @@ void flatten_charts(const Mesh& mesh, const MeshTopology& topology, const ChartG
                                         aggregation.merges, options, control,
                                         stats[c]);
     finished += faces_of(c);
-    report_from_worker(control, "flatten", double(finished) / std::max<size_t>(total, 1));
+    control.progress_from_worker("flatten", double(finished) / std::max<size_t>(total, 1));
   });
   control.throw_if_cancelled();
 }

@@ -589,6 +589,11 @@ def test_the_native_obj_writer_fails_as_python_writes_do(native, tmp_path):
     assert caught.value.errno == errno.ENOSPC and caught.value.filename == "/dev/full"
     with pytest.raises(FileNotFoundError):
         native.write_obj(str(tmp_path / "no" / "m.obj"), "m.mtl", *args)
+    with pytest.raises(ValueError, match="null character"):  # the C library would write m.txt
+        native.write_obj(str(tmp_path / "m.txt\0.obj"), "m.mtl", *args)
+    with pytest.raises(ValueError, match="null character"):
+        native.read_obj(str(tmp_path / "m.txt\0.obj"))
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_obj_maps_beside_the_base_colour_are_carried_over(tmp_path, tool_env):

@@ -360,6 +360,51 @@ def test_uvs_far_beyond_any_page_are_refused(native):
         native.defragment(positions, triangles, far, face_page, sizes)
 
 
+def test_a_progress_callback_may_start_a_run_of_its_own(native):
+    """The flattening's workers report one at a time per run, not under a
+    lock of the whole process: a callback that runs the job again (a script
+    that defragments from a progress hook) would wait on itself for ever.
+    In a child process, so that a deadlock fails the test instead of hanging it."""
+    import subprocess
+    import sys
+
+    from conftest import IMPORT_PATH
+
+    code = ("import sys, numpy as np\nsys.path[:0] = sys.argv[1:]\nfrom atlas_defrag import _native\n"
+            "n = 12\nx, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0))\n"
+            "p = np.stack([x.ravel(), y.ravel(), np.sin(x.ravel()) * 0.3], 1)\n"
+            "a = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()\n"
+            "t = np.concatenate([np.stack([a, a + 1, a + n + 2], 1), np.stack([a, a + n + 2, a + n + 1], 1)])\n"
+            "t = t.astype(np.int32)\nuv = p[t][:, :, :2] / n * 0.1 + (np.arange(len(t)) // 7 % 9)[:, None, None] * 0.1\n"
+            "args = (p, t, uv, np.zeros(len(t), np.int32), np.array([[512, 512]], np.int32))\n"
+            "inner = []\n"
+            "def hook(stage, fraction):\n"
+            "    if stage == 'flatten' and len(inner) < 2: inner.append(_native.defragment(*args)['uvs'].shape)\n"
+            "_native.defragment(*args, progress=hook)\nprint(len(inner))\n")
+    run = subprocess.run([sys.executable, "-c", code] + IMPORT_PATH, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and run.stdout.split()[-1] in ("1", "2"), run.stderr[-2000:]
+
+
+def test_a_density_far_beyond_any_page_is_shrunk_to_fit(native):
+    """A kilometre-wide quad at 1.4e8 texels per metre (the option allows up
+    to 1e9): the charts are shrunk onto the largest page, and the cuts for
+    packing count its texels in doubles, where ints overflowed."""
+    positions, triangles, uvs, face_page, _ = tiny()
+    r = native.defragment(positions * 1000, triangles, uvs, face_page, np.array([[64, 64]], np.int32),
+                          options={"texels_per_unit": 1.4e8})
+    assert r["report"]["shrunk"] and r["page_sizes"].max() <= 8192
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, 1e18])
+def test_pack_charts_refuses_corners_no_page_can_hold(native, value):
+    """Non-finite corners, or corners beyond the texel range the other entry points accept."""
+    chart = np.array([[[0, 0], [10, 0], [0, 10]]], float)
+    bad = chart.copy()
+    bad[0, 1, 0] = value
+    with pytest.raises(ValueError, match=r"charts\[1\] has a corner that is no finite number"):
+        native.pack_charts([chart, bad])
+
+
 def test_groups_never_share_a_chart_or_a_page(native):
     positions, triangles, uvs, face_page, sizes = tiny()
     result = native.defragment(positions, triangles, uvs, face_page, sizes, face_group=np.array([0, 1]))
@@ -699,6 +744,25 @@ def test_png_pixels_checks_its_stream_and_sizes(native):
     rows[0] = 7
     with pytest.raises(ValueError, match="filter type 7"):
         native.png_pixels(zlib.compress(rows.tobytes()), 4, 3, 3)
+
+
+def test_a_short_stream_claiming_a_huge_image_takes_little_memory(native):
+    """An 11-byte stream claiming 20000 x 20000 RGBA fails having committed
+    only what it wrote: a PNG's header cannot make Blender take gigabytes.
+    In a child process, whose peak memory is its own."""
+    import subprocess
+    import sys
+
+    from conftest import IMPORT_PATH
+
+    code = ("import sys, resource, zlib\nsys.path[:0] = sys.argv[1:]\nfrom atlas_defrag import _native\n"
+            "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+            "try:\n    _native.png_pixels(zlib.compress(bytes(3)), 20000, 20000, 4)\n"
+            "except ValueError as exc:\n    print(exc)\n"
+            "print((resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) // 1024)\n")
+    run = subprocess.run([sys.executable, "-c", code] + IMPORT_PATH, capture_output=True, text=True, timeout=120)
+    assert "fewer bytes" in run.stdout, run.stdout + run.stderr[-2000:]
+    assert int(run.stdout.split()[-1]) < 100, run.stdout  # megabytes
 
 
 def test_zlib_compress_makes_a_stream_zlib_inflates(native):

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 
@@ -17,8 +18,8 @@ struct Cancelled : std::runtime_error {
 class RunControl {
  public:
   // report(stage, fraction in [0,1]) may run on any thread, one call at a
-  // time (the stages serialise their workers' calls): it takes whatever lock
-  // its target needs (the Python binding takes the GIL).
+  // time (see progress_from_worker): it takes whatever lock its target needs
+  // (the Python binding takes the GIL).
   using ReportFn = std::function<void(const std::string& stage, double fraction)>;
 
   using Flag = std::shared_ptr<std::atomic<bool>>;
@@ -43,9 +44,21 @@ class RunControl {
     throw_if_cancelled();
   }
 
+  // progress() from one of a stage's worker threads: one report at a time
+  // per run, and none waited for (progress is advice). A lock shared by all
+  // runs would deadlock a report that itself starts a run.
+  void progress_from_worker(const std::string& stage, double fraction) const {
+    {
+      std::unique_lock<std::mutex> lock(*reporting_, std::try_to_lock);
+      if (lock.owns_lock() && report_) report_(stage, fraction);
+    }
+    throw_if_cancelled();
+  }
+
  private:
   ReportFn report_;
   Flag cancelled_ = std::make_shared<std::atomic<bool>>(false);
+  std::shared_ptr<std::mutex> reporting_ = std::make_shared<std::mutex>();
 };
 
 }  // namespace atlas

@@ -6,11 +6,6 @@
 namespace atlas {
 namespace {
 
-// Farthest a UV may lie from its page's origin, in texels of that page: the
-// bake and the metrics index texels with int, and pages repeat, so a UV this
-// far out is a broken file, not a tiled layout.
-constexpr double kMaxTexelCoordinate = 1 << 30;
-
 // Throws InputError "what: parts..." (no prefix when what is empty).
 template <class... Parts>
 [[noreturn]] void refuse(const std::string& what, const Parts&... parts) {

@@ -8,6 +8,11 @@
 
 namespace atlas {
 
+// Farthest a UV may lie from its page's origin, in texels of that page: the
+// bake and the metrics index texels with int, and pages repeat, so a UV this
+// far out is a broken file, not a tiled layout.
+constexpr double kMaxTexelCoordinate = 1 << 30;
+
 struct UvLayout {
   const RowMatrixX2d* corner_uv = nullptr;        // 3F x 2, page units
   const Eigen::VectorXi* face_page = nullptr;     // F; -1 marks an untextured face

@@ -29,7 +29,11 @@ constexpr int kChordsKept = 4;
 // A chart's conservative raster on square cells of `cell` page texels (the
 // packer's scale) a side.
 struct CellGrid {
-  int width = 0, height = 0, cell = 1;
+  int width = 0, height = 0;
+  // Page texels a side, a whole number in a double: a chart far wider than
+  // any page (a texel density beyond it, which the packer then shrinks)
+  // would overflow an int.
+  double cell = 1;
   std::vector<char> set;  // row-major
   // Chart UV of the grid's corner (0, 0), and chart UV units per cell.
   Eigen::RowVector2d origin = Eigen::RowVector2d::Zero();
@@ -42,7 +46,7 @@ CellGrid cell_grid(const RowMatrixX2d& uv, double scale) {
   const double extent = scale * (uv.colwise().maxCoeff() - uv.colwise().minCoeff()).maxCoeff();
   CellGrid grid;
   // extent + 2: a conservative raster spans up to two texels more than the chart.
-  grid.cell = std::max(1, static_cast<int>(std::ceil((extent + 2) / kGridCells)));
+  grid.cell = std::max(1.0, std::ceil((extent + 2) / kGridCells));
   // Rasterised straight onto the cells: a cell is set when the chart
   // covers any part of it, as it would any of its texels.
   grid.step = grid.cell / scale;
@@ -87,10 +91,9 @@ struct Box {
 };
 
 // Page texels of a box of cells grown by the padding on every side.
-double padded_box_texels(const Box& box, int cell, int padding) {
+double padded_box_texels(const Box& box, double cell, int padding) {
   if (box.empty()) return 0;
-  return static_cast<double>((box.x1 - box.x0 + 1) * cell + 2 * padding) *
-         static_cast<double>((box.y1 - box.y0 + 1) * cell + 2 * padding);
+  return ((box.x1 - box.x0 + 1) * cell + 2.0 * padding) * ((box.y1 - box.y0 + 1) * cell + 2.0 * padding);
 }
 
 // Set cells per row and per column of a grid.
