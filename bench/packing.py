@@ -146,6 +146,45 @@ def padding_bound(charts, padding: int) -> float:
     return raw / grown
 
 
+def hull_area(points: np.ndarray) -> float:
+    """Area of the convex hull of (N, 2) points (Andrew's monotone chain)."""
+    pts = np.unique(points, axis=0)
+    pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
+    if len(pts) < 3:
+        return 0.0
+
+    def turns_left(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]) > 0
+
+    def chain(seq):
+        out = []
+        for q in seq:
+            while len(out) >= 2 and not turns_left(out[-2], out[-1], q):
+                out.pop()
+            out.append(q)
+        return out[:-1]
+
+    listed = pts.tolist()
+    h = np.array(chain(listed) + chain(listed[::-1]))
+    return 0.5 * abs(np.dot(h[:, 0], np.roll(h[:, 1], 1)) - np.dot(h[:, 1], np.roll(h[:, 0], 1)))
+
+
+def shape_fill(charts, page_texels: int) -> list:
+    """Cells of the chart-shape table: the charts' triangle area over the page,
+    and per chart its area over its box as packed and over its convex hull,
+    weighted by area; the share of the area in the three largest charts."""
+    def twice_area(uv):
+        e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+        return np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
+
+    area = np.array([0.5 * twice_area(uv) for uv in charts])
+    box = np.array([np.prod(np.ptp(uv.reshape(-1, 2), axis=0)) for uv in charts])
+    hull = np.array([hull_area(uv.reshape(-1, 2)) for uv in charts])
+    w = area / area.sum()
+    return [f"{area.sum() / page_texels:.1%}", f"{np.dot(w, area / np.maximum(box, 1e-12)):.2f}",
+            f"{np.dot(w, area / np.maximum(hull, 1e-12)):.2f}", f"{np.sort(w)[::-1][:3].sum():.0%}"]
+
+
 MIP_LEVELS = (1, 2, 3, 4)
 
 
@@ -326,7 +365,7 @@ def main() -> int:
               "| scan | charts | efficiency | padding bound | texels in | texels out | scale | pack s |"
               + (" before: efficiency | texels out | pack s |" if base else ""),
               "|---|---:|---:|---:|---:|---:|---:|---:|" + ("---:|---:|---:|" if base else "")]
-    xatlas_rows, colour_rows, semantic_rows, cut_table, results = [], [], [], [], {}
+    xatlas_rows, colour_rows, semantic_rows, shape_rows, cut_table, results = [], [], [], [], [], {}
     for name, rel in SCANS.items():
         print(f"{name} ...", file=sys.stderr)
         scan = scan_io.load(args.models / rel)
@@ -343,6 +382,8 @@ def main() -> int:
             row += f" {efficiency:.1%} | {texels:,} | {b_seconds:.3f} |"
         lines.append(row)
         semantic_rows.append("| " + " | ".join([name] + padding_semantics(native, charts)) + " |")
+        shape_rows.append("| " + " | ".join([name, f"{r['packing_efficiency']:.1%}"]
+                                            + shape_fill(charts, r["texels_after"])) + " |")
         cut_table += cut_rows(native, name, scan)
         if have_xatlas:
             order = np.concatenate(faces_of)  # the faces in the order of `charts`
@@ -376,6 +417,14 @@ def main() -> int:
               "filled by pull-push, count as harmless; the page wraps).", "",
               f"| scan | ring: efficiency | bound | {mips} | gap: efficiency | bound | {mips} |",
               "|---|" + "---:|" * (4 + 2 * len(MIP_LEVELS))] + semantic_rows + [""]
+
+    lines += ["## Chart shapes", "",
+              "How much of their box and of their convex hull the output charts fill (UV area of their triangles "
+              "over the area of the box they are packed in, or of their convex hull; means weighted by chart area), "
+              "beside the packer's efficiency and the triangles' share of the page. A packing fills a page no "
+              "better than its charts fill their boxes unless charts nest in each other's hollows.", "",
+              "| scan | efficiency | triangle area / page | box fill | hull fill | area in the 3 largest charts |",
+              "|---|---:|---:|---:|---:|---:|"] + shape_rows + [""]
 
     lines += ["## Cuts for packing: seam budget and padding", "",
               "The whole job at each `packing_cut_seam` (the seam the cuts may add, in the unit of seam: 3D length / "
