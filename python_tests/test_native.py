@@ -360,7 +360,7 @@ def test_uvs_far_beyond_any_page_are_refused(native):
         native.defragment(positions, triangles, far, face_page, sizes)
 
 
-def test_a_progress_callback_may_start_a_run_of_its_own(native):
+def test_a_progress_callback_may_start_a_run_of_its_own(tool_env):
     """The flattening's workers report one at a time per run, not under a
     lock of the whole process: a callback that runs the job again (a script
     that defragments from a progress hook) would wait on itself for ever.
@@ -368,9 +368,7 @@ def test_a_progress_callback_may_start_a_run_of_its_own(native):
     import subprocess
     import sys
 
-    from conftest import IMPORT_PATH
-
-    code = ("import sys, numpy as np\nsys.path[:0] = sys.argv[1:]\nfrom atlas_defrag import _native\n"
+    code = ("import numpy as np\nfrom atlas_defrag import _native\n"
             "n = 12\nx, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0))\n"
             "p = np.stack([x.ravel(), y.ravel(), np.sin(x.ravel()) * 0.3], 1)\n"
             "a = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()\n"
@@ -381,7 +379,7 @@ def test_a_progress_callback_may_start_a_run_of_its_own(native):
             "def hook(stage, fraction):\n"
             "    if stage == 'flatten' and len(inner) < 2: inner.append(_native.defragment(*args)['uvs'].shape)\n"
             "_native.defragment(*args, progress=hook)\nprint(len(inner))\n")
-    run = subprocess.run([sys.executable, "-c", code] + IMPORT_PATH, capture_output=True, text=True, timeout=120)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=tool_env)
     assert run.returncode == 0 and run.stdout.split()[-1] in ("1", "2"), run.stderr[-2000:]
 
 
@@ -746,21 +744,19 @@ def test_png_pixels_checks_its_stream_and_sizes(native):
         native.png_pixels(zlib.compress(rows.tobytes()), 4, 3, 3)
 
 
-def test_a_short_stream_claiming_a_huge_image_takes_little_memory(native):
+def test_a_short_stream_claiming_a_huge_image_takes_little_memory(tool_env):
     """An 11-byte stream claiming 20000 x 20000 RGBA fails having committed
     only what it wrote: a PNG's header cannot make Blender take gigabytes.
     In a child process, whose peak memory is its own."""
     import subprocess
     import sys
 
-    from conftest import IMPORT_PATH
-
-    code = ("import sys, resource, zlib\nsys.path[:0] = sys.argv[1:]\nfrom atlas_defrag import _native\n"
+    code = ("import resource, zlib\nfrom atlas_defrag import _native\n"
             "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
             "try:\n    _native.png_pixels(zlib.compress(bytes(3)), 20000, 20000, 4)\n"
             "except ValueError as exc:\n    print(exc)\n"
             "print((resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) // 1024)\n")
-    run = subprocess.run([sys.executable, "-c", code] + IMPORT_PATH, capture_output=True, text=True, timeout=120)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=tool_env)
     assert "fewer bytes" in run.stdout, run.stdout + run.stderr[-2000:]
     assert int(run.stdout.split()[-1]) < 100, run.stdout  # megabytes
 
