@@ -699,9 +699,12 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, re
     copies = _copies_named(tmp, copied) if is_obj and copied else {}
     moving = [name for name in sorted(os.listdir(tmp))
               if name != os.path.basename(dst) and (is_obj or name.lower().endswith(".bin"))]
+    # Each check reads the materials for one kind of output: the copies of
+    # input maps in tmp would count as rebuilt ones.
     unnamed = _verify_outputs(tmp, os.path.basename(dst), moving,
                               sum(len(o.data.polygons) for o in objects if o.type == "MESH"),
-                              _base_colour_files(objects), copies, _rebuilt_materials(objects, tmp))
+                              _base_colour_files(objects) if is_obj else frozenset(), copies,
+                              frozenset() if is_obj else _rebuilt_materials(objects, tmp))
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
@@ -800,7 +803,7 @@ def _bring_input_maps(objects, folder: str, out_dir: str) -> dict:
     for img in dict.fromkeys(img for m in _materials_of(objects) for img in _shown_images(m)):
         path = bpy.path.abspath(img.filepath, library=img.library) if img.filepath else ""
         here = path and os.path.isfile(path)
-        if here and _real(os.path.dirname(path)) in (_real(folder), _real(out_dir)) or img.name in copied:
+        if here and _real(os.path.dirname(path)) in (_real(folder), _real(out_dir)):
             continue
         if not here and img.packed_file is None:
             continue  # no pixels to bring: the MTL names the file the input named, as before

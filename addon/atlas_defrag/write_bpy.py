@@ -334,7 +334,7 @@ def _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_f
     else:
         page_role_image, created_images = _write_images(target, storage, image_dir)
     active_uv = obj.data.uv_layers.active.name if obj.data.uv_layers.active else None
-    new_uv = _write_uv_map(target, new_map_first)
+    new_uv = _write_uv_map(target, new_map_first, active_uv)
     created_materials, rewired = _rewire_materials(target, new_uv, page_role_image, duplicate_materials)
     _pin_default_uv_users(target, active_uv)
     _keep_originals(target, duplicate_materials)
@@ -385,8 +385,9 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
     return page_role_image, created_images
 
 
-def _write_uv_map(target: _Target, first: bool) -> str:
-    """The new UV map, made active and render-active; returns its name."""
+def _write_uv_map(target: _Target, first: bool, active_name: Optional[str]) -> str:
+    """The new UV map, made active and render-active (active_name: the map
+    active before, which an undo makes active again); returns its name."""
     me, read = target.obj.data, target.read
     old_uv = me.uv_layers[read.uv_map]
     fallback = _uv_array(old_uv)
@@ -395,7 +396,6 @@ def _write_uv_map(target: _Target, first: bool) -> str:
         target.warnings.append(f"{conflicts} corners of quads or n-gons were split between charts: each keeps "
                                "one chart's UV, which distorts the texture on those polygons (triangulate the "
                                "mesh first, Ctrl+T, to avoid this)")
-    active_name = me.uv_layers.active.name if me.uv_layers.active else None
     render_name = read.render_uv
     layer = me.uv_layers.new(name=_node_sized(read.uv_map, SUFFIX), do_init=False)
     if layer is None:

@@ -3,6 +3,7 @@
 // positions, texture coordinates, faces (triangulated) and the material
 // each face uses; normals, groups, lines and points are skipped.
 #pragma once
+#include <cerrno>
 #include <stdexcept>
 #include <string>
 #include <vector>
