@@ -82,7 +82,7 @@ def test_obj_reader_names_the_line_of_a_bad_index_or_number(native, tmp_path):
     path.write_text("v 0 0 x\n")
     with pytest.raises(ValueError, match="line 1: expected a number"):
         native.read_obj(str(path))
-    with pytest.raises(ValueError, match="cannot open"):
+    with pytest.raises(FileNotFoundError, match="missing.obj"):  # an OSError, as write_obj's failures are
         native.read_obj(str(tmp_path / "missing.obj"))
 
 
@@ -598,20 +598,20 @@ def test_the_native_obj_writer_fails_as_python_writes_do(native, tmp_path):
 
 def test_obj_maps_beside_the_base_colour_are_carried_over(tmp_path, tool_env):
     """Blender writes a normal map as `map_Bump -bm 1.0 file`, and this entry
-    writes `norm` and `map_ao`: the reader takes them (the command line reads
-    its own output back whole), and leaves out with a warning a missing map
-    and a grey bump map (heights, not normals)."""
+    writes `norm`, `map_ao` and `map_Ke`: the reader takes them (the command
+    line reads its own output back whole), and leaves out with a warning a
+    missing map and a grey bump map (heights, not normals)."""
     import scan_io
     from atlas_defrag import png_files
 
-    mtl = ("newmtl a\nmap_Kd t0.png\nmap_Bump -bm 1.000000 n0.png\nmap_ao ao.png\n"
+    mtl = ("newmtl a\nmap_Kd t0.png\nmap_Bump -bm 1.000000 n0.png\nmap_ao ao.png\nmap_Ke ao.png\n"
            "newmtl b\nmap_Kd t1.png\nbump -bm 0.5 height.png\nmap_ao missing.png\n")
     source = _two_material_obj(tmp_path / "in", mtl)
     (source.parent / "n0.png").write_bytes(png_files.encode_png(np.full((8, 8, 3), (128, 128, 255), np.uint8)))
     (source.parent / "ao.png").write_bytes(png_files.encode_png(np.full((8, 8, 1), 200, np.uint8)))
     (source.parent / "height.png").write_bytes(png_files.encode_png(np.full((8, 8, 1), 90, np.uint8)))
     scan = scan_io.load(source)
-    assert [sorted(page) for page in scan.maps] == [["base_color", "normal", "occlusion"], ["base_color"]]
+    assert [sorted(page) for page in scan.maps] == [["base_color", "emission", "normal", "occlusion"], ["base_color"]]
     assert scan.maps[0]["normal"].name == "n0.png" and scan.maps[0]["occlusion"].name == "ao.png"
     assert any("height.png" in w and "height map" in w for w in scan.warnings), scan.warnings
     assert any("missing.png" in w and "not found" in w for w in scan.warnings), scan.warnings
@@ -620,4 +620,4 @@ def test_obj_maps_beside_the_base_colour_are_carried_over(tmp_path, tool_env):
                          timeout=300, env=tool_env)
     assert run.returncode == 0, run.stderr
     again = scan_io.load(out / "m_defrag.obj")
-    assert sorted(again.maps[0]) == ["base_color", "normal", "occlusion"], again.maps
+    assert sorted(again.maps[0]) == ["base_color", "emission", "normal", "occlusion"], again.maps

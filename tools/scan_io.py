@@ -198,9 +198,10 @@ def _texture_path(reference: str, folders: list[Path]) -> Path:
 # The MTL map statements this reader carries over, by the role the job gives
 # their image. Blender's OBJ importer reads map_Bump and bump as a normal map,
 # and so does this reader where the image has colour (a grey one is a height
-# map); map_ao is how the command-line entry writes an occlusion map.
+# map); map_ao and map_Ke are how the command-line entry writes occlusion and
+# emission maps.
 _MTL_MAP_ROLES = {"map_kd": "base_color", "norm": "normal", "map_bump": "normal", "bump": "normal",
-                  "map_ao": "occlusion"}
+                  "map_ao": "occlusion", "map_ke": "emission"}
 _GREY_MODES = ("1", "L", "LA", "I", "I;16", "F")
 
 

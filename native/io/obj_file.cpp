@@ -20,14 +20,14 @@ namespace {
 // line-by-line streams (bench/README.md).
 std::string file_contents(const std::string& path) {
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!file) throw InputError("cannot open " + path);
+  if (!file) throw FileError("read", path, errno);
   std::string text;
   std::error_code unknown;
   const auto size = std::filesystem::file_size(path, unknown);
   if (!unknown) text.reserve(size);  // one allocation, not a series of doublings and copies
   char buffer[1 << 16];
   for (size_t n; (n = std::fread(buffer, 1, sizeof buffer, file.get())) > 0;) text.append(buffer, n);
-  if (std::ferror(file.get())) throw InputError("cannot read " + path);
+  if (std::ferror(file.get())) throw FileError("read", path, errno);
   return text;
 }
 
@@ -192,7 +192,7 @@ void read_line(std::string_view line, int number, Lists& lists) {
 class TextOut {
  public:
   explicit TextOut(const std::string& path) : file_(std::fopen(path.c_str(), "wb"), &std::fclose), path_(path) {
-    if (!file_) throw FileError(path, errno);
+    if (!file_) throw FileError("write", path, errno);
   }
   TextOut& text(std::string_view s) {
     buffer_.append(s);
@@ -223,7 +223,7 @@ class TextOut {
   }
   void close() {
     flush();
-    if (std::fclose(file_.release()) != 0) throw FileError(path_, errno);
+    if (std::fclose(file_.release()) != 0) throw FileError("write", path_, errno);
   }
 
  private:
@@ -233,7 +233,7 @@ class TextOut {
   }
   void flush() {
     if (std::fwrite(buffer_.data(), 1, buffer_.size(), file_.get()) != buffer_.size())
-      throw FileError(path_, errno);
+      throw FileError("write", path_, errno);
     buffer_.clear();
   }
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> file_;

@@ -12,11 +12,12 @@
 
 namespace atlas::obj {
 
-// A file that could not be opened, written or closed; errno said why (a full
-// disk, say). Not an InputError: nothing is wrong with the data.
+// A file that could not be opened, read, written or closed; errno said why (a
+// missing file, a full disk). Not an InputError: nothing is wrong with the data.
+// `doing` is "read" or "write".
 struct FileError : std::runtime_error {
-  FileError(const std::string& file, int error) : std::runtime_error("cannot write " + file), path(file),
-                                                  error_number(error ? error : EIO) {}
+  FileError(const std::string& doing, const std::string& file, int error)
+      : std::runtime_error("cannot " + doing + " " + file), path(file), error_number(error ? error : EIO) {}
   std::string path;
   int error_number;
 };
@@ -36,9 +37,9 @@ struct ObjFile {
 // clipped into ears in their plane (a fan again if that fails: a polygon
 // crossing itself); a face of fewer than three corners is dropped. Negative
 // indices count back from the last element defined before the face, as the
-// format says. Throws InputError
-// naming the line for a malformed number or an index outside the file's
-// elements, and for a file that cannot be read.
+// format says. Throws InputError naming the line for a malformed number or
+// an index outside the file's elements, and FileError for a file that cannot
+// be opened or read.
 ObjFile read_obj(const std::string& path);
 
 // Writes positions (V x 3), one `vt` per face corner (corner_uv, 3F x 2) and
