@@ -421,12 +421,17 @@ py::array rows_array(const Matrix& m) {
   return py::array_t<T>({static_cast<py::ssize_t>(m.rows()), static_cast<py::ssize_t>(m.cols())}, m.data());
 }
 
-// Names from a file as str; bytes that are not UTF-8 become U+FFFD, as
-// Python's errors="replace" reads them.
+// Names from a file as str, decoded as Python decodes file names: bytes that
+// are not UTF-8 (a Latin-1 "Wand_ä") become lone surrogates, so two such
+// names stay apart, match an MTL read with errors="surrogateescape" and name
+// the file on disk.
 py::list file_names(const std::vector<std::string>& names) {
   py::list out;
-  for (const std::string& name : names)
-    out.append(py::reinterpret_steal<py::str>(PyUnicode_DecodeUTF8(name.data(), static_cast<py::ssize_t>(name.size()), "replace")));
+  for (const std::string& name : names) {
+    PyObject* text = PyUnicode_DecodeUTF8(name.data(), static_cast<py::ssize_t>(name.size()), "surrogateescape");
+    if (text == nullptr) throw py::error_already_set();
+    out.append(py::reinterpret_steal<py::str>(text));
+  }
   return out;
 }
 
@@ -451,6 +456,7 @@ py::dict read_obj_py(const std::string& path) {
   out["face_material"] = py::array_t<int>(f.face_material.size(), f.face_material.data());
   out["materials"] = file_names(f.materials);
   out["material_libraries"] = file_names(f.material_libraries);
+  out["vertex_colours"] = f.vertex_colours;
   return out;
 }
 
@@ -910,8 +916,10 @@ as bake.)");
         R"(Reads a Wavefront OBJ file: dict(positions (V,3) float64, texcoords (T,2) float64,
 triangles (F,3) int32 0-based, texcoord_index (F,3) int32 (-1 on a face without UVs),
 face_material (F,) int32 into materials (-1: none), materials (usemtl names),
-material_libraries (mtllib names)). Convex polygons are fan-triangulated, others
-clipped into ears in their plane. ValueError naming the line on malformed input.)");
+material_libraries (mtllib names), vertex_colours (bool: a v line has r g b)). Names
+are decoded as file names are (os.fsdecode). Convex polygons are fan-triangulated, others
+clipped into ears in their plane. ValueError naming the line on malformed input, OSError
+when the file cannot be read.)");
 
   m.def("write_obj", &write_obj_py, py::arg("path"), py::arg("library"), py::arg("positions"),
         py::arg("triangles"), py::arg("uvs"), py::arg("face_material"), py::arg("materials"),

@@ -144,6 +144,39 @@ def _one_triangle_gltf(tmp_path, name, **changes):
     return path
 
 
+def test_gltf_without_scenes_walks_its_node_trees_from_their_roots(tmp_path):
+    """`scenes` is optional: the roots are then the nodes no node names as a
+    child (each child was reached twice before, and the file refused)."""
+    import scan_io
+
+    path = _one_triangle_gltf(tmp_path, "loose.gltf", scenes=[], nodes=[{"children": [1]}, {"mesh": 0}])
+    assert scan_io.load(path).triangles.tolist() == [[0, 1, 2]]
+
+
+def test_gltf_json_nested_too_deeply_is_refused_in_words(tmp_path):
+    import scan_io
+
+    path = tmp_path / "deep.gltf"
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(ValueError, match="nests too deeply"):
+        scan_io.load(path)
+
+
+def test_gltf_image_that_cannot_be_decoded_is_named(tmp_path):
+    import json
+
+    import scan_io
+
+    path = _textured_triangle_gltf(tmp_path, {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+                                   {"source": 0})
+    gltf = json.loads(path.read_text())
+    gltf["images"] = [{"uri": "my%20tex.png"}]
+    path.write_text(json.dumps(gltf))
+    (tmp_path / "my tex.png").write_bytes(b"not a PNG at all")
+    with pytest.raises(ValueError, match="^its my tex.png is in no image format this reader decodes$"):
+        scan_io.load(path)
+
+
 def test_gltf_primitive_without_indices_reads_its_vertices_in_order(tmp_path):
     import scan_io
 
@@ -360,6 +393,53 @@ def test_mtl_textures_are_found_as_writers_name_them(tmp_path, mtl, mtllib, text
     scan = scan_io.load(_two_material_obj(tmp_path, mtl, mtllib, textures))
     assert scan.face_page.tolist() == [0, 0, 1, 1] and not scan.warnings, scan.warnings
     assert [p.name for p in scan.page_images] == [Path(t).name for t in textures]
+
+
+def test_obj_reader_takes_what_writers_write(native, tmp_path):
+    """`#` inside material and library names (3ds Max's "Material #25", as
+    Blender reads them) but a comment after numbers, `vt u` without v, a line
+    continued by a backslash, \\r, \\r\\n and \\n line ends in one file, and
+    colours after a vertex (MeshLab's `v x y z r g b`)."""
+    path = tmp_path / "m.obj"
+    path.write_bytes(b"mtllib scan#2.mtl\r\nv 0 0 0 0.5 0.5 0.5\rv 1 0 0 # a comment\nv 1 1 0\n"
+                     b"vt 0.25\nvt 1 0\nvt 1 1\nusemtl Material #25\nf 1/1 2/2 \\\n  3/3\n")
+    obj = native.read_obj(str(path))
+    assert obj["materials"] == ["Material #25"] and obj["material_libraries"] == ["scan#2.mtl"]
+    assert obj["texcoords"].tolist() == [[0.25, 0], [1, 0], [1, 1]]
+    assert obj["triangles"].tolist() == [[0, 1, 2]] and obj["positions"][1].tolist() == [1, 0, 0]
+    assert obj["vertex_colours"]
+    path.write_bytes(b"v 0 0 0\nv 1 0 0 1\nv 1 1 0\nf 1 2 3\n")  # x y z w: no colour
+    assert not native.read_obj(str(path))["vertex_colours"]
+
+
+def test_obj_material_names_match_byte_for_byte(tmp_path):
+    """Names in Latin-1 (not UTF-8) stay apart, and a `#` in them is part of
+    the name in both the OBJ and the MTL."""
+    import scan_io
+
+    source = _two_material_obj(tmp_path, "")
+    mtl = "newmtl Wand_\xe4\nmap_Kd t0.png\nnewmtl Material #26\nmap_Kd t1.png\n"
+    (tmp_path / "m.mtl").write_bytes(mtl.encode("latin-1"))
+    obj = source.read_text().replace("usemtl a", "usemtl Wand_\xe4").replace("usemtl b", "usemtl Material #26")
+    source.write_bytes(obj.encode("latin-1"))
+    scan = scan_io.load(source)
+    assert scan.face_page.tolist() == [0, 0, 1, 1] and not scan.warnings, scan.warnings
+    assert [p.name for p in scan.page_images] == ["t0.png", "t1.png"]
+
+
+def test_obj_materials_without_a_definition_are_named(tmp_path):
+    """A material no library defines, and a library that is missing, each
+    leave faces untextured with a warning, not in silence."""
+    import scan_io
+
+    source = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\n")
+    scan = scan_io.load(source)
+    assert scan.face_page.tolist() == [0, 0, -1, -1]
+    assert scan.warnings == ["material 'b' is defined in no material library: its 2 faces are left untextured"]
+    (tmp_path / "m.mtl").unlink()
+    with_no_library = scan_io.load(source)
+    assert with_no_library.face_page.tolist() == [-1, -1, -1, -1]
+    assert len(with_no_library.warnings) == 1 and "m.mtl not found" in with_no_library.warnings[0]
 
 
 @pytest.mark.parametrize("options, refused", [

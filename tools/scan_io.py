@@ -207,7 +207,9 @@ _GREY_MODES = ("1", "L", "LA", "I", "I;16", "F")
 
 def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, dict[str, Path]]:
     """material name -> {role: the file its first map statement of that role
-    names (which may not exist)}."""
+    names (which may not exist)}, for every material the libraries define.
+    Names are decoded as _native.read_obj decodes usemtl names, so that they
+    match byte for byte."""
     from atlas_defrag import mtl_text
 
     textures: dict[str, dict[str, Path]] = {}
@@ -215,13 +217,14 @@ def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, dict[
         if not mtl.is_file():
             continue
         current = None
-        for line in mtl.read_text(encoding="utf-8-sig", errors="replace").splitlines():
+        for line in mtl.read_text(encoding="utf-8-sig", errors="surrogateescape").splitlines():
             parts = line.split(None, 1)
             if not parts:
                 continue
             keyword, rest = parts[0].lower(), parts[1].strip() if len(parts) > 1 else ""
             if keyword == "newmtl":
                 current = rest
+                textures.setdefault(current, {})
             elif keyword in _MTL_MAP_ROLES and current is not None:
                 if mtl_text.uv_transform(rest):
                     raise ValueError(f"{mtl.name}: material '{current}' reads its texture through "
@@ -270,13 +273,20 @@ def load_obj(path: Path) -> Scan:
 
     libraries = _material_libraries(path, obj["material_libraries"])
     textures = _read_mtl_textures(path, libraries)
-    pages, page_of, warnings = [], {}, []
+    pages, page_of = [], {}
+    missing = [m for m in libraries if not m.is_file()]
+    warnings = [f"material library {m} not found: the materials it defines are left untextured" for m in missing]
+    if obj["vertex_colours"]:
+        warnings.append(_VERTEX_COLOURS)
     material_page = np.full(len(obj["materials"]) + 1, -1, dtype=np.int32)  # the last: no usemtl
     used, first_face, counts = np.unique(obj["face_material"][has_uv], return_index=True, return_counts=True)
     for k in np.argsort(first_face):  # pages in the order faces first use them
         m = used[k]
         name = obj["materials"][m] if m >= 0 else ""
         maps = textures.get(name, {}) if m >= 0 else {}
+        if m >= 0 and name not in textures and not missing:  # else the missing library was named
+            warnings.append(f"material '{name}' is defined in no material library: its {counts[k]} faces "
+                            "are left untextured")
         tex = maps.get("base_color")
         if tex is not None and not tex.is_file():
             warnings.append(f"texture {tex} of material '{name}' not found: its {counts[k]} "
@@ -386,6 +396,11 @@ class UnreadableTexture(ValueError):
     """A texture whose images are all in formats this reader cannot decode."""
 
 
+class Unsupported(ValueError):
+    """A well-formed glTF using what this reader does not do: said as it is,
+    not as a malformed file."""
+
+
 def _texture_source(texture: dict) -> int:
     """The image of a texture: its own source (the PNG or JPEG fallback when
     there is one), else the WebP one of EXT_texture_webp, which Pillow reads.
@@ -408,6 +423,25 @@ def _image_bytes(gltf: dict, buffers: list, folder: Path, texture_index: int) ->
     return _item(buffers, view["buffer"], "buffer")[start:start + view["byteLength"]]
 
 
+def _image_name(gltf: dict, texture_index: int) -> str:
+    """A texture's image as a message names it: its file, else its index."""
+    index = _texture_source(_item(gltf["textures"], texture_index, "texture"))
+    uri = _item(gltf["images"], index, "image").get("uri", "data:")
+    return f"image {index}" if uri.startswith("data:") else urllib.parse.unquote(uri)
+
+
+def _decodable_size(data: bytes, name: str) -> tuple[int, int]:
+    """image_size of a glTF's image, UnreadableTexture naming it when Pillow cannot read it."""
+    from PIL import UnidentifiedImageError
+
+    try:
+        return image_size(data)
+    except UnidentifiedImageError:
+        raise UnreadableTexture(f"its {name} is in no image format this reader decodes") from None
+    except OSError as exc:
+        raise UnreadableTexture(f"its {name} cannot be decoded: {exc}") from None
+
+
 def _node_matrices(gltf: dict):
     """World matrix of every node that holds a mesh."""
     def local(node):
@@ -423,8 +457,9 @@ def _node_matrices(gltf: dict):
         return t
 
     nodes = gltf.get("nodes", [])
+    children = {c for node in nodes for c in node.get("children", [])}
     roots = _item(gltf["scenes"], gltf.get("scene", 0), "scene").get("nodes", []) if gltf.get("scenes") \
-        else range(len(nodes))
+        else [n for n in range(len(nodes)) if n not in children]
     # The nodes form a tree: a node reached twice (a cycle, or two parents
     # sharing it) would otherwise be walked forever or 2^depth times.
     stack, reached = [(n, np.eye(4)) for n in roots], set()
@@ -445,7 +480,7 @@ def load_glb(path: Path) -> Scan:
     if len(data) < 20 or struct.unpack_from("<I", data, 0)[0] != 0x46546C67:
         raise ValueError("not a binary glTF file")
     json_len, _ = struct.unpack_from("<II", data, 12)
-    gltf = json.loads(data[20:20 + json_len])
+    gltf = _parsed_json(data[20:20 + json_len])
     bin_offset = 20 + json_len
     chunk = b""
     if bin_offset + 8 <= len(data):
@@ -458,7 +493,7 @@ def load_glb(path: Path) -> Scan:
 
 def load_gltf(path: Path) -> Scan:
     """A .gltf file: JSON, with buffers and images in files beside it or in data: URIs."""
-    gltf = json.loads(path.read_text(encoding="utf-8"))
+    gltf = _parsed_json(path.read_text(encoding="utf-8"))
     return _checked_gltf(path, gltf, lambda: [_uri_bytes(b["uri"], path.parent) for b in gltf.get("buffers", [])])
 
 
@@ -469,6 +504,14 @@ _UNREAD_EXTENSIONS = {"KHR_draco_mesh_compression", "EXT_meshopt_compression", "
 # specification has a reader refuse a file requiring any other).
 _READ_EXTENSIONS = {"KHR_materials_pbrSpecularGlossiness", "EXT_texture_webp", "KHR_mesh_quantization",
                     "KHR_materials_unlit"}
+
+
+def _parsed_json(text):
+    """The glTF's JSON; ValueError also for nesting too deep for Python's parser."""
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise ValueError("malformed glTF (its JSON nests too deeply)") from None
 
 
 def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
@@ -489,7 +532,7 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
             scan.files = [path] + [path.parent / urllib.parse.unquote(item["uri"])
                                    for item in gltf.get("buffers", []) + gltf.get("images", [])
                                    if not item.get("uri", "data:").startswith("data:")]
-    except UnreadableTexture:
+    except (UnreadableTexture, Unsupported):
         raise
     except OSError as exc:
         raise ValueError(f"a file it refers to cannot be read: {exc}") from exc
@@ -552,7 +595,7 @@ def _material_maps(gltf: dict, buffers: list, folder: Path, material: dict) -> d
     if any(slot is not None and slot.get("texCoord", 0) != _colour_texture(material).get("texCoord", 0)
            for slot in (material.get("normalTexture"), material.get("occlusionTexture"),
                         pbr.get("metallicRoughnessTexture"), material.get("emissiveTexture"))):
-        raise ValueError("a material's maps read different TEXCOORD sets, which this reader does not support")
+        raise Unsupported("a material's maps read different TEXCOORD sets, which this reader does not support")
     for role, slot in (("normal", material.get("normalTexture")), ("occlusion", material.get("occlusionTexture")),
                        ("metallic_roughness", pbr.get("metallicRoughnessTexture")),
                        ("emission", material.get("emissiveTexture"))):
@@ -567,7 +610,7 @@ def _material_maps(gltf: dict, buffers: list, folder: Path, material: dict) -> d
 def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
     """The scan, or None when no node holds a triangle primitive."""
     positions, tris, uvs, face_page = [], [], [], []
-    page_of, maps, sources = {}, [], []
+    page_of, maps, names, sources = {}, [], [], []
     first_corners = {}  # mesh index -> (corners of its first instance, whether that one mirrors)
     base = faces = 0
     for mesh_index, world in _node_matrices(gltf):
@@ -593,6 +636,7 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
                     if prim.get("material") not in page_of:
                         page_of[prim.get("material")] = len(maps)
                         maps.append(_material_maps(gltf, buffers, folder, material))
+                        names.append(_image_name(gltf, _colour_texture(material)["index"]))
                     page = page_of[prim.get("material")]
             else:
                 uvs.append(np.zeros((len(idx), 3, 2)))
@@ -605,7 +649,7 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
     if not tris:
         return None
     pages = [m["base_color"] for m in maps]
-    sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
+    sizes = np.array([_decodable_size(p, name) for p, name in zip(pages, names)], dtype=np.int32).reshape(-1, 2)
     return Scan(np.concatenate(positions), np.concatenate(tris).astype(np.int32), np.concatenate(uvs),
                 np.concatenate(face_page), sizes, pages, maps, corner_source=np.concatenate(sources))
 

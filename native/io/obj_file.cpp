@@ -1,11 +1,13 @@
 #include "io/obj_file.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <sstream>
 #include <string_view>
 #include <unordered_map>
@@ -49,6 +51,9 @@ class Words {
     return word;
   }
 
+  // The rest of the line ends before a `#`.
+  void drop_comment() { rest_ = rest_.substr(0, rest_.find('#')); }
+
   // Everything after the keyword, without surrounding blanks (names may hold spaces).
   std::string_view remainder() const {
     std::string_view s = rest_;
@@ -57,13 +62,12 @@ class Words {
     return s;
   }
 
-  double number() {
-    std::string_view word = next();
-    if (!word.empty() && word.front() == '+') word.remove_prefix(1);  // from_chars takes no '+'
-    double value = 0;
-    const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
-    if (word.empty() || error != std::errc() || end != word.data() + word.size()) fail("a number", word);
-    return value;
+  double number() { return number_from(next()); }
+
+  // A number that may be left out at the end of the line.
+  double number_or(double absent) {
+    const std::string_view word = next();
+    return word.empty() ? absent : number_from(word);
   }
 
   [[noreturn]] void fail(const char* expected, std::string_view word) const {
@@ -75,6 +79,14 @@ class Words {
   int line_number() const { return number_; }
 
  private:
+  double number_from(std::string_view word) const {
+    if (!word.empty() && word.front() == '+') word.remove_prefix(1);  // from_chars takes no '+'
+    double value = 0;
+    const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
+    if (word.empty() || error != std::errc() || end != word.data() + word.size()) fail("a number", word);
+    return value;
+  }
+
   std::string_view rest_;
   int number_;
 };
@@ -169,13 +181,17 @@ void read_face(Words& words, Lists& lists) {
   for (const Eigen::Vector3i& triangle : polygon_triangles(lists.positions, vertex)) add(triangle);
 }
 
+// A name line keeps its `#`s (read_obj's comment); other lines end at the first.
 void read_line(std::string_view line, int number, Lists& lists) {
   Words words(line, number);
   const std::string_view keyword = words.next();
+  if (keyword != "usemtl" && keyword != "mtllib") words.drop_comment();
   if (keyword == "v") {
     for (int k = 0; k < 3; ++k) lists.positions.push_back(words.number());
+    lists.out.vertex_colours |= !words.next().empty() && !words.next().empty();  // x y z r g b, not x y z w
   } else if (keyword == "vt") {
-    for (int k = 0; k < 2; ++k) lists.texcoords.push_back(words.number());
+    lists.texcoords.push_back(words.number());
+    lists.texcoords.push_back(words.number_or(0.0));
   } else if (keyword == "f") {
     read_face(words, lists);
   } else if (keyword == "usemtl") {
@@ -246,6 +262,52 @@ Matrix rows_of(const std::vector<T>& values) {
                                   Matrix::ColsAtCompileTime);
 }
 
+// The lines of a file, each without its end: \n, \r\n or \r (old Mac
+// tools), whichever each line has.
+class Lines {
+ public:
+  explicit Lines(std::string_view all) : all_(all), newline_(std::min(all.find('\n'), all.size())) {}
+  bool done() const { return start_ >= all_.size(); }
+
+  std::string_view next() {
+    if (newline_ < start_) newline_ = std::min(all_.find('\n', start_), all_.size());
+    const size_t cr = all_.substr(start_, newline_ - start_).find('\r');
+    const size_t end = cr == std::string_view::npos ? newline_ : start_ + cr;
+    const std::string_view line = all_.substr(start_, end - start_);
+    start_ = end + (end + 1 == newline_ ? 2 : 1);  // past \r\n at once
+    return line;
+  }
+
+ private:
+  std::string_view all_;
+  size_t newline_, start_ = 0;
+};
+
+// Without the backslash that continues a line in the next (its last
+// non-blank character); empty if the line has none.
+std::optional<std::string_view> before_backslash(std::string_view line) {
+  while (!line.empty() && is_space(line.back())) line.remove_suffix(1);
+  if (line.empty() || line.back() != '\\') return std::nullopt;
+  return line.substr(0, line.size() - 1);
+}
+
+// The next line with the lines it continues into joined to it (in `joined`);
+// `number` counts the lines taken.
+std::string_view logical_line(Lines& lines, int& number, std::string& joined) {
+  std::string_view line = lines.next();
+  ++number;
+  std::optional<std::string_view> head = before_backslash(line);
+  if (!head) return line;
+  joined.clear();
+  for (; head; head = before_backslash(line)) {
+    joined.append(*head) += ' ';
+    if (lines.done()) return joined;
+    line = lines.next();
+    ++number;
+  }
+  return joined.append(line);
+}
+
 // Encodings that read as text without a face: named, so that the user
 // knows what to convert instead of being told the mesh is empty.
 void refuse_binary_text(std::string_view all, const std::string& path) {
@@ -261,18 +323,11 @@ ObjFile read_obj(const std::string& path) {
   Lists lists;
   const std::string_view all(text);
   refuse_binary_text(all, path);
-  // Lines end in \n (a \r before it is a space to read_line); files of old
-  // Mac tools end them in \r alone. A UTF-8 byte-order mark is skipped.
-  const char line_end = all.find('\n') == std::string_view::npos ? '\r' : '\n';
-  const std::string_view bom = "\xEF\xBB\xBF";
-  int number = 1;
-  for (size_t start = all.substr(0, 3) == bom ? 3 : 0; start < all.size(); ++number) {
-    size_t end = all.find(line_end, start);
-    if (end == std::string_view::npos) end = all.size();
-    std::string_view line = all.substr(start, end - start);
-    line = line.substr(0, line.find('#'));
-    read_line(line, number, lists);
-    start = end + 1;
+  Lines lines(all.substr(all.substr(0, 3) == "\xEF\xBB\xBF" ? 3 : 0));  // a UTF-8 byte-order mark skipped
+  std::string joined;
+  for (int taken = 0; !lines.done();) {
+    const int number = taken + 1;
+    read_line(logical_line(lines, taken, joined), number, lists);
   }
   ObjFile& out = lists.out;
   out.positions = rows_of<RowMatrixX3d>(lists.positions);

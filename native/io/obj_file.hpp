@@ -24,20 +24,25 @@ struct FileError : std::runtime_error {
 
 struct ObjFile {
   RowMatrixX3d positions;                      // V x 3, the x y z of each `v` line (a colour after them is ignored)
-  RowMatrixX2d texcoords;                      // T x 2, the u v of each `vt` line (w is ignored)
+  RowMatrixX2d texcoords;                      // T x 2, the u v of each `vt` line (v is 0 when absent, w ignored)
   RowMatrixX3i triangles;                      // F x 3, 0-based vertex of each corner
   RowMatrixX3i texcoord_index;                 // F x 3, 0-based texcoord of each corner; -1 on all three
                                                // corners of a face that lacks one on any corner
   Eigen::VectorXi face_material;               // F, index into materials; -1 before the first usemtl
   std::vector<std::string> materials;          // usemtl names, in order of first use
   std::vector<std::string> material_libraries; // mtllib arguments, in file order
+  bool vertex_colours = false;                 // some `v` line has a colour after x y z (r g b, as MeshLab writes)
 };
 
 // Reads the file. Convex polygons become fans (0, i, i + 1), others are
 // clipped into ears in their plane (a fan again if that fails: a polygon
 // crossing itself); a face of fewer than three corners is dropped. Negative
 // indices count back from the last element defined before the face, as the
-// format says. Throws InputError naming the line for a malformed number or
+// format says. A `#` starts a comment, but inside the names of `usemtl` and
+// `mtllib` lines (3ds Max names materials "Material #25", and Blender reads
+// the whole name); a line ending in a backslash goes on in the next one;
+// lines end in \n, \r\n or \r, mixed in one file or not.
+// Throws InputError naming the line for a malformed number or
 // an index outside the file's elements, and FileError for a file that cannot
 // be opened or read.
 ObjFile read_obj(const std::string& path);
