@@ -5,11 +5,14 @@ import os
 import struct
 import sys
 import types
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from atlas_defrag import batch, mtl_text, png_files
+
+CLI = Path(__file__).resolve().parent.parent / "tools" / "defrag_scan.py"
 
 
 def _glb(body: bytes, declared_extra: int = 0) -> bytes:
@@ -445,6 +448,21 @@ def test_image_format_and_quality_are_checked_before_any_work():
     many = batch.multi_parser().parse_args(["in.obj", "--out-dir", "o", "--image-format", "webp"])
     assert batch._passthrough(many)[-4:] == ["--image-format", "webp", "--image-quality", "90"]
     assert batch.main_multi(["in.obj", "--out-dir", "o", "--format", "obj", "--image-format", "jpeg"]) == 2
+
+
+def test_a_pair_of_options_that_conflict_is_refused_before_any_work(tmp_path, capsys, tool_env):
+    """fixed_page_size above max_page_size exits 2 as a bad value does, in
+    every entry, before a model is read (or a Blender started per model)."""
+    import subprocess
+
+    conflict = ["--fixed-page-size", "16384", "--max-page-size", "8192"]
+    assert batch.main_single([str(tmp_path / "in.obj"), str(tmp_path / "out.glb")] + conflict) == 2
+    assert batch.main_multi([str(tmp_path / "in.obj"), "--out-dir", str(tmp_path / "o")] + conflict) == 2
+    assert capsys.readouterr().err.count("fixed_page_size 16384 is larger than max_page_size 8192") == 2
+    run = subprocess.run([sys.executable, str(CLI), str(tmp_path / "in.obj"), str(tmp_path / "o")] + conflict,
+                         capture_output=True, text=True, timeout=60, env=tool_env)
+    assert run.returncode == 2 and "is larger than max_page_size" in run.stderr, run.stderr
+    assert list(tmp_path.iterdir()) == []
 
 
 def _gltf_file(path, materials, images=({"uri": "t.png"},)):

@@ -160,7 +160,7 @@ def parse_args(argv):
                              "colour PSNR) while the files are written, at some cost in time (bench/RESULTS.md; "
                              "default: off)")
     options.add_arguments(parser)
-    return parser.parse_args(argv)
+    return options.parsed(parser, argv)
 
 
 def folder_problem(folder: Path) -> str:

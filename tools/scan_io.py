@@ -610,7 +610,7 @@ def _material_maps(gltf: dict, buffers: list, folder: Path, material: dict) -> d
 def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
     """The scan, or None when no node holds a triangle primitive."""
     positions, tris, uvs, face_page = [], [], [], []
-    page_of, maps, names, sources = {}, [], [], []
+    page_of, maps, names, sources, warnings = {}, [], [], [], set()
     first_corners = {}  # mesh index -> (corners of its first instance, whether that one mirrors)
     base = faces = 0
     for mesh_index, world in _node_matrices(gltf):
@@ -633,6 +633,7 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
                 uv[:, 1] = 1.0 - uv[:, 1]  # glTF puts v = 0 at the top
                 uvs.append(uv[idx])
                 if _colour_texture(material) is not None:
+                    warnings |= _clamped_past_edges(gltf, material, uv[idx])
                     if prim.get("material") not in page_of:
                         page_of[prim.get("material")] = len(maps)
                         maps.append(_material_maps(gltf, buffers, folder, material))
@@ -651,7 +652,27 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
     pages = [m["base_color"] for m in maps]
     sizes = np.array([_decodable_size(p, name) for p, name in zip(pages, names)], dtype=np.int32).reshape(-1, 2)
     return Scan(np.concatenate(positions), np.concatenate(tris).astype(np.int32), np.concatenate(uvs),
-                np.concatenate(face_page), sizes, pages, maps, corner_source=np.concatenate(sources))
+                np.concatenate(face_page), sizes, pages, maps, corner_source=np.concatenate(sources),
+                warnings=sorted(warnings))
+
+
+_REPEAT = 10497
+# How far (in UV units) a face may reach past the page before a sampler that
+# does not repeat the image shows something else there: round-off only.
+_EDGE_SLACK = 1e-4
+
+
+def _clamped_past_edges(gltf: dict, material: dict, corners: np.ndarray) -> set:
+    """A warning when the colour texture's sampler clamps or mirrors it where
+    these corners' UVs leave the page: the bake repeats every image."""
+    texture = _item(gltf["textures"], _colour_texture(material)["index"], "texture")
+    sampler = _item(gltf.get("samplers", []), texture["sampler"], "sampler") if "sampler" in texture else {}
+    wraps = (sampler.get("wrapS", _REPEAT), sampler.get("wrapT", _REPEAT))
+    if wraps == (_REPEAT, _REPEAT) or not corners.size or (corners.min() >= -_EDGE_SLACK
+                                                           and corners.max() <= 1 + _EDGE_SLACK):
+        return set()
+    return {f"material '{material.get('name', '')}' clamps or mirrors its colour texture (sampler wrap) where "
+            "faces reach past its edges: the new texture repeats it there"}
 
 
 def _instance_corners(first_corners: dict, mesh_index: int, start: int, end: int, mirrors: bool) -> np.ndarray:

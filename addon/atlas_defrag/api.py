@@ -32,10 +32,10 @@ class Settings:
     def from_kwargs(cls, **kw) -> "Settings":
         opts = {name: kw.pop(name) for name in BY_NAME if name in kw}
         storage = str(kw.pop("storage", "PACK")).upper()
-        s = cls(uv_map=kw.pop("uv_map", None) or None, options=job.Options(**opts),
+        s = cls(uv_map=_typed(kw.pop("uv_map", None), str, "uv_map") or None, options=job.Options(**opts),
                 storage=storage, image_dir=kw.pop("image_dir", None),
-                duplicate_materials=bool(kw.pop("duplicate_materials", False)),
-                new_map_first=bool(kw.pop("new_map_first", True)))
+                duplicate_materials=_typed(kw.pop("duplicate_materials", False), bool, "duplicate_materials"),
+                new_map_first=_typed(kw.pop("new_map_first", True), bool, "new_map_first"))
         if kw:
             known = sorted(BY_NAME) + ["duplicate_materials", "image_dir", "new_map_first", "storage", "uv_map"]
             raise DefragError("unknown option(s): " + ", ".join(sorted(kw)) + " (known: " + ", ".join(known) + ")")
@@ -48,6 +48,13 @@ class Settings:
             raise DefragError(f"storage must be one of {STORAGE}, not {self.storage!r}")
         if self.storage == "SAVE" and not self.image_dir and not bpy.data.filepath:
             raise DefragError("Save the .blend file first, or set Images to 'Pack in .blend'")
+
+
+def _typed(value, kind: type, name: str):
+    """value when it is of kind (or None), else DefragError: bool("no") would be True."""
+    if value is not None and not isinstance(value, kind):
+        raise DefragError(f"{name} must be a {kind.__name__}, not {value!r}")
+    return value
 
 
 def prepare(obj, settings: Settings, pixels_later: bool = False) -> read_bpy.ReadResult:

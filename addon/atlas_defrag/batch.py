@@ -96,7 +96,9 @@ def _quality(text: str) -> int:
 
 
 def single_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="batch.py", description="Defragment the texture atlas of one model.")
+    p = argparse.ArgumentParser(prog="batch.py", description="Defragment the texture atlas of one model.",
+                                epilog="Many models, one Blender each: python3 batch.py --out-dir OUT_DIR "
+                                       "IN... [options] (--out-dir DIR --help says more).")
     p.add_argument("input", help="model: .obj, .gltf, .glb or .ply")
     p.add_argument("output", help="result: .obj (+ .mtl + .png) or .glb / .gltf")
     p.add_argument("--report", default=None, help="write a JSON report here")
@@ -1218,7 +1220,7 @@ def _image_format_problem(image_format: str, output_ext: str) -> str:
 def main_single(argv) -> int:
     p = single_parser()
     try:
-        args = p.parse_args(argv)
+        args = _schema().parsed(p, argv)
     except SystemExit as exc:
         return int(exc.code or 0)
     problem = _report_path_problem(args.report, args.input, args.output)
@@ -1308,7 +1310,7 @@ def _blender_exe(arg):
 def main_multi(argv) -> int:
     p = multi_parser()
     try:
-        args = p.parse_args(argv)
+        args = _schema().parsed(p, argv)
     except SystemExit as exc:
         return int(exc.code or 0)
     problem = _image_format_problem(args.image_format, "." + args.format)

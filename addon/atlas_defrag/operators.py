@@ -232,12 +232,18 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         return context.scene is not None
 
     def _option_value(self, option):
-        if option.automatic and getattr(self, _automatic_name(option)):
+        if option.automatic and getattr(self, _automatic_name(option)) and not self._given_alone(option):
             return 0
         value = getattr(self, option.name)
         if option.kind is float:  # Blender keeps it in single precision: 0.8 reads 0.800000011920929
             return float(f"{value:.7g}")
         return value.lower() if option.choices else value
+
+    def _given_alone(self, option) -> bool:
+        """True when a script gave the option's value but not its Automatic
+        toggle: the value is what it asked for (the dialog sets every toggle)."""
+        given = self.properties.is_property_set
+        return given(option.name) and not given(_automatic_name(option))
 
     def _settings(self, obj=None) -> api.Settings:
         # The UV map chosen in the dialog is the active object's; the others use a map of
@@ -259,6 +265,9 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
             return self._fail("error", _internal_error(exc))
         if not self.uv_map:
             self.uv_map = api.read_bpy.check_object(objects[0]).name
+        for option in SCHEMA:  # the dialog's toggles decide, whatever values a last run left
+            if option.automatic:
+                setattr(self, _automatic_name(option), getattr(self, _automatic_name(option)))
         return context.window_manager.invoke_props_dialog(self, width=360)
 
     def draw(self, context):
@@ -320,7 +329,7 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         shared = api.shared_materials(objects, among_them=not (self.one_atlas and len(objects) > 1))
         jobs = []
         for obj in objects:
-            settings = self._settings(obj)
+            settings = self._settings(None if obj is objects[0] else obj)  # the first must have the map named
             if api.uses_any(obj, shared):
                 settings = replace(settings, duplicate_materials=True)
             jobs.append((obj, settings))
@@ -464,6 +473,9 @@ def targets(context) -> list:
     selected meshes, each mesh once (linked duplicates share it)."""
     active = context.active_object
     api.read_bpy.check_object(active)
+    if active.mode == "OBJECT" and not active.select_get():
+        raise DefragError(f"The active object '{active.name}' is not selected: select it, or make one of the "
+                          "selected meshes active")
     out, seen = [active], {active.data.name}
     for obj in getattr(context, "selected_objects", []):
         if obj.type == "MESH" and obj.data.name not in seen:

@@ -195,6 +195,17 @@ def add_arguments(group) -> None:
                            help=f"{o.help} ({range_text(o)}, default {o.default!r}{zero})")
 
 
+def parsed(parser, argv):
+    """parser.parse_args(argv), with the rule between two options checked
+    there too: a bad pair exits with code 2 before any work, as a bad value does."""
+    args = parser.parse_args(argv)
+    try:
+        validate({o.name: getattr(args, o.name) for o in SCHEMA if hasattr(args, o.name)})
+    except ValueError as exc:
+        parser.error(str(exc))
+    return args
+
+
 def _argument_type(option: Option):
     def parse(text):
         try:

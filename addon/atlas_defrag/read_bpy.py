@@ -27,6 +27,7 @@ class NodeMap:
     role: str
     image: str  # bpy image name
     normal_nodes: List[str] = field(default_factory=list)  # tangent Normal Map nodes it feeds
+    extension: str = "REPEAT"  # the node's: what it shows past the image's edges
 
 
 @dataclass
@@ -254,6 +255,12 @@ def _check_image(img, material_name: str):
         raise DefragError(
             f"Image '{img.name}' in material '{material_name}' is a {img.source.lower()} "
             "image: only single still images are supported")
+    import bpy
+
+    if bpy.data.images.get(img.name) is not img:  # the job finds its images by name
+        return (f"Image '{img.name}' in material '{material_name}' comes from the library "
+                f"'{img.library.name if img.library else ''}' and this file has an image of that name: "
+                "skipped (rename one of them)")
     if _plain_png(img):
         return None
     problem = _size_problem(img, material_name)
@@ -409,7 +416,7 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]) -> L
                 usable = False
         if usable:
             maps.append(NodeMap(node=node.name, role="+".join(roles), image=img.name,
-                                normal_nodes=normal_nodes))
+                                normal_nodes=normal_nodes, extension=node.extension))
         elif img is not None and kind == "other" and roles and node.projection == "FLAT":
             warnings.append(f"Image '{img.name}' in material '{mat.name}' is read through a "
                             "coordinate transform: left unchanged")
@@ -489,6 +496,7 @@ def _read(obj, me, uv_name: str) -> ReadResult:
     slot_of_face, face_page = _face_pages(materials, geo.tri_material, n_slots)
     if not pages or not np.any(face_page >= 0):
         raise DefragError(_no_texture_message(obj, uv_name, warnings))
+    warnings += _extended_past_edges(materials.values(), geo.uvs, slot_of_face)
     job = JobInput(
         mesh=MeshData(positions=geo.positions, triangles=geo.triangles, uvs=geo.uvs,
                       face_page=face_page.astype(np.int32),
@@ -620,6 +628,29 @@ def _page_key(info: MaterialInfo) -> tuple:
     by_role = {nm.role: nm for nm in info.maps}
     return tuple(sorted(((nm.role, nm.image, bool(nm.normal_nodes)) for nm in by_role.values()),
                         key=lambda t: role_sort_key(t[0])))
+
+
+# How far (in UV units) a face may reach past the page before a node that
+# does not repeat the image shows something else there: round-off only.
+_EDGE_SLACK = 1e-4
+
+
+def _extended_past_edges(materials, uvs: np.ndarray, slot_of_face: np.ndarray) -> List[str]:
+    """A warning for each image whose node extends, clips or mirrors it
+    (glTF's clamp-to-edge imports as Extend) where its faces' UVs leave the
+    page: the bake repeats every image, so the new texture shows there what
+    Repeat would."""
+    out = []
+    for info in materials:
+        odd = {m.image: m.extension for m in info.maps if m.extension != "REPEAT"}
+        if not odd:
+            continue
+        corners = uvs[np.isin(slot_of_face, info.slots)]
+        if corners.size and (corners.min() < -_EDGE_SLACK or corners.max() > 1 + _EDGE_SLACK):
+            out += [f"Image '{image}' in material '{info.name}' is set to {extension.title()} and faces reach "
+                    "past its edges: the new texture repeats it there, as Repeat would"
+                    for image, extension in odd.items()]
+    return out
 
 
 def _face_pages(materials: Dict[str, MaterialInfo], tri_material: np.ndarray, n_slots: int):

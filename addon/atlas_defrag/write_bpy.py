@@ -79,18 +79,25 @@ def _set_look(img, out: OutputImage) -> None:
 
 
 def _new_float_image(out: OutputImage, name: str):
-    """A float output as a Blender image (8-bit ones go through png_files)."""
+    """A float output as a Blender image (8-bit ones go through png_files),
+    and the colour space its file takes once saved (_raw_file_tag): until
+    then it is tagged Non-Color, so that Blender saves its values as they are
+    (tagged so after the pixels are in, a generated image would be cleared)."""
     h, w = out.pixels.shape[:2]
     img = bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=True)
     _set_look(img, out)
+    tag = _raw_file_tag(img)
+    if tag:
+        img.colorspace_settings.name = "Non-Color"
     img.pixels.foreach_set(np.ascontiguousarray(with_channels(out.pixels, 4), dtype=np.float32).reshape(-1))
     img.update()
-    return img
+    return img, tag
 
 
-def _save_exr(img, path: str) -> None:
+def _save_exr(img, path: str, tag: str) -> None:
     """Float buffers are written as they are only when channel packed:
-    other alpha modes (un)premultiply on save and the values drift."""
+    other alpha modes (un)premultiply on save and the values drift. tag:
+    the colour space of a file written raw (_new_float_image), "" if none."""
     img.alpha_mode = "CHANNEL_PACKED"
     img.file_format = "OPEN_EXR"
     if hasattr(img, "use_half_precision"):
@@ -98,7 +105,21 @@ def _save_exr(img, path: str) -> None:
     img.filepath_raw = path
     img.save()
     img.source = "FILE"
+    if tag:
+        img.colorspace_settings.name = tag
     _point_at(img, path)
+
+
+def _raw_file_tag(img) -> str:
+    """Blender saves an sRGB float image's buffer (scene linear) as sRGB
+    values, and would save any other as sRGB too and tag it sRGB. "" for an
+    sRGB image; else the colour space of its file written raw: its own for
+    data and scene linear ones, scene linear for the rest."""
+    settings = img.colorspace_settings
+    if settings.name == "sRGB":
+        return ""
+    scene_linear = "Linear" if bpy.app.version < (4, 0, 0) else "Linear Rec.709"
+    return settings.name if settings.is_data or settings.name == scene_linear else scene_linear
 
 
 def _load_saved_png(out: OutputImage, name: str, path: str):
@@ -373,9 +394,9 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
         if not out.is_float:
             png_files_due.append((out, name, path))
             continue
-        img = _new_float_image(out, name)
+        img, tag = _new_float_image(out, name)
         created(out, img)
-        _save_exr(img, path)
+        _save_exr(img, path, tag)
     png_files.write_pngs((path, out.pixels) for out, _, path in png_files_due)
     for out, name, path in png_files_due:
         created(out, _load_saved_png(out, name, path))

@@ -1036,6 +1036,84 @@ def source_uv_warning_names_rendered_nodes(pkg):
     assert f"/{rendered.name}" in warning and f"/{loose.name}" not in warning, warning
 
 
+def _report_error(pkg, fn) -> str:
+    """The message of the DefragError, or the operator's error, fn raises."""
+    try:
+        fn()
+    except (RuntimeError, pkg.DefragError) as exc:
+        return str(exc)
+    raise AssertionError("no error")
+
+
+def operator_takes_what_it_is_told(pkg):
+    """A deselected active object is not worked on, a UV map named that the
+    mesh lacks is an error, a value a script gives an option with an
+    Automatic toggle is used, and the Python entry refuses a string where a
+    bool or a map name belongs. Nothing changes on a refusal."""
+    H.reset()
+    obj = H.textured_plane("Told")
+    before = H.object_state(obj.name)
+    obj.select_set(False)
+    assert "is not selected" in _report_error(pkg, lambda: run_operator(pkg))
+    obj.select_set(True)
+    assert "no UV map named 'Scna'" in _report_error(pkg, lambda: run_operator(pkg, uv_map="Scna"))
+    assert H.object_state(obj.name) == before
+    for wrong in ({"duplicate_materials": "no"}, {"new_map_first": "False"}, {"uv_map": 123}):
+        assert "must be a" in _report_error(pkg, lambda: pkg.defragment(obj, **wrong)), wrong
+    assert H.object_state(obj.name) == before
+    assert run_operator(pkg, fixed_page_size=256) == {"FINISHED"}
+    new = [i for i in bpy.data.images if i.name.endswith("_defrag")]
+    assert [tuple(i.size) for i in new] == [(256, 256)], [(i.name, tuple(i.size)) for i in new]
+
+
+def image_settings_the_bake_cannot_follow_are_said(pkg):
+    """An image node set to Extend where faces reach past the image, and an
+    image linked from a library under the name of one in this file (the job
+    finds images by name): each said in the report's warnings."""
+    H.reset()
+    obj = H.textured_plane("Past")
+    tex = next(n for n in obj.material_slots[0].material.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    tex.extension = "EXTEND"
+    for loop_uv in obj.data.uv_layers[0].data:
+        loop_uv.uv = (loop_uv.uv[0] * 2, loop_uv.uv[1])
+    report = pkg.defragment(obj)
+    assert any("set to Extend" in w and "Past_tex" in w for w in report["warnings"]), report["warnings"]
+    with scratch_folder("atlas_defrag_library_") as folder:
+        H.reset()
+        library = os.path.join(folder, "library.blend")
+        shown = bpy.data.images.new("tex", 8, 8)
+        shown.use_fake_user = True
+        bpy.ops.wm.save_as_mainfile(filepath=library)
+        H.reset()
+        with bpy.data.libraries.load(library, link=True) as (_, linked):
+            linked.images = ["tex"]
+        obj = H.textured_plane("Linked")
+        node = next(n for n in obj.material_slots[0].material.node_tree.nodes
+                    if n.bl_idname == "ShaderNodeTexImage")
+        bpy.data.images["Linked_tex"].name = "tex"  # the file's own image, under the linked one's name
+        node.image = linked.images[0]
+        assert "comes from the library 'library.blend'" in _report_error(pkg, lambda: pkg.defragment(obj))
+
+
+def linear_float_images_keep_their_colour_space(pkg):
+    """Blender saves a float image tagged Linear as sRGB values and tags it
+    sRGB: the new image keeps the source's tag and its values."""
+    H.reset()
+    obj = H.textured_plane("Lin", image_size=(16, 16), float_buffer=True)
+    src = bpy.data.images["Lin_tex"]
+    linear = "Linear" if bpy.app.version < (4, 0, 0) else "Linear Rec.709"
+    src.colorspace_settings.name = linear
+    src.pixels.foreach_set(np.tile(np.array([0.2, 0.2, 0.2, 1], np.float32), 16 * 16))
+    src.pack()
+    report = pkg.defragment(obj, padding=0)
+    new = bpy.data.images[report["images"][0]]
+    values = np.empty(new.size[0] * new.size[1] * 4, np.float32)
+    new.pixels.foreach_get(values)
+    rgb = values.reshape(-1, 4)[:, :3]
+    assert new.colorspace_settings.name == linear, new.colorspace_settings.name
+    assert np.allclose(rgb[rgb.max(axis=1) > 0.01], 0.2, atol=1e-3), np.unique(rgb.round(3))
+
+
 def default_uv_readers_keep_the_old_map(pkg):
     """The new map becomes active and render-active: whatever read the old
     ones without naming them keeps reading them by name. A second material's
@@ -1140,6 +1218,9 @@ SCENARIOS = {
     "one_atlas_for_all_selected": one_atlas_for_all_selected,
     "one_atlas_shared_material": one_atlas_shared_material,
     "source_uv_warning_names_rendered_nodes": source_uv_warning_names_rendered_nodes,
+    "operator_takes_what_it_is_told": operator_takes_what_it_is_told,
+    "image_settings_the_bake_cannot_follow_are_said": image_settings_the_bake_cannot_follow_are_said,
+    "linear_float_images_keep_their_colour_space": linear_float_images_keep_their_colour_space,
     "default_uv_readers_keep_the_old_map": default_uv_readers_keep_the_old_map,
     "long_uv_map_names_fit_the_nodes": long_uv_map_names_fit_the_nodes,
     "material_shared_with_an_unselected_object": material_shared_with_an_unselected_object,
