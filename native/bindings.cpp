@@ -251,6 +251,9 @@ PipelineOptions pipeline_options(const py::object& obj) {
     throw py::value_error("max_page_size must be 64..16384 texels");
   if (o.pack.fixed_page_size != 0 && (o.pack.fixed_page_size < 64 || o.pack.fixed_page_size > o.pack.max_page_size))
     throw py::value_error("fixed_page_size must be 0 (automatic) or 64..max_page_size texels");
+  if (o.pack.fixed_page_size != 0 && !is_allowed_side(o.pack.fixed_page_size, o.pack.page_sides))
+    throw py::value_error("fixed_page_size " + std::to_string(o.pack.fixed_page_size) +
+                          " is not a side page_sides allows (a multiple of 4, or a power of two)");
   if (!(o.pack.density_scale >= 0.01 && o.pack.density_scale <= 16))
     throw py::value_error("density_scale must be 0.01..16");
   if (o.pack.max_pages < 0 || o.pack.max_pages > 4096)
@@ -649,8 +652,9 @@ bool is_uint8_maps(const py::list& maps, const std::vector<std::string>& names) 
 py::object bake_named_maps(const py::object& old_uvs, const py::object& old_face_page, const py::list& maps,
                            const std::vector<std::string>& names, const py::object& new_uvs,
                            const py::object& new_face_page, const py::object& out_sizes,
-                           const py::object& normal_maps, int padding, const py::object& progress,
-                           const py::object& cancel, bool with_stats, bool fit_texels) {
+                           const py::object& normal_maps, const py::object& padding_value,
+                           const py::object& progress, const py::object& cancel, bool with_stats, bool fit_texels) {
+  const int padding = option_value<int>(padding_value, "padding", "0..64 texels");
   const Eigen::Index faces = checked<double>(old_uvs, "old_uvs", {3, 2}, "(F, 3, 2)").shape(0);
   LayoutArrays old_l = layout_arrays(old_uvs, old_face_page, faces, "old_uvs", "old_face_page");
   LayoutArrays new_l =
@@ -682,7 +686,7 @@ py::object bake_named_maps(const py::object& old_uvs, const py::object& old_face
 
 py::object bake_maps_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& maps,
                         const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
-                        const py::object& normal_maps, int padding, const py::object& progress,
+                        const py::object& normal_maps, const py::object& padding, const py::object& progress,
                         const py::object& cancel, bool with_stats, bool fit_texels) {
   std::vector<std::string> names;
   for (size_t m = 0; m < maps.size(); ++m) names.push_back("maps[" + std::to_string(m) + "]");
@@ -692,7 +696,7 @@ py::object bake_maps_py(const py::object& old_uvs, const py::object& old_face_pa
 
 py::object bake_py(const py::object& old_uvs, const py::object& old_face_page, const py::list& images,
                    const py::object& new_uvs, const py::object& new_face_page, const py::object& out_sizes,
-                   bool normal_map, int padding, const py::object& progress, const py::object& cancel,
+                   bool normal_map, const py::object& padding, const py::object& progress, const py::object& cancel,
                    bool with_stats, bool fit_texels) {
   py::list maps;
   maps.append(images);

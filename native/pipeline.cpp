@@ -273,8 +273,10 @@ PackOptions group_pack_options(const Mesh& mesh, const std::vector<FlatChart>& c
   }
   if (options.fixed_page_size > 0) return options;
   const double wanted = wanted_texels(mesh, used, options);
-  // As many pages as the input used, or as many of max_page_size as hold its texels.
-  const double max_page = static_cast<double>(options.max_page_size) * options.max_page_size;
+  // As many pages as the input used, or as many of the largest allowed side
+  // (max_page_size rounded down to the page kind) as hold its texels.
+  const double side = largest_allowed_side(options.max_page_size, options.page_sides);
+  const double max_page = side * side;
   if (options.max_pages <= 0)
     options.max_pages = static_cast<int>(std::min<double>(
         4096, std::max<double>(static_cast<double>(std::count(used.begin(), used.end(), 1)),

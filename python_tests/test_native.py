@@ -566,6 +566,27 @@ def test_page_side_modes_and_texel_density_target(native, scans, tetra_result):
         native.defragment(*args(scan), options={"page_sides": "odd"})
 
 
+def test_pages_by_default_are_counted_at_the_side_the_page_kind_allows(native, tetra_result):
+    """max_page_size 1023 with power-of-two pages gives 512-texel pages, as
+    512 does: the default page count holds the texels at that side, not at
+    1023 (one page, the charts shrunk to less than half)."""
+    scan, full = tetra_result
+    dense = (scan.positions, scan.triangles, full["uvs"], full["face_page"], full["page_sizes"])
+    sizes = {}
+    for largest in (512, 1023):
+        result = native.defragment(*dense, options={"max_page_size": largest, "page_sides": "power_of_two"})
+        sizes[largest] = (result["page_sizes"].tolist(), round(result["report"]["scale"], 3))
+    assert sizes[1023] == sizes[512], sizes
+
+
+def test_bake_padding_of_the_wrong_kind_is_a_value_error(native):
+    old = np.array([[[0.1, 0.1], [0.9, 0.1], [0.1, 0.9]]])
+    image = np.zeros((8, 8, 3), np.uint8)
+    for padding in (2 ** 40, 2.0, "2"):
+        with pytest.raises(ValueError, match="padding must be an integer 0..64"):
+            native.bake(old, np.zeros(1, np.int32), [image], old, np.zeros(1, np.int32), [(8, 8)], padding=padding)
+
+
 def test_a_dense_atlas_keeps_its_density_by_default(native, scans):
     # The tetra scan's charts on a page 64x narrower: its atlas is then denser
     # than the output can be with the default padding.

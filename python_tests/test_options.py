@@ -92,6 +92,16 @@ def test_a_fixed_page_larger_than_the_largest_page_is_refused_on_both_sides(nati
     assert not native_accepts(native, values) and not python_accepts(values)
 
 
+@pytest.mark.parametrize("fixed, sides, accepted", [
+    (1000, "power_of_two", False), (1024, "power_of_two", True), (1001, "multiple_of_4", False),
+    (1000, "multiple_of_4", True), (1001, "tight", True),
+])
+def test_a_fixed_page_of_another_kind_than_page_sides_is_refused_on_both_sides(native, fixed, sides, accepted):
+    """A fixed page side that page_sides does not allow was used as given."""
+    values = {"fixed_page_size": fixed, "page_sides": sides}
+    assert native_accepts(native, values) == accepted and python_accepts(values) == accepted
+
+
 def test_every_option_reaches_the_native_module(native):
     """The native module knows every name (it refuses unknown ones): the
     layout's in defragment, the bake's in bake_maps."""

@@ -61,7 +61,8 @@ SCHEMA: Tuple[Option, ...] = (
            "from the same distance a page half as large is read one mip level finer, "
            "so half the padding keeps the same distances free of bleeding"),
     Option("fixed_page_size", int, 0, "Page Size",
-           "Side of one square output page, charts scaled as large as fit (at most Maximum Page Size)",
+           "Side of one square output page, charts scaled as large as fit (at most Maximum Page Size, "
+           "and a side Page Sides allows)",
            low=64, high=16384, automatic="pages sized to keep the source texel budget",
            manual_default=4096, unit="texels"),
     Option("max_page_size", int, 8192, "Maximum Page Size", "Largest output page side",
@@ -79,8 +80,9 @@ SCHEMA: Tuple[Option, ...] = (
            low=1, high=4096, automatic="as many as the source uses, or as hold its texels",
            manual_default=1),
     Option("texels_at_most_input", bool, False, "At Most the Source's Texels",
-           "Shrink the charts rather than exceed the source's texel count (costs detail on dense atlases; "
-           "without it, a source whose faces share texels comes out larger, with a warning)"),
+           "Shrink the charts rather than exceed the source's texel count at the density asked for (times "
+           "Density Scale squared, or as Texels per Unit gives it; costs detail on dense atlases; without it, "
+           "a source whose faces share texels comes out larger, with a warning)"),
     Option("page_sides", str, "multiple_of_4", "Page Sides", "How the sides of each output page are rounded",
            choices=(Choice("tight", "Tight", "The smallest page that holds the charts"),
                     Choice("multiple_of_4", "Multiple of 4", "Sides a multiple of 4 texels (BCn and ASTC blocks)"),
@@ -166,6 +168,9 @@ def validate(values: dict) -> dict:
     largest = out.get("max_page_size", BY_NAME["max_page_size"].default)
     if fixed > largest:
         raise ValueError(f"fixed_page_size {fixed} is larger than max_page_size {largest}")
+    sides = out.get("page_sides", BY_NAME["page_sides"].default)
+    if fixed and not {"multiple_of_4": fixed % 4 == 0, "power_of_two": fixed & (fixed - 1) == 0}.get(sides, True):
+        raise ValueError(f"fixed_page_size {fixed} is not a side page_sides {sides} allows")
     return out
 
 

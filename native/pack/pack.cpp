@@ -68,6 +68,9 @@ void require_valid(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions&
     msg << "max_pages must be >= 0, got " << o.max_pages;
   else if (o.texel_budget < 0)
     msg << "texel_budget must be >= 0, got " << o.texel_budget;
+  else if (o.fixed_page_size > 0 && !is_allowed_side(o.fixed_page_size, o.page_sides))
+    msg << "fixed_page_size " << o.fixed_page_size << " is not a side page_sides "
+        << (o.page_sides == PageSides::PowerOfTwo ? "power_of_two" : "multiple_of_4") << " allows";
   else if (o.fixed_page_size > 0 && o.texel_budget > 0 &&
            static_cast<long long>(o.fixed_page_size) * o.fixed_page_size > o.texel_budget)
     msg << "fixed_page_size " << o.fixed_page_size << " exceeds texel_budget " << o.texel_budget;
@@ -487,6 +490,8 @@ int longest_side(const std::vector<PageSize>& pages) {
 }
 
 }  // namespace
+
+bool is_allowed_side(int side, PageSides sides) { return allowed_side(side, sides) == side; }
 
 int padding_for_side(const PackOptions& options, int side) {
   if (options.full_padding_side <= 0 || side >= options.full_padding_side) return options.padding;

@@ -89,6 +89,10 @@ struct PackResult {
 PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
                        const RunControl& control);
 
+// True when a page side of `side` texels is of the kind `sides` allows (a
+// fixed_page_size must be).
+bool is_allowed_side(int side, PageSides sides);
+
 // The padding pack_charts keeps on pages whose longer side is `side` texels.
 int padding_for_side(const PackOptions& options, int side);
 
