@@ -556,6 +556,20 @@ def test_out_dir_problems_end_before_the_work_and_inputs_are_never_replaced(tool
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
 
 
+def test_an_input_named_as_the_output_obj_or_mtl_is_refused_before_the_work(tmp_path, monkeypatch, capsys):
+    """The OBJ and MTL names are known before the layout: an input MTL of the
+    output's name ends the run before the job, not after it."""
+    import defrag_scan
+
+    _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n", mtllib="m_defrag.mtl")
+
+    def job_run(*args, **kwargs):
+        raise AssertionError("the job ran")
+    monkeypatch.setattr(defrag_scan.job, "run", job_run)
+    assert defrag_scan.main([str(tmp_path / "m.obj"), str(tmp_path)]) == 1
+    assert "would replace the input file" in capsys.readouterr().err
+
+
 def test_gltf_colour_texture_reads_the_texcoord_set_it_names(tmp_path):
     import json
 

@@ -182,10 +182,12 @@ def output_files(folder: Path, stem: str, maps: list[dict]) -> list[Path]:
     return [folder / n for n in names]
 
 
-def overwritten_input(outputs: list[Path], inputs: list[Path]) -> str:
-    """The input file an output would replace, or ''."""
+def refuse_overwriting_input(outputs: list[Path], inputs: list[Path]) -> None:
+    """Failed naming the input file an output would replace, if any."""
     read = {os.path.realpath(p) for p in inputs}
-    return next((str(p) for p in outputs if os.path.realpath(p) in read), "")
+    replaced = next((str(p) for p in outputs if os.path.realpath(p) in read), "")
+    if replaced:
+        raise Failed(f"writing would replace the input file {replaced}: choose another OUT_DIR")
 
 
 class Failed(Exception):
@@ -201,6 +203,8 @@ def load_checked(args):
     problem = folder_problem(args.output)
     if problem:
         raise Failed(f"cannot write into {args.output}: {problem}")
+    # The OBJ and MTL names are known before the work, the PNGs' once the pages are.
+    refuse_overwriting_input(output_files(args.output, f"{args.input.stem}_defrag", []), scan.files)
     for warning in scan.warnings:
         print(f"defrag_scan: warning: {warning}", file=sys.stderr)
     return scan
@@ -242,9 +246,7 @@ def write_checked(args, scan, laid, rows, inp, result, old):
     source's new UVs."""
     maps = page_maps(result)
     outputs = output_files(args.output, f"{args.input.stem}_defrag", maps)
-    replaced = overwritten_input(outputs, scan.files)
-    if replaced:
-        raise Failed(f"writing would replace the input file {replaced}: choose another OUT_DIR")
+    refuse_overwriting_input(outputs, scan.files)
     with ThreadPoolExecutor(max_workers=1) as pool:
         measured = pool.submit(quality, laid, inp, result, old.result()) if args.metrics else None
         try:
