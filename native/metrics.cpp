@@ -12,6 +12,7 @@
 
 #include "bake/sample_texture.hpp"
 #include "charts/chart_graph.hpp"
+#include "charts/degenerate_faces.hpp"
 #include "core/geometry.hpp"
 #include "core/rasterize_triangle.hpp"
 #include "core/topology.hpp"
@@ -206,10 +207,10 @@ Coverage band_coverage(const std::vector<PageSize>& pages, const Bands& bands, c
   return c;
 }
 
-// Texels of the pages that faces cover, and those two or more faces cover.
-Coverage rasterise_coverage(const Mesh& mesh, const UvLayout& atlas) {
+// Texels of the pages that the first `faces` faces cover, and those two or more cover.
+Coverage rasterise_coverage(int faces, const UvLayout& atlas) {
   const std::vector<PageSize>& pages = *atlas.pages;
-  const PageTriangles clipped = page_triangles(atlas, mesh.face_count());
+  const PageTriangles clipped = page_triangles(atlas, faces);
   const Bands bands = face_bands(pages, *atlas.face_page, clipped);
   const int band_count = static_cast<int>(bands.page.size());
 
@@ -234,6 +235,21 @@ Coverage rasterise_coverage(const Mesh& mesh, const UvLayout& atlas) {
     }
   }
   return {covered, overlap};
+}
+
+// rasterise_coverage of the faces drawing a triangle (page and corner UVs)
+// no earlier face draws: a repeated face, which the pipeline gives the UVs of
+// the face it repeats, is the same surface and claims no texel again.
+Coverage distinct_coverage(const UvLayout& atlas, int faces) {
+  const std::vector<int> drawn = first_of_equal_faces(*atlas.corner_uv, *atlas.face_page);
+  if (static_cast<int>(drawn.size()) == faces) return rasterise_coverage(faces, atlas);
+  RowMatrixX2d uv(3 * drawn.size(), 2);
+  Eigen::VectorXi page(drawn.size());
+  for (size_t i = 0; i < drawn.size(); ++i) {
+    uv.middleRows(3 * i, 3) = atlas.corner_uv->middleRows(3 * drawn[i], 3);
+    page[static_cast<Eigen::Index>(i)] = (*atlas.face_page)[drawn[i]];
+  }
+  return rasterise_coverage(static_cast<int>(drawn.size()), {&uv, &page, atlas.pages});
 }
 
 // ---- colour sampling -------------------------------------------------------
@@ -291,7 +307,7 @@ AtlasMeasures measure_atlas(const Mesh& mesh, const MeshTopology& topology, cons
   m.flipped_faces = flipped;
 
   m.page_texels = page_texels(*atlas.pages);
-  const Coverage coverage = rasterise_coverage(mesh, atlas);
+  const Coverage coverage = distinct_coverage(atlas, faces);
   m.covered_texels = coverage.covered;
   m.overlap_texels = coverage.overlap;
   m.occupancy = m.page_texels > 0 ? static_cast<double>(m.covered_texels) / m.page_texels : 0.0;

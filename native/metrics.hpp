@@ -21,7 +21,8 @@ struct AtlasMeasures {
   long long covered_texels = 0;    // texels whose centre some triangle covers
   double occupancy = 0;            // covered / page texels
   int flipped_faces = 0;           // wound against their chart in the float32 UVs as stored (every face; collinear ones have no winding)
-  long long overlap_texels = 0;    // texels whose centre two or more triangles cover
+  long long overlap_texels = 0;    // texels whose centre two or more triangles cover (a triangle two faces
+                                   // draw alike, page and corner UVs, counts once: a repeated face)
 };
 
 // Only positions and triangles of `mesh` are used; the UVs come from `atlas`.

@@ -54,6 +54,41 @@ def test_copies_bake_like_the_face_they_repeat(native):
     assert seconds < 2, seconds
 
 
+def test_repeated_faces_claim_their_texels_once_in_the_measure(native):
+    """Copies given their original's UVs are one surface: no texel covered twice."""
+    positions, triangles, uvs, face_page, sizes = quad_with(5)
+    r = native.defragment(positions, triangles, uvs, face_page, sizes)
+    m = native.measure(positions, triangles, uvs, face_page, sizes, r["uvs"], r["face_page"], r["page_sizes"])
+    assert m["old"]["overlap_texels"] == 0 and m["new"]["overlap_texels"] == 0, m
+
+
+def test_a_lone_face_with_uvs_on_a_point_or_a_line_keeps_its_colour(native):
+    """Texturers put faces no camera saw on one UV point, or on a line: alone
+    in their chart, such faces covered no texel (the fill colour came out)
+    and float32 could store one turned over. Each now gets a triangle of its
+    3D shape sampling that point or line."""
+    positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                          [5, 0, 0], [6, 0, 0], [5, 1, 0], [8, 0, 0], [9, 0, 0], [8, 1, 0]], float)
+    triangles = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [7, 8, 9]], np.int32)
+    uvs = np.array([[[0.1, 0.1], [0.4, 0.1], [0.4, 0.4]], [[0.1, 0.1], [0.4, 0.4], [0.1, 0.4]],
+                    [[0.8, 0.8]] * 3, [[0.6, 0.7], [0.65, 0.7], [0.7, 0.7]]])
+    image = np.zeros((64, 64, 3), np.uint8)  # row 0 at v = 0
+    image[48:, :, 0] = 200  # red where v >= 0.75, over the point
+    image[:, 35:48, 1] = 150  # green where 0.55 <= u < 0.75, over the line
+    face_page, sizes = np.zeros(4, np.int32), np.array([[64, 64]], np.int32)
+    r = native.defragment(positions, triangles, uvs, face_page, sizes)
+    texels = r["uvs"] * r["page_sizes"][r["face_page"]][:, None, :]
+    e1, e2 = texels[:, 1] - texels[:, 0], texels[:, 2] - texels[:, 0]
+    area = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    assert area[2] >= 0.4 and area[3] >= 0.4, area
+    m = native.measure(positions, triangles, uvs, face_page, sizes, r["uvs"], r["face_page"], r["page_sizes"])
+    assert m["new"]["flipped_faces"] == 0
+    baked = native.bake(uvs, face_page, [image], r["uvs"], r["face_page"], r["page_sizes"], padding=0)[0]
+    for f, colour in ((2, [200, 0, 0]), (3, [0, 150, 0])):
+        x, y = texels[f].mean(axis=0)
+        assert baked[int(y), int(x)].tolist() == colour, (f, x, y)
+
+
 def test_bake_takes_nan_uvs_without_harm(native):
     positions, triangles, uvs, face_page, sizes = quad_with(40)
     new = np.where(np.arange(uvs.size).reshape(uvs.shape) % 5 == 0, np.nan, uvs)

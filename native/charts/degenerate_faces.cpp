@@ -1,5 +1,6 @@
 #include "charts/degenerate_faces.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <cstring>
@@ -50,10 +51,14 @@ DuplicateFaces find_duplicate_faces(const Mesh& mesh, const std::vector<int>& fa
 
 std::vector<int> first_of_equal_faces(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page) {
   // Bit patterns, not values: equal bits hash equally (0.0 and -0.0 would not),
-  // and a NaN, which a caller may pass, equals its own copies.
+  // and a NaN, which a caller may pass, equals its own copies. The corners
+  // start at the least one: a copy starting at another corner draws the same.
   const std::vector<int> first = first_of_equal_keys(static_cast<int>(face_page.size()), [&](int f) {
+    std::array<std::array<std::uint64_t, 2>, 3> corner;
+    for (int i = 0; i < 6; ++i) std::memcpy(&corner[i / 2][i % 2], &corner_uv(3 * f + i / 2, i % 2), sizeof(double));
+    const int start = static_cast<int>(std::min_element(corner.begin(), corner.end()) - corner.begin());
     std::array<std::uint64_t, 7> k{static_cast<std::uint64_t>(static_cast<std::uint32_t>(face_page[f]))};
-    for (int i = 0; i < 6; ++i) std::memcpy(&k[1 + i], &corner_uv(3 * f + i / 2, i % 2), sizeof(double));
+    for (int i = 0; i < 3; ++i) k[1 + 2 * i] = corner[(start + i) % 3][0], k[2 + 2 * i] = corner[(start + i) % 3][1];
     return k;
   });
   std::vector<int> kept;

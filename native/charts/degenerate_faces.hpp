@@ -35,7 +35,8 @@ struct DuplicateFaces {
 DuplicateFaces find_duplicate_faces(const Mesh& mesh, const std::vector<int>& face_group);
 
 // The faces that draw a triangle no earlier face draws: the same page and
-// bit-identical corner UVs (3F x 2 rows) make a repeat. Ascending. The copies
+// bit-identical corner UVs (3F x 2 rows), in the same cyclic order from any
+// corner, make a repeat. Ascending. The copies
 // the pipeline gave the UVs of the face they repeat cover its texels again:
 // baking them once is enough. O(F) expected.
 std::vector<int> first_of_equal_faces(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page);

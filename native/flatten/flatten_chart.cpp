@@ -144,6 +144,43 @@ FlatChart keep_original(const Mesh& mesh, const std::vector<int>& faces) {
   return out;
 }
 
+// Below this height over its longest edge, in texels, a face's UVs are a
+// point or a line (texturers put faces no camera saw there): it covers no
+// texel, and float32 may store it turned over.
+constexpr double kMinUvHeight = 1e-3;
+
+bool flat_in_uv(const Mesh& mesh, int f) {
+  double longest = 0;
+  for (int k = 0; k < 3; ++k) longest = std::max(longest, (mesh.uv_texels(f, (k + 1) % 3) - mesh.uv_texels(f, k)).norm());
+  return !(2 * std::abs(mesh.signed_area_uv(f)) > kMinUvHeight * longest);
+}
+
+// A face alone in its chart whose UVs are flat (flat_in_uv): its 3D shape,
+// counter-clockwise, as long as its UVs are (a texel at least) and centred
+// where they were. Its texels then sample the point or line the renderer
+// shows there; kept as it was, it came out in the fill colour.
+FlatChart thickened_lone_face(const Mesh& mesh, int f) {
+  FlatChart out = keep_original(mesh, {f});
+  Eigen::Vector3d p[3];
+  double uv_longest = 0;
+  for (int k = 0; k < 3; ++k) {
+    p[k] = mesh.positions.row(mesh.triangles(f, k));
+    uv_longest = std::max(uv_longest, (mesh.uv_texels(f, (k + 1) % 3) - mesh.uv_texels(f, k)).norm());
+  }
+  const Eigen::Vector3d e1 = p[1] - p[0], e2 = p[2] - p[0];
+  RowMatrixX2d shape(3, 2);
+  if (e1.norm() > 0 && e1.cross(e2).norm() > 1e-3 * e1.squaredNorm())
+    shape << 0, 0, e1.norm(), 0, e1.dot(e2) / e1.norm(), e1.cross(e2).norm() / e1.norm();
+  else
+    shape << 0, 0, 1, 0, 0.5, std::sqrt(3.0) / 2;  // no 3D shape either
+  double longest = 0;
+  for (int k = 0; k < 3; ++k) longest = std::max(longest, (shape.row((k + 1) % 3) - shape.row(k)).norm());
+  const Eigen::RowVector2d centre = out.corner_uv.colwise().mean(), middle = shape.colwise().mean();
+  for (int k = 0; k < 3; ++k)
+    out.corner_uv.row(k) = centre + std::max(uv_longest, 1.0) / longest * (shape.row(k) - middle);
+  return out;
+}
+
 FlatChart from_solution(const LocalChart& c, const ChartSolution& s) {
   FlatChart out;
   out.faces = c.faces;
@@ -558,7 +595,10 @@ void flatten_lone_chart(const Mesh& mesh, const MeshTopology& topology, const Ch
   while (!pending.empty()) {
     std::vector<int> faces = std::move(pending.back());
     pending.pop_back();
-    if (!folds_over(mesh, faces) && !original_boundary_crosses(mesh, topology, graph, faces)) {
+    const bool flat = std::any_of(faces.begin(), faces.end(), [&](int f) { return flat_in_uv(mesh, f); });
+    if (faces.size() == 1 && flat) {
+      done.push_back(thickened_lone_face(mesh, faces[0]));
+    } else if (!flat && !folds_over(mesh, faces) && !original_boundary_crosses(mesh, topology, graph, faces)) {
       done.push_back(keep_original(mesh, faces));
     } else if (Attempt attempt = flatten_faces(mesh, topology, graph, faces, kNoLimit, options, control, stats);
                attempt.chart) {
