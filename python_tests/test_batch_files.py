@@ -107,12 +107,28 @@ def test_a_report_may_not_replace_the_input_or_the_output(tmp_path):
 
 
 def test_a_run_into_its_input_folder_takes_no_output_for_an_input(tmp_path):
-    for name in ("a.obj", "a.glb", "a_2.glb", "b.glb"):
+    """An earlier run's output is known by the report beside it naming another
+    input, not by its name: rock_2.obj, and a.glb beside a.obj, may be scans
+    of their own (both were dropped, and the run said 0 done, exit 0). A
+    model given twice, by itself and in its folder, is done once."""
+    for name in ("a.obj", "a.glb", "a_2.glb", "b.glb", "rock.obj", "rock_2.obj"):
         (tmp_path / name).write_bytes(b"")
-    kept = batch._without_outputs(batch._expand([str(tmp_path)]), str(tmp_path), "glb")
-    assert [p.split("/")[-1] for p in kept] == ["a.obj", "b.glb"]
+    (tmp_path / "a_2.report.json").write_text(json.dumps({"input": str(tmp_path / "a.obj")}))
+    (tmp_path / "rock_2.report.json").write_text("not a report")
+    files = batch._expand([str(tmp_path), str(tmp_path / "b.glb")])
+    kept = batch._without_outputs(files, str(tmp_path), "glb")
+    assert [p.split("/")[-1] for p in kept] == ["a.glb", "a.obj", "b.glb", "rock.obj", "rock_2.obj"]
     jobs = batch._output_names(kept, str(tmp_path), "glb")
-    assert [out.split("/")[-1] for _, out, _ in jobs] == ["a.glb", "b_2.glb"]  # never an input onto itself
+    # Never onto an input, nor onto another input's earlier output; a.obj's is a_2.glb again (then skipped).
+    assert [out.split("/")[-1] for _, out, _ in jobs] == ["a_3.glb", "a_2.glb", "b_2.glb", "rock.glb", "rock_2.glb"]
+
+
+def test_an_output_folder_that_cannot_be_made_is_one_line(tmp_path, capsys):
+    (tmp_path / "a_file").write_text("")
+    code = batch.main_multi(["--out-dir", str(tmp_path / "a_file" / "out"), "--blender", sys.executable,
+                             str(tmp_path / "x.obj")])
+    err = capsys.readouterr().err
+    assert code == 2 and "cannot make the output folder" in err and "Traceback" not in err, err
 
 
 def test_the_many_models_form_names_a_missing_blender(tmp_path, capsys):
@@ -427,6 +443,39 @@ def test_ctrl_c_while_the_bytecode_cache_is_written_ends_the_run_as_interrupted(
     code = batch.main_single([str(tmp_path / "in.obj"), str(tmp_path / "out.glb")])
     assert code == batch.EXIT_INTERRUPTED and "interrupted" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_scenes_of_a_gltf_are_counted_for_the_warning(tmp_path):
+    """Blender's importer reads the nodes of every scene into one: the run warns when there are several."""
+    body = json.dumps({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}, {"nodes": [1]}]}).encode()
+    (tmp_path / "two.gltf").write_bytes(body)
+    body += b" " * (-len(body) % 4)
+    (tmp_path / "two.glb").write_bytes(_glb(struct.pack("<II", len(body), 0x4E4F534A) + body))
+    (tmp_path / "bad.gltf").write_text("[" * 100_000)
+    assert batch._gltf_scene_count(str(tmp_path / "two.gltf")) == 2
+    assert batch._gltf_scene_count(str(tmp_path / "two.glb")) == 2
+    assert batch._gltf_scene_count(str(tmp_path / "bad.gltf")) == 0
+
+
+def test_sigterm_cancels_like_sigint_also_before_the_token_exists():
+    """timeout, kill, GNU parallel and job schedulers send SIGTERM: it killed
+    the run midway and left its scratch folder with the images written so far."""
+    import signal
+
+    class Token:
+        cancelled = False
+
+        def cancel(self):
+            self.cancelled = True
+
+    before = signal.getsignal(signal.SIGTERM)
+    with batch._Interrupt() as interrupt:
+        os.kill(os.getpid(), signal.SIGTERM)
+        assert interrupt.caught == "SIGTERM"
+        token = Token()
+        interrupt.attach(token)  # caught before the token was made: cancelled at once
+        assert token.cancelled
+    assert signal.getsignal(signal.SIGTERM) is before
 
 
 def test_a_model_of_many_meshes_that_cannot_be_laid_out_says_so_in_one_short_line():

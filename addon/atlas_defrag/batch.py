@@ -347,11 +347,20 @@ def run_one(args, cancel=None) -> dict:
     os.makedirs(out_dir, exist_ok=True)
     report = {"input": src, "output": dst, "objects": [], "warnings": _interrupted_runs(dst)}
     report["warnings"] += _faces_the_import_dropped(src, faces_in_file, objects)
+    scenes = _gltf_scene_count(src) if src.lower().endswith((".gltf", ".glb")) else 0
+    if scenes > 1:
+        report["warnings"].append(f"{os.path.basename(src)} holds {scenes} scenes: Blender's importer reads "
+                                  "the nodes of all of them, and the output holds them in one")
+    if args.keep_source_uv and dst.lower().endswith(".obj"):
+        report["warnings"].append("--keep-source-uv: an OBJ holds one UV map, the new one")
     tmp = tempfile.mkdtemp(prefix=_SCRATCH_PREFIX, dir=out_dir)
     keep_scratch = False
     try:
         _defragment_meshes(pkg, args, meshes, tmp, report, cancel)
-        copied = _bring_input_maps(objects, tmp, out_dir) if dst.lower().endswith(".obj") else {}
+        copied = {}
+        if dst.lower().endswith(".obj"):
+            report["warnings"] += _base_colours_wired_straight(objects)
+            copied = _bring_input_maps(objects, tmp, out_dir)
         _name_images_after(dst, tmp, owned)
         t_export = time.perf_counter()
         unnamed = _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),  # --texture's too
@@ -476,6 +485,19 @@ def _input_files(src: str) -> tuple:
     except (OSError, ValueError, TypeError, AttributeError):
         pass  # the importer reports what it cannot read
     return files, faces
+
+
+def _gltf_scene_count(src: str) -> int:
+    """How many scenes a .gltf or .glb file lists (0 when unreadable: the importer says why)."""
+    try:
+        with open(src, "rb") as f:
+            data = f.read()
+        if data[:4] == b"glTF":
+            data = data[20:20 + struct.unpack_from("<I", data, 12)[0]]
+        scenes = json.loads(data).get("scenes", [])
+    except (OSError, ValueError, AttributeError, struct.error, RecursionError):
+        return 0
+    return len(scenes) if isinstance(scenes, list) else 0
 
 
 def _input_files_of_scene() -> set:
@@ -822,6 +844,44 @@ def _bring_input_maps(objects, folder: str, out_dir: str) -> dict:
     return copied
 
 
+def _base_colours_wired_straight(objects) -> list:
+    """For an OBJ output: an image that reaches a Principled BSDF's Base
+    Color through other nodes (a Mix with a colour factor or vertex colours,
+    as Blender's glTF importer builds them) is linked to it straight, so that
+    Blender's OBJ exporter names it (map_Kd); what the nodes mixed in, which
+    an MTL cannot hold, is dropped with a warning. Only the scene the batch
+    imported changes. Returns the warnings."""
+    warnings = []
+    for mat in _materials_of(objects):
+        tree = _package().compat.node_tree(mat)
+        for bsdf in [n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"] if tree else []:
+            socket = bsdf.inputs["Base Color"]
+            if not socket.is_linked or socket.links[0].from_node.type == "TEX_IMAGE":
+                continue
+            mixer = socket.links[0].from_node
+            images = _upstream_images(mixer)
+            if len(images) == 1:
+                tree.links.new(images[0].outputs["Color"], socket)
+                warnings.append(f"material '{mat.name}': the OBJ names its base colour image alone; what nodes "
+                                f"mixed into it ({mixer.name} and before) has no MTL form")
+    return warnings
+
+
+def _upstream_images(node) -> list:
+    """The image nodes (with an image) that feed node, directly or through others."""
+    seen, stack, found = set(), [node], []
+    while stack:
+        n = stack.pop()
+        if n.name in seen:
+            continue
+        seen.add(n.name)
+        if n.type == "TEX_IMAGE" and n.image is not None:
+            found.append(n)
+        else:
+            stack += [link.from_node for socket in n.inputs for link in socket.links]
+    return found
+
+
 def _materials_of(objects) -> list:
     """The materials in the objects' slots, each once."""
     return list(dict.fromkeys(slot.material for o in objects for slot in getattr(o, "material_slots", [])
@@ -1120,22 +1180,42 @@ def _is_report(path: str) -> bool:
 
 
 class _Interrupt:
-    """SIGINT cancels the token (the native work stops within milliseconds)
-    instead of killing the process midway; restored on exit."""
+    """SIGINT and SIGTERM (what timeout, kill, GNU parallel and job
+    schedulers send) cancel the run's token instead of killing the process
+    midway, which would leave its scratch folder behind. A signal before the
+    token exists (Blender's start-up modules are still compiling, say) is
+    kept and cancels it when attached. The handlers before are restored on exit."""
 
-    def __init__(self, token):
-        self.token = token
-        self.previous = None
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.token, self.caught, self.previous = None, "", {}
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
-            self.previous = signal.signal(signal.SIGINT, lambda *_: self.token.cancel())
+            self.previous = {s: signal.signal(s, self._catch) for s in self.SIGNALS}
         return self
 
+    def _catch(self, signum, _frame):
+        self.caught = signal.Signals(signum).name
+        if self.token is not None:
+            self.token.cancel()
+
+    def attach(self, token) -> None:
+        self.token = token
+        if self.caught:
+            token.cancel()
+
     def __exit__(self, *exc):
-        if self.previous is not None:
-            signal.signal(signal.SIGINT, self.previous)
+        _restore_handlers(self.previous)
         return False
+
+
+def _restore_handlers(previous: dict) -> None:
+    """signal.signal(s, handler) for each, but one set outside Python (None: Blender's own), which stays ours."""
+    for s, handler in previous.items():
+        if handler is not None:
+            signal.signal(s, handler)
 
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
@@ -1234,10 +1314,19 @@ def main_single(argv) -> int:
     if args.skip_existing and os.path.isfile(args.output):
         print(f"atlas_defrag: skipped, {args.output} exists")
         return 0
+    with _Interrupt() as interrupt:
+        return _run_single(args, interrupt)
+
+
+def _run_single(args, interrupt: _Interrupt) -> int:
+    """main_single's work once the arguments are checked, signals caught by interrupt."""
     try:
         _cache_bytecode()
-    except KeyboardInterrupt:  # before the interrupt handler below is in place
-        print(f"atlas_defrag: error: {args.input}: interrupted (SIGINT): nothing was written", file=sys.stderr)
+    except KeyboardInterrupt:  # outside the main thread no handler is in place
+        interrupt.caught = "SIGINT"
+    if interrupt.caught:
+        print(f"atlas_defrag: error: {args.input}: interrupted ({interrupt.caught}): nothing was written",
+              file=sys.stderr)
         return EXIT_INTERRUPTED
     pkg = _package()
     problem = importlib.import_module(pkg.__name__ + ".native_check").problem(pkg.__name__)
@@ -1245,13 +1334,13 @@ def main_single(argv) -> int:
         print(f"atlas_defrag: error: {problem}", file=sys.stderr)
         return 1
     token = importlib.import_module(pkg.__name__ + "._native").CancelToken()
+    interrupt.attach(token)
     try:
-        with _Interrupt(token):
-            report = run_one(args, token)
+        report = run_one(args, token)
     except Exception as exc:  # every failure: reason on stderr, exit 1 (130 when interrupted)
         cancelled = type(exc).__name__ == "DefragCancelled" or token.cancelled
         msg = str(exc) if isinstance(exc, PreviousFilesKept) else \
-            "interrupted (SIGINT): nothing was written" if cancelled else \
+            f"interrupted ({interrupt.caught or 'SIGINT'}): nothing was written" if cancelled else \
             str(exc) if isinstance(exc, BatchError) or type(exc).__name__ == "DefragError" \
             else f"{type(exc).__name__}: {exc}"
         print(f"atlas_defrag: error: {args.input}: {msg}", file=sys.stderr)
@@ -1282,14 +1371,15 @@ def main_single(argv) -> int:
 
 # --------------------------------------------------------------------------- many models
 def _expand(inputs):
-    files = []
+    """The model files of inputs (files, and folders' models), each once."""
+    files, seen = [], set()
     for item in inputs:
-        if os.path.isdir(item):
-            for name in sorted(os.listdir(item)):
-                if name.lower().endswith(INPUT_EXTS):
-                    files.append(os.path.join(item, name))
-        else:
-            files.append(item)
+        found = [os.path.join(item, name) for name in sorted(os.listdir(item)) if name.lower().endswith(INPUT_EXTS)] \
+            if os.path.isdir(item) else [item]
+        for f in found:
+            if _real(f) not in seen:
+                seen.add(_real(f))
+                files.append(f)
     return files
 
 
@@ -1325,14 +1415,19 @@ def main_multi(argv) -> int:
     if shutil.which(blender) is None:
         print(f"atlas_defrag: error: Blender not found: {blender} (set --blender or $BLENDER)", file=sys.stderr)
         return 2
-    os.makedirs(args.out_dir, exist_ok=True)
+    try:
+        os.makedirs(args.out_dir, exist_ok=True)
+    except OSError as exc:
+        print(f"atlas_defrag: error: cannot make the output folder {args.out_dir}: {exc}", file=sys.stderr)
+        return 2
     command = [blender, "--background", "--factory-startup", "--python-exit-code", "1",
                "--python", os.path.abspath(__file__), "--"]
     runner = _Runner(command, _passthrough(args), _blender_env(blender))
     jobs = _output_names(files, args.out_dir, args.format)
     counts = {"ok": 0, "skipped": 0, "failed": 0, "interrupted": 0}
-    previous = signal.signal(signal.SIGINT, lambda *_: runner.interrupt()) \
-        if threading.current_thread() is threading.main_thread() else None
+    # SIGINT or SIGTERM: the children are told to stop (SIGINT), and no model starts after.
+    previous = {s: signal.signal(s, lambda *_: runner.interrupt()) for s in _Interrupt.SIGNALS} \
+        if threading.current_thread() is threading.main_thread() else {}
     try:
         with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
             for f, out, status, err in pool.map(lambda job: runner.run(*job), jobs):
@@ -1340,8 +1435,7 @@ def main_multi(argv) -> int:
                       file=sys.stderr if status in ("failed", "interrupted") else sys.stdout)
                 counts[status] += 1
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+        _restore_handlers(previous)
     print(f"atlas_defrag: {counts['ok']} done, {counts['skipped']} skipped (output exists), "
           f"{counts['failed']} failed" + (f", {counts['interrupted']} interrupted" if runner.stopping else ""))
     if runner.stopping:
@@ -1367,36 +1461,45 @@ def _passthrough(args) -> list:
 
 
 def _without_outputs(files, out_dir: str, fmt: str) -> list:
-    """files less the models a run into out_dir wrote there before: an input
-    in out_dir in the output format whose name, less a _2, _3, ... ending,
-    is another input's stem (see _output_names)."""
-    stems = {}
-    for f in files:
-        stem = os.path.splitext(os.path.basename(f))[0].lower()
-        stems.setdefault(stem, set()).add(_real(f))
+    """files less the models a run into out_dir wrote there before: a file in
+    out_dir in the output format whose report beside it (see _output_names)
+    names another file as its input. A name alone proves nothing: rock_2.obj
+    may be a scan of its own."""
     out = _real(out_dir)
 
     def earlier_output(f: str) -> bool:
         stem, ext = os.path.splitext(os.path.basename(f))
         if ext.lower() != "." + fmt or _real(os.path.dirname(os.path.abspath(f))) != out:
             return False
-        base = re.sub(r"_\d+$", "", stem).lower()
-        return bool(stems.get(base, set()) - {_real(f)})
+        return _made_from_another(os.path.join(out_dir, f"{stem}.report.json"), f)
 
     return [f for f in files if not earlier_output(f)]
 
 
+def _made_from_another(report: str, model: str) -> bool:
+    """Whether the batch report at `report` names an input other than model
+    (False without a report, or with one that is not ours)."""
+    try:
+        with open(report, encoding="utf-8") as f:
+            source = json.load(f).get("input")
+    except (OSError, ValueError, AttributeError):
+        return False
+    return isinstance(source, str) and _real(source) != _real(model)
+
+
 def _output_names(files, out_dir: str, fmt: str) -> list:
     """(input, output, report) per file, every output name distinct and none
-    the input itself: a stem already taken (by an earlier file's stem or its
-    _2 form) gets the next free _2, _3, ... The same inputs in the same order
-    always get the same names."""
-    taken = set()
+    an input: a stem already taken (by an earlier file's stem or its _2 form,
+    by an input, or by an earlier run's output of another input, as its
+    report says) gets the next free _2, _3, ... So an earlier output of this
+    input keeps its name, and is skipped."""
+    taken, inputs = set(), {_real(f) for f in files}
     jobs = []
     for f in files:
         base = os.path.splitext(os.path.basename(f))[0]
         stem, k = base, 1
-        while stem.lower() in taken or _real(os.path.join(out_dir, f"{stem}.{fmt}")) == _real(f):
+        while stem.lower() in taken or _real(os.path.join(out_dir, f"{stem}.{fmt}")) in inputs or \
+                _made_from_another(os.path.join(out_dir, f"{stem}.report.json"), f):
             k += 1
             stem = f"{base}_{k}"
         taken.add(stem.lower())

@@ -1114,6 +1114,28 @@ def linear_float_images_keep_their_colour_space(pkg):
     assert np.allclose(rgb[rgb.max(axis=1) > 0.01], 0.2, atol=1e-3), np.unique(rgb.round(3))
 
 
+def obj_output_names_a_base_colour_behind_a_mix(pkg):
+    """Blender's glTF importer puts a Mix node between the image and Base
+    Color for vertex colours or a colour factor, and Blender's OBJ exporter
+    then names no map: for an OBJ output the image is linked straight, with
+    a warning."""
+    import importlib
+
+    batch = importlib.import_module(pkg.__name__ + ".batch")
+    H.reset()
+    obj = H.textured_plane("Mixed")
+    tree = obj.material_slots[0].material.node_tree
+    tex = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    mix = tree.nodes.new("ShaderNodeMixRGB")
+    tree.links.new(tex.outputs["Color"], mix.inputs[1])
+    tree.links.new(mix.outputs[0], bsdf.inputs["Base Color"])
+    warnings = batch._base_colours_wired_straight([obj])
+    assert bsdf.inputs["Base Color"].links[0].from_node == tex
+    assert len(warnings) == 1 and "Mixed_mat" in warnings[0] and mix.name in warnings[0], warnings
+    assert batch._base_colours_wired_straight([obj]) == []  # straight already
+
+
 def default_uv_readers_keep_the_old_map(pkg):
     """The new map becomes active and render-active: whatever read the old
     ones without naming them keeps reading them by name. A second material's
@@ -1221,6 +1243,7 @@ SCENARIOS = {
     "operator_takes_what_it_is_told": operator_takes_what_it_is_told,
     "image_settings_the_bake_cannot_follow_are_said": image_settings_the_bake_cannot_follow_are_said,
     "linear_float_images_keep_their_colour_space": linear_float_images_keep_their_colour_space,
+    "obj_output_names_a_base_colour_behind_a_mix": obj_output_names_a_base_colour_behind_a_mix,
     "default_uv_readers_keep_the_old_map": default_uv_readers_keep_the_old_map,
     "long_uv_map_names_fit_the_nodes": long_uv_map_names_fit_the_nodes,
     "material_shared_with_an_unselected_object": material_shared_with_an_unselected_object,
