@@ -875,7 +875,8 @@ from; the border refinements move a polygon's triangles together or not at all
 and the cuts run around polygons, so that each polygon corner keeps one UV.
 Returns dict(uvs, face_page, page_sizes, report, charts, face_chart
 (output chart per face, -1 untextured)); charts
-holds per output chart: faces, flattened (else original UVs kept), energy_initial
+holds per output chart: faces, flattened (else the input's UVs kept; a lone face's on a point or a line
+moved a texel apart), energy_initial
 and energy_final (symmetric Dirichlet per unit reference area, 4 = isometric).)");
 
   m.def("pack_charts", &pack_charts_py, py::arg("charts"), py::kw_only(), py::arg("options") = py::none(),

@@ -93,7 +93,7 @@ struct PipelineReport {
 // One chart of the output, as the flattening left it.
 struct ChartSummary {
   int faces = 0;
-  bool flattened = false;             // solved by SLIM (false: original UVs kept)
+  bool flattened = false;             // solved by SLIM (false: the input's UVs kept, or a lone flat face thickened)
   // Per unit reference area, of the flattening (before a chart under a texel
   // across is enlarged, see pipeline.cpp); 0 when kept.
   double energy_initial = 0, energy_final = 0;

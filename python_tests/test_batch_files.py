@@ -121,6 +121,10 @@ def test_a_run_into_its_input_folder_takes_no_output_for_an_input(tmp_path):
     jobs = batch._output_names(kept, str(tmp_path), "glb")
     # Never onto an input, nor onto another input's earlier output; a.obj's is a_2.glb again (then skipped).
     assert [out.split("/")[-1] for _, out, _ in jobs] == ["a_3.glb", "a_2.glb", "b_2.glb", "rock.glb", "rock_2.glb"]
+    # An input moved since its run (its report names a path no longer there) keeps its output's name.
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "a.report.json").write_text(json.dumps({"input": "/moved/away/a.obj"}))
+    assert batch._output_names([str(tmp_path / "a.obj")], str(tmp_path / "out"), "glb")[0][1].endswith("/out/a.glb")
 
 
 def test_an_output_folder_that_cannot_be_made_is_one_line(tmp_path, capsys):

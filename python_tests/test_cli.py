@@ -436,10 +436,16 @@ def test_obj_materials_without_a_definition_are_named(tmp_path):
     scan = scan_io.load(source)
     assert scan.face_page.tolist() == [0, 0, -1, -1]
     assert scan.warnings == ["material 'b' is defined in no material library: its 2 faces are left untextured"]
+    # A comment after the name is no library, and a second name that is missing is said.
+    source.write_text(source.read_text().replace("mtllib m.mtl", "mtllib m.mtl gone.mtl # by Exporter 1.0"))
+    commented = scan_io.load(source)
+    assert commented.warnings == ["material library gone.mtl not found beside m.obj: the materials it defines "
+                                  "are left untextured"], commented.warnings
     (tmp_path / "m.mtl").unlink()
     with_no_library = scan_io.load(source)
     assert with_no_library.face_page.tolist() == [-1, -1, -1, -1]
-    assert len(with_no_library.warnings) == 1 and "m.mtl not found" in with_no_library.warnings[0]
+    assert len(with_no_library.warnings) == 1 and "m.mtl gone.mtl # by Exporter 1.0 not found" in \
+        with_no_library.warnings[0], with_no_library.warnings
 
 
 @pytest.mark.parametrize("options, refused", [

@@ -161,15 +161,26 @@ def _starts_as_glb(path: Path) -> bool:
 
 # ---- OBJ ------------------------------------------------------------------
 
-def _material_libraries(obj_path: Path, mtllibs: list[str]) -> list[Path]:
-    """The MTL files of an OBJ: each mtllib statement names one file, whose
-    name may hold spaces, or several (the OBJ format allows both)."""
-    found = []
+def _material_libraries(obj_path: Path, mtllibs: list[str]) -> tuple[list[Path], list[str]]:
+    """(the MTL files of an OBJ that are there, the libraries named that are
+    not). Each mtllib statement names one file, whose name may hold spaces,
+    or several (the OBJ format allows both); its words from one starting with
+    `#` on are a comment. A statement none of whose readings is there is
+    missing as a whole; one that names files some of which are there misses
+    the other .mtl names."""
+    found, missing = [], []
     for lib in mtllibs:
         whole = obj_path.parent / _unquoted(lib).replace("\\", "/")
+        if whole.is_file():
+            found.append(whole)
+            continue
         words = [quoted or bare for quoted, bare in re.findall(r'"([^"]*)"|(\S+)', lib)]
-        found += [whole] if whole.is_file() else [obj_path.parent / w.replace("\\", "/") for w in words if w]
-    return found
+        words = words[:next((i for i, w in enumerate(words) if w.startswith("#")), len(words))]
+        paths = [obj_path.parent / w.replace("\\", "/") for w in words if w]
+        present = [p for p in paths if p.is_file()]
+        found += present
+        missing += [p.name for p in paths if p not in present and p.suffix.lower() == ".mtl"] if present else [lib]
+    return found, missing
 
 
 def _unquoted(name: str) -> str:
@@ -271,11 +282,11 @@ def load_obj(path: Path) -> Scan:
     uvs = vt[np.maximum(uv_idx, 0)] if len(vt) else np.zeros((len(tris), 3, 2))
     uvs[~has_uv] = 0.0
 
-    libraries = _material_libraries(path, obj["material_libraries"])
+    libraries, missing = _material_libraries(path, obj["material_libraries"])
     textures = _read_mtl_textures(path, libraries)
     pages, page_of = [], {}
-    missing = [m for m in libraries if not m.is_file()]
-    warnings = [f"material library {m} not found: the materials it defines are left untextured" for m in missing]
+    warnings = [f"material library {m} not found beside {path.name}: the materials it defines are left untextured"
+                for m in missing]
     if obj["vertex_colours"]:
         warnings.append(_VERTEX_COLOURS)
     material_page = np.full(len(obj["materials"]) + 1, -1, dtype=np.int32)  # the last: no usemtl
@@ -303,7 +314,7 @@ def load_obj(path: Path) -> Scan:
     bases = [page["base_color"] for page in pages]
     sizes = np.array([image_size(p) for p in bases], dtype=np.int32).reshape(-1, 2)
     return Scan(obj["positions"], tris, uvs, face_page, sizes, bases, pages,
-                files=[path] + [m for m in libraries if m.is_file()] + [p for page in pages for p in page.values()],
+                files=[path] + libraries + [p for page in pages for p in page.values()],
                 warnings=warnings)
 
 

@@ -491,9 +491,8 @@ def _gltf_scene_count(src: str) -> int:
     """How many scenes a .gltf or .glb file lists (0 when unreadable: the importer says why)."""
     try:
         with open(src, "rb") as f:
-            data = f.read()
-        if data[:4] == b"glTF":
-            data = data[20:20 + struct.unpack_from("<I", data, 12)[0]]
+            head = f.read(20)
+            data = f.read(struct.unpack_from("<I", head, 12)[0]) if head[:4] == b"glTF" else head + f.read()
         scenes = json.loads(data).get("scenes", [])
     except (OSError, ValueError, AttributeError, struct.error, RecursionError):
         return 0
@@ -856,8 +855,8 @@ def _base_colours_wired_straight(objects) -> list:
         tree = _package().compat.node_tree(mat)
         for bsdf in [n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"] if tree else []:
             socket = bsdf.inputs["Base Color"]
-            if not socket.is_linked or socket.links[0].from_node.type == "TEX_IMAGE":
-                continue
+            if not socket.is_linked or _through_reroutes(socket.links[0].from_node).type == "TEX_IMAGE":
+                continue  # the exporter follows reroutes
             mixer = socket.links[0].from_node
             images = _upstream_images(mixer)
             if len(images) == 1:
@@ -865,6 +864,13 @@ def _base_colours_wired_straight(objects) -> list:
                 warnings.append(f"material '{mat.name}': the OBJ names its base colour image alone; what nodes "
                                 f"mixed into it ({mixer.name} and before) has no MTL form")
     return warnings
+
+
+def _through_reroutes(node):
+    """The node a chain of Reroute nodes starting at node passes on."""
+    while node.type == "REROUTE" and node.inputs[0].is_linked:
+        node = node.inputs[0].links[0].from_node
+    return node
 
 
 def _upstream_images(node) -> list:
@@ -1471,20 +1477,28 @@ def _without_outputs(files, out_dir: str, fmt: str) -> list:
         stem, ext = os.path.splitext(os.path.basename(f))
         if ext.lower() != "." + fmt or _real(os.path.dirname(os.path.abspath(f))) != out:
             return False
-        return _made_from_another(os.path.join(out_dir, f"{stem}.report.json"), f)
+        source = _report_input(os.path.join(out_dir, f"{stem}.report.json"))
+        return bool(source) and _real(source) != _real(f)
 
     return [f for f in files if not earlier_output(f)]
 
 
-def _made_from_another(report: str, model: str) -> bool:
-    """Whether the batch report at `report` names an input other than model
-    (False without a report, or with one that is not ours)."""
+def _report_input(report: str) -> str:
+    """The input the batch report at `report` names ('' without a report, or with one that is not ours)."""
     try:
         with open(report, encoding="utf-8") as f:
             source = json.load(f).get("input")
     except (OSError, ValueError, AttributeError):
-        return False
-    return isinstance(source, str) and _real(source) != _real(model)
+        return ""
+    return source if isinstance(source, str) else ""
+
+
+def _made_from_another(report: str, model: str) -> bool:
+    """Whether the report names an input other than model that is still
+    there: an input moved since (another folder, machine or mount) keeps the
+    outputs it made, and a rerun skips them."""
+    source = _report_input(report)
+    return bool(source) and _real(source) != _real(model) and os.path.isfile(source)
 
 
 def _output_names(files, out_dir: str, fmt: str) -> list:

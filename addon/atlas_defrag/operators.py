@@ -473,7 +473,7 @@ def targets(context) -> list:
     selected meshes, each mesh once (linked duplicates share it)."""
     active = context.active_object
     api.read_bpy.check_object(active)
-    if active.mode == "OBJECT" and not active.select_get():
+    if active.mode == "OBJECT" and active not in getattr(context, "selected_objects", [active]):  # overrides too
         raise DefragError(f"The active object '{active.name}' is not selected: select it, or make one of the "
                           "selected meshes active")
     out, seen = [active], {active.data.name}

@@ -151,33 +151,30 @@ constexpr double kMinUvHeight = 1e-3;
 
 bool flat_in_uv(const Mesh& mesh, int f) {
   double longest = 0;
-  for (int k = 0; k < 3; ++k) longest = std::max(longest, (mesh.uv_texels(f, (k + 1) % 3) - mesh.uv_texels(f, k)).norm());
+  for (int k = 0; k < 3; ++k)
+    longest = std::max(longest, (mesh.uv_texels(f, (k + 1) % 3) - mesh.uv_texels(f, k)).norm());
   return !(2 * std::abs(mesh.signed_area_uv(f)) > kMinUvHeight * longest);
 }
 
-// A face alone in its chart whose UVs are flat (flat_in_uv): its 3D shape,
-// counter-clockwise, as long as its UVs are (a texel at least) and centred
-// where they were. Its texels then sample the point or line the renderer
-// shows there; kept as it was, it came out in the fill colour.
+// A face alone in its chart whose UVs are flat (flat_in_uv): the two ends
+// of its longest UV edge stay, and its third corner moves a texel off that
+// line, counter-clockwise (a unit triangle at a point). Its texels then
+// sample the point or line the renderer shows there, at the line's length and
+// a texel's width; kept as it was, it came out in the fill colour.
 FlatChart thickened_lone_face(const Mesh& mesh, int f) {
   FlatChart out = keep_original(mesh, {f});
-  Eigen::Vector3d p[3];
-  double uv_longest = 0;
-  for (int k = 0; k < 3; ++k) {
-    p[k] = mesh.positions.row(mesh.triangles(f, k));
-    uv_longest = std::max(uv_longest, (mesh.uv_texels(f, (k + 1) % 3) - mesh.uv_texels(f, k)).norm());
+  int k = 0;  // the longest edge runs from corner k to k + 1
+  for (int j = 1; j < 3; ++j)
+    if ((out.corner_uv.row((j + 1) % 3) - out.corner_uv.row(j)).norm() >
+        (out.corner_uv.row((k + 1) % 3) - out.corner_uv.row(k)).norm())
+      k = j;
+  const Eigen::RowVector2d edge = out.corner_uv.row((k + 1) % 3) - out.corner_uv.row(k);
+  if (edge.norm() > 0) {
+    out.corner_uv.row((k + 2) % 3) += Eigen::RowVector2d(-edge.y(), edge.x()) / edge.norm();
+  } else {
+    out.corner_uv.row(1) += Eigen::RowVector2d(1, 0);
+    out.corner_uv.row(2) += Eigen::RowVector2d(0, 1);
   }
-  const Eigen::Vector3d e1 = p[1] - p[0], e2 = p[2] - p[0];
-  RowMatrixX2d shape(3, 2);
-  if (e1.norm() > 0 && e1.cross(e2).norm() > 1e-3 * e1.squaredNorm())
-    shape << 0, 0, e1.norm(), 0, e1.dot(e2) / e1.norm(), e1.cross(e2).norm() / e1.norm();
-  else
-    shape << 0, 0, 1, 0, 0.5, std::sqrt(3.0) / 2;  // no 3D shape either
-  double longest = 0;
-  for (int k = 0; k < 3; ++k) longest = std::max(longest, (shape.row((k + 1) % 3) - shape.row(k)).norm());
-  const Eigen::RowVector2d centre = out.corner_uv.colwise().mean(), middle = shape.colwise().mean();
-  for (int k = 0; k < 3; ++k)
-    out.corner_uv.row(k) = centre + std::max(uv_longest, 1.0) / longest * (shape.row(k) - middle);
   return out;
 }
 

@@ -1055,6 +1055,8 @@ def operator_takes_what_it_is_told(pkg):
     before = H.object_state(obj.name)
     obj.select_set(False)
     assert "is not selected" in _report_error(pkg, lambda: run_operator(pkg))
+    with pkg.compat.temp_override(bpy.context, selected_objects=[obj]):  # a script's override selects it
+        assert "is not selected" not in _report_error(pkg, lambda: run_operator(pkg, uv_map="Scna"))
     obj.select_set(True)
     assert "no UV map named 'Scna'" in _report_error(pkg, lambda: run_operator(pkg, uv_map="Scna"))
     assert H.object_state(obj.name) == before
@@ -1134,6 +1136,10 @@ def obj_output_names_a_base_colour_behind_a_mix(pkg):
     assert bsdf.inputs["Base Color"].links[0].from_node == tex
     assert len(warnings) == 1 and "Mixed_mat" in warnings[0] and mix.name in warnings[0], warnings
     assert batch._base_colours_wired_straight([obj]) == []  # straight already
+    reroute = tree.nodes.new("NodeReroute")
+    tree.links.new(tex.outputs["Color"], reroute.inputs[0])
+    tree.links.new(reroute.outputs[0], bsdf.inputs["Base Color"])
+    assert batch._base_colours_wired_straight([obj]) == []  # the exporter follows reroutes: nothing to say
 
 
 def default_uv_readers_keep_the_old_map(pkg):
