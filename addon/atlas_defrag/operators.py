@@ -290,7 +290,8 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
 
     # -- synchronous path (background, scripts, confirmed redo) ---------------
     def execute(self, context):
-        if self.options.is_repeat and not self.run_again:
+        repeat_last = getattr(self.options, "is_repeat_last", False)  # Shift+R asks for the run itself
+        if self.options.is_repeat and not self.run_again and not repeat_last:
             # Blender restores the previous result when a redo is cancelled.
             self.report({"INFO"}, "Tick 'Run Again' to re-run the job with these settings")
             return {"CANCELLED"}
@@ -299,8 +300,11 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
             jobs = self._jobs(objects)
         except (DefragError, TypeError, ValueError) as exc:
             return self._fail("error", str(exc))
-        if self.options.is_invoke and context.window is not None and not bpy.app.background:
-            # The run the dialog confirms goes to a worker thread (a redo never gets here).
+        if self.options.is_invoke and not self.options.is_repeat and context.window is not None \
+                and not bpy.app.background:
+            # The run the dialog confirms goes to a worker thread. A redo or a repeat keeps the
+            # invoke flag of the run it repeats, but must end before it returns: Blender undoes
+            # and frees around it, and a worker left running wrote nothing and crashed the next undo.
             return self._start_modal(context, jobs)
         units = self._units(jobs)
         wm = context.window_manager
@@ -328,8 +332,11 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         copies of it (api.shared_materials)."""
         shared = api.shared_materials(objects, among_them=not (self.one_atlas and len(objects) > 1))
         jobs = []
+        # The first object must have the UV map named (a typo is an error); the others, and all of
+        # a Repeat Last (Shift+R, on other meshes), use it where they have it.
+        first_must = not getattr(self.options, "is_repeat_last", False)
         for obj in objects:
-            settings = self._settings(None if obj is objects[0] else obj)  # the first must have the map named
+            settings = self._settings(None if first_must and obj is objects[0] else obj)
             if api.uses_any(obj, shared):
                 settings = replace(settings, duplicate_materials=True)
             jobs.append((obj, settings))

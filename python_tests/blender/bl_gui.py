@@ -161,6 +161,41 @@ def driver():
     except Exception:
         done("modal_one_atlas", False, traceback.format_exc())
 
+    # 5. Repeat Last (Shift+R) on another mesh: it runs the job there (it was cancelled, pointing at a
+    # Run Again box Shift+R does not show).
+    try:
+        third = H.textured_plane(name="Third")
+        H.make_active(third)
+        OUTCOME["status"] = None
+        win, override = ctx()
+        with override:
+            res = bpy.ops.screen.repeat_last()
+        assert OUTCOME["status"] == "finished" and new_uv_present(third.name), (res, OUTCOME)
+        done("repeat_last", True, {"repeat": sorted(res)})
+    except Exception:
+        done("repeat_last", False, traceback.format_exc())
+
+    # 6. The redo panel with Run Again after a dialog run: the job runs again, synchronously, with the new
+    # settings (a redo keeps the invoke flag: it started a worker, which wrote nothing, and the next undo crashed).
+    try:
+        op = bpy.context.window_manager.operators[-1]
+        op.properties.run_again, op.properties.padding = True, 8
+        OUTCOME["status"] = None
+        win, override = ctx()
+        with override:
+            res = bpy.ops.ed.undo_redo()  # what the redo panel calls
+        assert res == {"FINISHED"}, res
+        assert OUTCOME["status"] == "finished", OUTCOME  # already: nothing left running
+        active = bpy.context.view_layer.objects.active.name
+        assert new_uv_present(active), [u.name for u in bpy.data.objects[active].data.uv_layers]
+        yield 0.3
+        with override:
+            bpy.ops.ed.undo()
+        yield 0.3
+        done("redo_run_again", True, {"redo": sorted(res)})
+    except Exception:
+        done("redo_run_again", False, traceback.format_exc())
+
 
 GEN = None
 
