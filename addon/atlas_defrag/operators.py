@@ -290,10 +290,11 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
 
     # -- synchronous path (background, scripts, confirmed redo) ---------------
     def execute(self, context):
-        repeat_last = getattr(self.options, "is_repeat_last", False)  # Shift+R asks for the run itself
-        if self.options.is_repeat and not self.run_again and not repeat_last:
-            # Blender restores the previous result when a redo is cancelled.
-            self.report({"INFO"}, "Tick 'Run Again' to re-run the job with these settings")
+        if self.options.is_repeat and not self.run_again:
+            # Blender restores the previous result when a redo is cancelled. Blender 3.4 flags a redo
+            # as a Repeat Last too, so Shift+R cannot be told apart: it does not re-run the job either.
+            self.report({"INFO"}, "Tick 'Run Again' in the Adjust Last Operation panel (F9) to re-run the job "
+                                  "with these settings; Repeat Last does not re-run it")
             return {"CANCELLED"}
         try:
             objects = targets(context)
@@ -332,11 +333,8 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         copies of it (api.shared_materials)."""
         shared = api.shared_materials(objects, among_them=not (self.one_atlas and len(objects) > 1))
         jobs = []
-        # The first object must have the UV map named (a typo is an error); the others, and all of
-        # a Repeat Last (Shift+R, on other meshes), use it where they have it.
-        first_must = not getattr(self.options, "is_repeat_last", False)
-        for obj in objects:
-            settings = self._settings(None if first_must and obj is objects[0] else obj)
+        for obj in objects:  # the first must have the UV map named; the others use it where they have it
+            settings = self._settings(None if obj is objects[0] else obj)
             if api.uses_any(obj, shared):
                 settings = replace(settings, duplicate_materials=True)
             jobs.append((obj, settings))

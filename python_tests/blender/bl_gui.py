@@ -161,21 +161,7 @@ def driver():
     except Exception:
         done("modal_one_atlas", False, traceback.format_exc())
 
-    # 5. Repeat Last (Shift+R) on another mesh: it runs the job there (it was cancelled, pointing at a
-    # Run Again box Shift+R does not show).
-    try:
-        third = H.textured_plane(name="Third")
-        H.make_active(third)
-        OUTCOME["status"] = None
-        win, override = ctx()
-        with override:
-            res = bpy.ops.screen.repeat_last()
-        assert OUTCOME["status"] == "finished" and new_uv_present(third.name), (res, OUTCOME)
-        done("repeat_last", True, {"repeat": sorted(res)})
-    except Exception:
-        done("repeat_last", False, traceback.format_exc())
-
-    # 6. The redo panel with Run Again after a dialog run: the job runs again, synchronously, with the new
+    # 5. The redo panel with Run Again after a dialog run: the job runs again, synchronously, with the new
     # settings (a redo keeps the invoke flag: it started a worker, which wrote nothing, and the next undo crashed).
     try:
         op = bpy.context.window_manager.operators[-1]
