@@ -630,12 +630,9 @@ void drop_repeated_faces(LayoutArrays& old_l, LayoutArrays& new_l) {
   const std::vector<int> kept = first_of_equal_faces(new_l.corner_uv, new_l.face_page);
   if (static_cast<Eigen::Index>(kept.size()) == new_l.face_page.size()) return;
   for (LayoutArrays* l : {&old_l, &new_l}) {
-    RowMatrixX2d uv(3 * kept.size(), 2);
-    Eigen::VectorXi page(kept.size());
-    for (size_t i = 0; i < kept.size(); ++i) {
-      uv.middleRows(3 * i, 3) = l->corner_uv.middleRows(3 * kept[i], 3);
-      page[i] = l->face_page[kept[i]];
-    }
+    RowMatrixX2d uv;
+    Eigen::VectorXi page;
+    take_face_uvs(l->corner_uv, l->face_page, kept, uv, page);
     l->corner_uv = std::move(uv);
     l->face_page = std::move(page);
   }

@@ -243,12 +243,9 @@ Coverage rasterise_coverage(int faces, const UvLayout& atlas) {
 Coverage distinct_coverage(const UvLayout& atlas, int faces) {
   const std::vector<int> drawn = first_of_equal_faces(*atlas.corner_uv, *atlas.face_page);
   if (static_cast<int>(drawn.size()) == faces) return rasterise_coverage(faces, atlas);
-  RowMatrixX2d uv(3 * drawn.size(), 2);
-  Eigen::VectorXi page(drawn.size());
-  for (size_t i = 0; i < drawn.size(); ++i) {
-    uv.middleRows(3 * i, 3) = atlas.corner_uv->middleRows(3 * drawn[i], 3);
-    page[static_cast<Eigen::Index>(i)] = (*atlas.face_page)[drawn[i]];
-  }
+  RowMatrixX2d uv;
+  Eigen::VectorXi page;
+  take_face_uvs(*atlas.corner_uv, *atlas.face_page, drawn, uv, page);
   return rasterise_coverage(static_cast<int>(drawn.size()), {&uv, &page, atlas.pages});
 }
 

@@ -266,8 +266,9 @@ def test_gltf_sparse_accessors_are_applied(tmp_path):
     assert scan_io.load(path).positions.tolist() == [[0, 0, 0], [5, 0, 0], [0, 0, 0]]
 
 
-def _textured_triangle_gltf(tmp_path, material: dict, texture: dict):
-    """One triangle with UVs, the given material and texture; image 0 a 6 x 4 WebP."""
+def _textured_triangle_gltf(tmp_path, material: dict, texture: dict, uvs=((0, 0), (1, 0), (0, 1)), **changes):
+    """One triangle with these UVs, the given material and texture, and
+    top-level fields replaced by `changes`; image 0 a 6 x 4 WebP."""
     import base64
     import io
 
@@ -276,7 +277,7 @@ def _textured_triangle_gltf(tmp_path, material: dict, texture: dict):
     webp = io.BytesIO()
     Image.new("RGB", (6, 4), (200, 100, 50)).save(webp, "WEBP")
     data = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes() + \
-        np.array([[0, 0], [1, 0], [0, 1]], np.float32).tobytes()
+        np.array(uvs, np.float32).tobytes()
     return _one_triangle_gltf(
         tmp_path, "textured.gltf",
         meshes=[{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 0}]}],
@@ -285,7 +286,20 @@ def _textured_triangle_gltf(tmp_path, material: dict, texture: dict):
         bufferViews=[{"buffer": 0, "byteLength": len(data)}],
         buffers=[{"byteLength": len(data), "uri": "data:;base64," + base64.b64encode(data).decode()}],
         materials=[material], textures=[texture],
-        images=[{"uri": "data:image/webp;base64," + base64.b64encode(webp.getvalue()).decode()}])
+        images=[{"uri": "data:image/webp;base64," + base64.b64encode(webp.getvalue()).decode()}], **changes)
+
+
+@pytest.mark.parametrize("wrap, uvs, warned", [
+    (33071, ((0, 0), (1, 0), (0, 1.00001)), False),  # clamped, within the page up to round-off
+    (33071, ((0, 0), (1, 0), (0, 1.5)), True),
+    (33648, ((-0.2, 0), (1, 0), (0, 1)), True),      # mirrored
+    (10497, ((0, 0), (1, 0), (0, 1.5)), False)])     # repeated, as the bake does
+def test_gltf_sampler_that_does_not_repeat_is_warned_of_where_faces_leave_the_page(tmp_path, wrap, uvs, warned):
+    import scan_io
+
+    path = _textured_triangle_gltf(tmp_path, {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+                                   {"source": 0, "sampler": 0}, uvs, samplers=[{"wrapS": wrap, "wrapT": wrap}])
+    assert any("clamps or mirrors" in w for w in scan_io.load(path).warnings) == warned
 
 
 def test_gltf_diffuse_texture_and_webp_images_are_read(tmp_path):

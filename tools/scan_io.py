@@ -668,9 +668,6 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
 
 
 _REPEAT = 10497
-# How far (in UV units) a face may reach past the page before a sampler that
-# does not repeat the image shows something else there: round-off only.
-_EDGE_SLACK = 1e-4
 
 
 def _clamped_past_edges(gltf: dict, material: dict, corners: np.ndarray) -> set:
@@ -679,8 +676,8 @@ def _clamped_past_edges(gltf: dict, material: dict, corners: np.ndarray) -> set:
     texture = _item(gltf["textures"], _colour_texture(material)["index"], "texture")
     sampler = _item(gltf.get("samplers", []), texture["sampler"], "sampler") if "sampler" in texture else {}
     wraps = (sampler.get("wrapS", _REPEAT), sampler.get("wrapT", _REPEAT))
-    if wraps == (_REPEAT, _REPEAT) or not corners.size or (corners.min() >= -_EDGE_SLACK
-                                                           and corners.max() <= 1 + _EDGE_SLACK):
+    from atlas_defrag.job import reaches_past_page
+    if wraps == (_REPEAT, _REPEAT) or not reaches_past_page(corners):
         return set()
     return {f"material '{material.get('name', '')}' clamps or mirrors its colour texture (sampler wrap) where "
             "faces reach past its edges: the new texture repeats it there"}

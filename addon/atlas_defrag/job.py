@@ -176,6 +176,17 @@ def page_sizes_of(job: JobInput) -> np.ndarray:
     return sizes
 
 
+# How far (in UV units) a face may reach past the page before a texture that
+# does not repeat the image shows something else there: round-off only.
+_EDGE_SLACK = 1e-4
+
+
+def reaches_past_page(uvs: np.ndarray) -> bool:
+    """Whether any of these UVs lies outside [0, 1], beyond round-off: where a
+    texture set to clamp or mirror differs from the bake, which repeats."""
+    return bool(uvs.size) and bool(uvs.min() < -_EDGE_SLACK or uvs.max() > 1 + _EDGE_SLACK)
+
+
 def with_channels(pixels: np.ndarray, channels: int) -> np.ndarray:
     """C-contiguous (H, W, channels) of (H, W, C <= channels) pixels, the
     missing channels filled as Blender fills them: a grey image's grey in R,

@@ -13,7 +13,7 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from . import compat, image_headers, png_files
-from .job import DefragError, ImageMap, JobInput, MeshData, SourcePage, role_sort_key
+from .job import DefragError, ImageMap, JobInput, MeshData, SourcePage, reaches_past_page, role_sort_key
 
 # Image sources whose pixels are one plain 2D image.
 SUPPORTED_SOURCES = {"FILE", "GENERATED"}
@@ -503,8 +503,8 @@ def _read(obj, me, uv_name: str) -> ReadResult:
                       polygons=geo.tri_polygons.astype(np.int32) if len(me.polygons) < len(geo.triangles) else None),
         pages=pages, images=_read_images(pages))
     return ReadResult(
-        job=job, mesh_name=obj.data.name, uv_map=uv_name, render_uv=render_uv, n_loops=geo.n_loops, tri_loops=geo.tri_loops,
-        tri_polygons=geo.tri_polygons, slot_of_face=slot_of_face.astype(np.int32),
+        job=job, mesh_name=obj.data.name, uv_map=uv_name, render_uv=render_uv, n_loops=geo.n_loops,
+        tri_loops=geo.tri_loops, tri_polygons=geo.tri_polygons, slot_of_face=slot_of_face.astype(np.int32),
         materials=list(materials.values()), signature=mesh_signature(obj, me), warnings=warnings)
 
 
@@ -630,11 +630,6 @@ def _page_key(info: MaterialInfo) -> tuple:
                         key=lambda t: role_sort_key(t[0])))
 
 
-# How far (in UV units) a face may reach past the page before a node that
-# does not repeat the image shows something else there: round-off only.
-_EDGE_SLACK = 1e-4
-
-
 def _extended_past_edges(materials, uvs: np.ndarray, slot_of_face: np.ndarray) -> List[str]:
     """A warning for each image whose node extends, clips or mirrors it
     (glTF's clamp-to-edge imports as Extend) where its faces' UVs leave the
@@ -645,8 +640,7 @@ def _extended_past_edges(materials, uvs: np.ndarray, slot_of_face: np.ndarray) -
         odd = {m.image: m.extension for m in info.maps if m.extension != "REPEAT"}
         if not odd:
             continue
-        corners = uvs[np.isin(slot_of_face, info.slots)]
-        if corners.size and (corners.min() < -_EDGE_SLACK or corners.max() > 1 + _EDGE_SLACK):
+        if reaches_past_page(uvs[np.isin(slot_of_face, info.slots)]):
             out += [f"Image '{image}' in material '{info.name}' is set to {extension.title()} and faces reach "
                     "past its edges: the new texture repeats it there, as Repeat would"
                     for image, extension in odd.items()]

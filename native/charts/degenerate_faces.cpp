@@ -67,19 +67,24 @@ std::vector<int> first_of_equal_faces(const RowMatrixX2d& corner_uv, const Eigen
   return kept;
 }
 
+void take_face_uvs(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page, const std::vector<int>& faces,
+                   RowMatrixX2d& uv, Eigen::VectorXi& page) {
+  const Eigen::Index n = static_cast<Eigen::Index>(faces.size());
+  uv.resize(3 * n, 2);
+  page.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    uv.middleRows(3 * i, 3) = corner_uv.middleRows(3 * faces[i], 3);
+    page[i] = face_page[faces[i]];
+  }
+}
+
 Mesh mesh_of_faces(const Mesh& mesh, const std::vector<int>& faces) {
   Mesh out;
   out.positions = mesh.positions;
   out.pages = mesh.pages;
-  const Eigen::Index n = static_cast<Eigen::Index>(faces.size());
-  out.triangles.resize(n, 3);
-  out.corner_uv.resize(3 * n, 2);
-  out.face_page.resize(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    out.triangles.row(i) = mesh.triangles.row(faces[i]);
-    out.corner_uv.middleRows(3 * i, 3) = mesh.corner_uv.middleRows(3 * faces[i], 3);
-    out.face_page[i] = mesh.face_page[faces[i]];
-  }
+  out.triangles.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t i = 0; i < faces.size(); ++i) out.triangles.row(i) = mesh.triangles.row(faces[i]);
+  take_face_uvs(mesh.corner_uv, mesh.face_page, faces, out.corner_uv, out.face_page);
   return out;
 }
 

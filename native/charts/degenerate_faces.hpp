@@ -41,6 +41,11 @@ DuplicateFaces find_duplicate_faces(const Mesh& mesh, const std::vector<int>& fa
 // baking them once is enough. O(F) expected.
 std::vector<int> first_of_equal_faces(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page);
 
+// The corner UVs (3 rows per face) and pages of `faces`, in that order, into
+// uv (3n x 2) and page (n).
+void take_face_uvs(const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page, const std::vector<int>& faces,
+                   RowMatrixX2d& uv, Eigen::VectorXi& page);
+
 // mesh restricted to faces (all vertices kept).
 Mesh mesh_of_faces(const Mesh& mesh, const std::vector<int>& faces);
 
