@@ -403,6 +403,13 @@ def test_pack_charts_refuses_corners_no_page_can_hold(native, value):
         native.pack_charts([chart, bad])
 
 
+@pytest.mark.parametrize("options, side", [({"fixed_page_size": 64}, 64), ({"max_page_size": 64}, 64)])
+def test_padding_with_no_room_names_the_page_asked_for(native, options, side):
+    chart = np.array([[[0, 0], [10, 0], [0, 10]]], float)
+    with pytest.raises(ValueError, match=f"padding 64 leaves no room on a page of {side} texels"):
+        native.pack_charts([chart], options={"padding": 64, "padding_follows_page": False, **options})
+
+
 def test_groups_never_share_a_chart_or_a_page(native):
     positions, triangles, uvs, face_page, sizes = tiny()
     result = native.defragment(positions, triangles, uvs, face_page, sizes, face_group=np.array([0, 1]))

@@ -597,15 +597,24 @@ def _images_named_by(model: str, libraries: set) -> set:
     return named
 
 
+def _format_problem(src: str, dst: str) -> str:
+    """Why src cannot be read or dst written, going by their extensions ('' if they can)."""
+    for kind, path, exts in (("input", src, INPUT_EXTS), ("output", dst, OUTPUT_EXTS)):
+        ext = os.path.splitext(path)[1].lower()
+        if ext not in exts:
+            return f"unsupported {kind} format '{ext}' (use {', '.join(exts)})"
+    return ""
+
+
 def _import_input(src: str, dst: str, inputs: set):
     """The objects of src, in an empty scene; refuses what cannot be written,
     and files to read (inputs, from _input_files) that cannot be read."""
     import bpy
     if not os.path.isfile(src):
         raise BatchError(f"input not found: {src}")
-    out_ext = os.path.splitext(dst)[1].lower()
-    if out_ext not in OUTPUT_EXTS:
-        raise BatchError(f"unsupported output format '{out_ext}' (use {', '.join(OUTPUT_EXTS)})")
+    problem = _format_problem(src, dst)
+    if problem:
+        raise BatchError(problem)
     _refuse_special_files(inputs)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return import_model(src)
@@ -1309,7 +1318,7 @@ def main_single(argv) -> int:
         args = _schema().parsed(p, argv)
     except SystemExit as exc:
         return int(exc.code or 0)
-    problem = _report_path_problem(args.report, args.input, args.output)
+    problem = _report_path_problem(args.report, args.input, args.output) or _format_problem(args.input, args.output)
     if problem:
         print(f"atlas_defrag: error: {problem}", file=sys.stderr)
         return 2

@@ -298,6 +298,7 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
             return {"CANCELLED"}
         try:
             objects = targets(context)
+            self._left_out = left_out(context, objects)
             jobs = self._jobs(objects)
         except (DefragError, TypeError, ValueError) as exc:
             return self._fail("error", str(exc))
@@ -363,6 +364,7 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         return {"CANCELLED"}
 
     def _report_done(self, context, reports):
+        reports[0].setdefault("warnings", []).extend(getattr(self, "_left_out", ()))
         lines = []
         for report in reports:
             for w in report.get("warnings", []):
@@ -486,6 +488,25 @@ def targets(context) -> list:
         if obj.type == "MESH" and obj.data.name not in seen:
             seen.add(obj.data.name)
             out.append(obj)
+    return out
+
+
+def left_out(context, objects) -> list:
+    """A warning for each selected object that was not defragmented because
+    it draws a mesh taken already (a linked duplicate) with materials of its
+    own (slots linked to the object): those still read the old UV map."""
+    taken = {obj.data.name: obj for obj in objects}
+    out = []
+    for obj in getattr(context, "selected_objects", []):
+        first = taken.get(obj.data.name) if obj.type == "MESH" else None
+        if first is None or obj == first:
+            continue
+        theirs = {slot.material for slot in first.material_slots}
+        own = sorted({slot.material.name for slot in obj.material_slots
+                      if slot.link == "OBJECT" and slot.material and slot.material not in theirs})
+        if own:
+            out.append(f"'{obj.name}' shares its mesh with '{first.name}' but draws it with material(s) of its "
+                       f"own, left as they were (old UV map and images): {', '.join(own)}")
     return out
 
 

@@ -497,8 +497,12 @@ def _rewire_materials(target: _Target, new_uv: str, page_role_image, duplicate_m
     poly_page = _polygon_pages(me, read, result)
     old_mat_index = np.empty(len(me.polygons), dtype=np.int32)
     me.polygons.foreach_get("material_index", old_mat_index)
-    new_mat_index = old_mat_index.copy()
-    clipped_index = np.clip(old_mat_index, 0, max(0, len(obj.material_slots) - 1))
+    slot_count = len(obj.material_slots)
+    clipped_index = np.clip(old_mat_index, 0, max(0, slot_count - 1))
+    # An index past the last slot draws with that slot; once slots are
+    # appended it would draw with a new page's material instead.
+    new_mat_index = np.where(old_mat_index >= slot_count, clipped_index, old_mat_index)
+    materials_before = len(me.materials)
     created_materials: List[str] = []
     rewired: List[str] = []
     shared_with_others: List[str] = []
@@ -523,7 +527,7 @@ def _rewire_materials(target: _Target, new_uv: str, page_role_image, duplicate_m
                 journal.add(lambda m=me: m.materials.pop(index=len(m.materials) - 1))
                 polys = np.isin(clipped_index, info.slots) & (poly_page == q)
                 new_mat_index[polys] = len(me.materials) - 1
-    if not np.array_equal(new_mat_index, old_mat_index):
+    if len(me.materials) > materials_before and not np.array_equal(new_mat_index, old_mat_index):
         me.polygons.foreach_set("material_index", new_mat_index)
         journal.add(lambda m=me, a=old_mat_index: m.polygons.foreach_set("material_index", a))
     if shared_with_others:

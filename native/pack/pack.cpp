@@ -99,15 +99,15 @@ RowMatrixX2d with_finite_corners(const RowMatrixX2d& uv) {
   return out;
 }
 
-// Largest scale at which every chart, grown by padding, fits a square of
-// `virtual_side` in either orientation: a chart spanning E texels covers at
-// most E + 2 of them. Infinite when every chart is a point.
-double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, int virtual_side,
-                             int padding) {
-  const double room = virtual_side - 2.0 - 2.0 * padding;
+// Largest scale at which every chart, grown by padding, fits a page of
+// `side` in either orientation (the frame's margin beyond it included): a
+// chart spanning E texels covers at most E + 2 texels. Infinite when every
+// chart is a point.
+double largest_fitting_scale(const std::vector<const RowMatrixX2d*>& chart_uv, int side, const Frame& frame) {
+  const double room = side + 2.0 * frame.margin - 2.0 - 2.0 * frame.padding;
   if (room < 1.0) {
     std::ostringstream msg;
-    msg << "padding " << padding << " leaves no room on a page of " << virtual_side << " texels";
+    msg << "padding " << frame.padding << " leaves no room on a page of " << side << " texels";
     throw InputError(msg.str());
   }
   double extent = 0.0;
@@ -350,7 +350,7 @@ Packing pack_fixed(const std::vector<const RowMatrixX2d*>& chart_uv, const Frame
     packing.layout = {page->placement, {{side, side}}};
     return std::make_pair(std::move(packing), static_cast<double>(page->used.height) / virtual_side);
   };
-  double cap = largest_fitting_scale(chart_uv, virtual_side, frame.padding);
+  double cap = largest_fitting_scale(chart_uv, side, frame);
   if (std::isinf(cap)) cap = 1.0;  // every chart is a point: any scale packs the same
   const double area = corner_area(chart_uv);  // at scale 1
   const double start = area > 0.0 ? std::sqrt(kExpectedFill * side * side / area) : cap;
@@ -475,7 +475,7 @@ PackResult pack_at_padding(const std::vector<RowMatrixX2d>& chart_uv, const Pack
 
   const int max_side = largest_allowed_side(options.max_page_size, options.page_sides);
   const double scale = std::min(
-      options.density_scale, largest_fitting_scale(uv, max_side + 2 * frame.margin, frame.padding));
+      options.density_scale, largest_fitting_scale(uv, max_side, frame));
   Packing packing = pack_within_limits(uv, scale, frame, max_side, options, control);
   lower_single_page(packing.layout, packing.charts, frame, control);
   PackResult result = to_result(uv, packing, frame);

@@ -388,6 +388,33 @@ def identity_result(pkg, read):
                              report={"charts_before": 1, "charts_after": 1})
 
 
+def material_index_past_the_slots_keeps_drawing_with_the_last(pkg):
+    """A face whose material_index is past the last slot draws with the last
+    slot. New pages append slots: such a face on the first page must still
+    draw with its own material, not the slot a new page appended."""
+    H.reset()
+    obj = H.import_model(H.model_path("tetra"))
+    me = obj.data
+    past = np.full(len(me.polygons), len(obj.material_slots), np.int32)
+    me.polygons.foreach_set("material_index", past)
+    read = pkg.api.prepare(obj, pkg.api.Settings.from_kwargs())
+    result = identity_result(pkg, read)
+    # The same layout on two pages: the second half of the faces on page 1.
+    result.face_page[len(result.face_page) // 2:] = 1
+    result.page_sizes = np.repeat(result.page_sizes, 2, axis=0)
+    result.page_group = np.zeros(2, np.int32)
+    result.images += [pkg.job.OutputImage(page=1, role=i.role, source=i.source, pixels=i.pixels.copy(),
+                                          colorspace=i.colorspace, is_float=i.is_float, alpha_mode=i.alpha_mode)
+                      for i in result.images]
+    slots = len(obj.material_slots)
+    pkg.api.finish(obj, read, result, pkg.api.Settings.from_kwargs())
+    index = np.empty(len(me.polygons), np.int32)
+    me.polygons.foreach_get("material_index", index)
+    assert len(obj.material_slots) == slots + 1
+    first = result.face_page[np.searchsorted(read.tri_polygons, np.arange(len(me.polygons)))] == 0
+    assert (index[first] == slots - 1).all() and (index[~first] == slots).all(), np.bincount(index)
+
+
 def write_identity_layout(pkg):
     """Writing a result: new map, images, materials; nothing old modified;
     removing the additions restores the original."""
@@ -795,6 +822,26 @@ def material_shared_with_an_unselected_object(pkg):
     H.make_active(solo)
     mat = solo.material_slots[0].material
     assert run_operator(pkg) == {"FINISHED"} and solo.material_slots[0].material == mat
+
+
+def linked_duplicate_with_its_own_material_is_named(pkg):
+    """Two selected objects drawing one mesh, the second through a material
+    linked to the object: the mesh is done once, for the active object, and
+    the report names the other, whose material still reads the old map."""
+    H.reset()
+    first = H.textured_plane(name="First")
+    second = first.copy()
+    bpy.context.collection.objects.link(second)
+    own = first.material_slots[0].material.copy()
+    second.material_slots[0].link = "OBJECT"
+    second.material_slots[0].material = own
+    H.make_active(first)
+    second.select_set(True)
+    assert run_operator(pkg) == {"FINISHED"}, pkg.operators.last_outcome
+    warnings = pkg.operators.last_outcome["report"][0]["warnings"]
+    assert any(f"'{second.name}' shares its mesh with '{first.name}'" in w and own.name in w for w in warnings), \
+        warnings
+    assert {H.vector_uv_map(n) for n in H.image_nodes(own)} <= {None, "UVMap"}, H.tree_state(own)
 
 
 def quads_stay_whole(pkg):
@@ -1232,6 +1279,9 @@ SCENARIOS = {
     "cancel_leaves_nothing": cancel_leaves_nothing,
     "worker_thread_run": worker_thread_run,
     "write_identity_layout": write_identity_layout,
+    "linked_duplicate_with_its_own_material_is_named": linked_duplicate_with_its_own_material_is_named,
+    "material_index_past_the_slots_keeps_drawing_with_the_last":
+        material_index_past_the_slots_keeps_drawing_with_the_last,
     "png_read_from_file": png_read_from_file,
     "fbx_round_trip_meshroom": lambda pkg: export_round_trip(pkg, "meshroom", "fbx"),
     "fbx_round_trip_smithsonian": lambda pkg: export_round_trip(pkg, "smithsonian", "fbx"),

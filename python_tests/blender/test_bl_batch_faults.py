@@ -320,6 +320,17 @@ def test_an_output_named_as_an_input_texture_is_refused(tmp_path):
     assert proc.returncode == 1 and "would overwrite the input file" in proc.stderr, proc.stderr[-2000:]
     assert _digest(tmp_path) == before
 
+
+@pytest.mark.parametrize("source, target, message", [
+    ("tetra", "o.fbx", "unsupported output format '.fbx'"), ("tetra", "o", "unsupported output format ''"),
+    ("model.stl", "o.glb", "unsupported input format '.stl'")])
+def test_a_format_the_batch_cannot_take_is_a_usage_error(tmp_path, source, target, message):
+    source = H.model_path(source) if source == "tetra" else str(tmp_path / source)
+    proc = subprocess.run([sys.executable, str(BATCH), source, str(tmp_path / target)], capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 2 and message in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+
+
 def test_an_unwritable_report_path_fails_before_the_work(tmp_path):
     blocker = tmp_path / "file.txt"
     blocker.write_text("not a folder")

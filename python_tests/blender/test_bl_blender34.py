@@ -14,7 +14,8 @@ from blenv import ADDON_PARENT, HERE, require_native, run_blender
 # every scenario starts from factory settings).
 GROUPS = {
     # redo_asks_first: ed.undo_redo under a window override crashes the bpy 4.5 module.
-    "light": ["write_identity_layout", "png_read_from_file", "redo_asks_first",
+    "light": ["write_identity_layout", "material_index_past_the_slots_keeps_drawing_with_the_last",
+              "linked_duplicate_with_its_own_material_is_named", "png_read_from_file", "redo_asks_first",
               "source_uv_warning_names_rendered_nodes", "default_uv_readers_keep_the_old_map",
               "long_uv_map_names_fit_the_nodes", "material_shared_with_an_unselected_object",
               "operator_takes_what_it_is_told", "image_settings_the_bake_cannot_follow_are_said",

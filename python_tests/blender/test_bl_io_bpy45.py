@@ -99,6 +99,10 @@ def test_write_identity_layout(pkg):
     S.write_identity_layout(pkg)
 
 
+def test_material_index_past_the_slots_keeps_drawing_with_the_last(pkg):
+    S.material_index_past_the_slots_keeps_drawing_with_the_last(pkg)
+
+
 def test_write_rolls_back_on_failure(pkg, monkeypatch):
     obj, name, before, settings, read = S.prepared(pkg, "smithsonian")
     result = identity_result(pkg, read)
