@@ -22,6 +22,7 @@ def test_cli_output_loads_back_flip_free_with_the_colours_kept(native, scans, sc
                          capture_output=True, text=True, timeout=300, env=tool_env)
     assert run.returncode == 0, run.stderr
     assert "159 -> " in run.stdout and "PSNR" in run.stdout
+    assert re.search(r"lone charts overlapping themselves halved: \d+;", run.stdout), run.stdout
 
     scan, written = scans("tetra"), scan_io.load(tmp_path / f"{source.stem}_defrag.obj")
     assert np.array_equal(written.triangles, scan.triangles)
@@ -151,6 +152,18 @@ def test_gltf_without_scenes_walks_its_node_trees_from_their_roots(tmp_path):
 
     path = _one_triangle_gltf(tmp_path, "loose.gltf", scenes=[], nodes=[{"children": [1]}, {"mesh": 0}])
     assert scan_io.load(path).triangles.tolist() == [[0, 1, 2]]
+
+
+@pytest.mark.parametrize("name", ["cut.glb", "cut.gltf"])
+def test_gltf_json_cut_short_is_refused_in_words(tmp_path, name):
+    import scan_io
+
+    text = _one_triangle_gltf(tmp_path, "plain.gltf").read_bytes()[:-9]
+    path = tmp_path / name
+    glb = struct.pack("<III", 0x46546C67, 2, 20 + len(text)) + struct.pack("<II", len(text), 0x4E4F534A)
+    path.write_bytes(glb + text if name.endswith(".glb") else text)
+    with pytest.raises(ValueError, match="^malformed glTF .its JSON part is not valid UTF-8 JSON: "):
+        scan_io.load(path)
 
 
 def test_gltf_json_nested_too_deeply_is_refused_in_words(tmp_path):
@@ -289,6 +302,44 @@ def _textured_triangle_gltf(tmp_path, material: dict, texture: dict, uvs=((0, 0)
         images=[{"uri": "data:image/webp;base64," + base64.b64encode(webp.getvalue()).decode()}], **changes)
 
 
+def test_gltf_materials_naming_the_same_images_share_one_page(tmp_path):
+    """Two materials on one texture make one page, as two OBJ materials naming
+    one file do; a third with another normal map makes a page of its own."""
+    import json
+
+    import scan_io
+
+    colour = {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}
+    path = _textured_triangle_gltf(tmp_path, colour, {"source": 0})
+    gltf = json.loads(path.read_text())
+    primitive = gltf["meshes"][0]["primitives"][0]
+    gltf["meshes"][0]["primitives"] = [dict(primitive, material=m) for m in range(3)]
+    gltf["materials"] = [colour, dict(colour, name="same"), dict(colour, normalTexture={"index": 1})]
+    gltf["textures"].append({"source": 0, "sampler": 0})
+    gltf["samplers"] = [{}]
+    path.write_text(json.dumps(gltf))
+    scan = scan_io.load(path)
+    assert scan.face_page.tolist() == [0, 0, 1] and len(scan.page_images) == 2
+
+
+def test_gltf_map_whose_file_is_missing_is_left_out_with_a_warning(tmp_path):
+    """As the OBJ reader does: the colour still bakes."""
+    import json
+
+    import scan_io
+
+    colour = {"name": "skin", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
+              "normalTexture": {"index": 1}}
+    path = _textured_triangle_gltf(tmp_path, colour, {"source": 0})
+    gltf = json.loads(path.read_text())
+    gltf["textures"].append({"source": 1})
+    gltf["images"].append({"uri": "gone%20normal.png"})
+    path.write_text(json.dumps(gltf))
+    scan = scan_io.load(path)
+    assert list(scan.maps[0]) == ["base_color"] and scan.face_page.tolist() == [0]
+    assert scan.warnings == [f"normal map {tmp_path / 'gone normal.png'} of material 'skin' not found: left out"]
+
+
 @pytest.mark.parametrize("wrap, uvs, warned", [
     (33071, ((0, 0), (1, 0), (0, 1.00001)), False),  # clamped, within the page up to round-off
     (33071, ((0, 0), (1, 0), (0, 1.5)), True),
@@ -350,11 +401,12 @@ def test_grey_images_load_as_one_channel(mode):
     assert np.array_equal(pixels[::-1, :, 0], grey >> 8)
 
 
-@pytest.mark.parametrize("mode, transparency", [("RGB", None), ("RGBA", None), ("RGB", (1, 2, 3))])
+@pytest.mark.parametrize("mode, transparency", [("RGB", None), ("RGBA", None), ("RGB", (1, 2, 3)), ("P", 0)])
 def test_png_images_load_as_pillow_reads_them(mode, transparency):
     """RGB and RGBA PNGs go through the add-on's decoder, a PNG with a tRNS
     chunk (which it refuses) through Pillow: the same pixels either way, row 0
-    at the bottom."""
+    at the bottom, and a tRNS chunk gives alpha, as in Blender (a palette
+    entry or a colour made transparent)."""
     import io
 
     import scan_io
@@ -362,14 +414,22 @@ def test_png_images_load_as_pillow_reads_them(mode, transparency):
     from PIL import Image
 
     rng = np.random.default_rng(7)
-    pixels = rng.integers(0, 256, size=(37, 53, len(mode)), dtype=np.uint8)
+    pixels = rng.integers(0, 256, size=(37, 53, 3 if mode == "P" else len(mode)), dtype=np.uint8)
+    pixels[0, 0, :3] = (1, 2, 3)  # the colour key, or (after quantizing) palette entry 0
+    image = Image.fromarray(pixels)
+    if mode == "P":
+        image = image.quantize(8)
+        pixels = np.asarray(image.convert("RGB"))
+        transparency = int(np.asarray(image)[0, 0])
     buf = io.BytesIO()
-    Image.fromarray(pixels).save(buf, "PNG", **({"transparency": transparency} if transparency else {}))
+    image.save(buf, "PNG", **({"transparency": transparency} if transparency is not None else {}))
     data = buf.getvalue()
-    assert (b"tRNS" in data) == bool(transparency)
-    if transparency:
+    assert (b"tRNS" in data) == (transparency is not None)
+    if transparency is not None:
         with pytest.raises(ValueError):
             png_files.decode_png(data)
+        keyed = np.all(pixels == pixels[0, 0], axis=2)
+        pixels = np.dstack([pixels, np.where(keyed, 0, 255).astype(np.uint8)])
     loaded = scan_io.load_image(data)
     assert loaded.shape == pixels.shape and np.array_equal(loaded[::-1], pixels)
 
@@ -479,6 +539,19 @@ def test_a_texture_read_through_moved_or_scaled_uvs_is_refused(tmp_path, options
         return
     with pytest.raises(ValueError, match=f"material 'a' reads its texture through '{re.escape(refused)}'"):
         scan_io.load(path)
+
+
+@pytest.mark.parametrize("vt, warned", [("0.1", False), ("1.3", True)])
+def test_a_clamped_colour_map_is_warned_of_where_faces_leave_the_page(tmp_path, vt, warned):
+    """-clamp on reads edge texels past [0, 1]; the bake repeats the image
+    there. Material b repeats, so only a is named."""
+    import scan_io
+
+    path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd -clamp on t0.png\nnewmtl b\nmap_Kd -clamp off t1.png\n")
+    path.write_text(path.read_text().replace("vt 0.1 0.1\n", f"vt {vt} 0.1\n"))
+    warnings = scan_io.load(path).warnings
+    assert warnings == (["material 'a' clamps its colour texture (-clamp on) where faces reach past its edges: "
+                         "the new texture repeats it there"] if warned else []), warnings
 
 
 def test_an_obj_may_name_two_material_libraries(tmp_path):

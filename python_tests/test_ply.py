@@ -1,5 +1,6 @@
 """PLY scans read by atlas_defrag.ply_io (the command-line entry and the batch): the two ways scanning
 pipelines store UVs, both byte orders and ASCII, polygons, and broken files."""
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -179,6 +180,20 @@ def test_faces_without_two_values_per_corner_are_left_untextured():
                        b"4 0 1 2 3 8 0 0 .5 0 .5 .5 0 .5\n")
     assert mesh.texnumber.tolist() == [0, -1, 0, 0] and mesh.uvs[1].tolist() == [[0, 0]] * 3
     assert mesh.uvs[0].tolist() == [[0, 0], [1, 0], [1, 1]] and mesh.uvs[3].tolist() == [[0, 0], [.5, .5], [0, .5]]
+    assert mesh.notes == ["texcoord lists without two values per corner leave 1 face(s) untextured"], mesh.notes
+
+
+def test_texture_numbers_the_header_has_no_file_for_are_named():
+    """A quad counts once, as the face the file gave; -1 is how OpenMVS marks a face without texture."""
+    from atlas_defrag import ply_io
+
+    head = _header("ascii", 4, 3, ["float x", "float y", "float z"],
+                   ["list uchar int vertex_indices", "int texnumber"], ["a.png", "b.png"])
+    mesh = ply_io.read(head + b"0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 2\n4 0 1 2 3 2\n3 0 2 3 -1\n")
+    assert mesh.notes == ["texture numbers outside the header's 2 TextureFile line(s) (0..1) leave 2 face(s) "
+                          "untextured"], mesh.notes
+    assert ply_io.read(head.replace(b"int texnumber", b"uchar texnumber").replace(b"comment TextureFile b.png\n", b"")
+                       + b"0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 0\n4 0 1 2 3 0\n3 0 2 3 0\n").notes == []
 
 
 @pytest.mark.parametrize("cut, message", [
@@ -279,14 +294,27 @@ def test_binary_counts_that_lie_are_refused_and_a_last_line_end_is_not():
 
 
 def test_texture_names_in_utf8_or_from_another_machine_are_found(tmp_path):
-    """Writers put file names in the header as UTF-8; a Windows path names the file beside the PLY."""
+    """Writers put file names in the header as UTF-8; a Windows path names the file beside the PLY,
+    in double quotes or not."""
     from atlas_defrag import ply_io
 
     (tmp_path / "t\u00ebx ture.png").write_bytes(b"")
     (tmp_path / "b.png").write_bytes(b"")
     head = _header("ascii", 3, 2, ["float x", "float y", "float z"],
-                   ["list uchar int vertex_indices", "int texnumber"], ["t\u00ebx ture.png", "C:\\scans\\b.png"])
+                   ["list uchar int vertex_indices", "int texnumber"], ["t\u00ebx ture.png", '"C:\\scans\\b.png"'])
     mesh = ply_io.read(head + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2 0\n3 0 2 1 1\n")
     found, per_face, missing = ply_io.face_textures(mesh, str(tmp_path))
     assert [Path(f).name for f in found] == ["t\u00ebx ture.png", "b.png"] and missing == []
     assert per_face.tolist() == [0, 1]
+
+
+def test_a_texture_name_in_latin1_finds_the_file_of_those_bytes(tmp_path):
+    """Older Windows writers put the file name's own bytes in the header, not UTF-8."""
+    from atlas_defrag import ply_io
+
+    (tmp_path / os.fsdecode(b"caf\xe9.png")).write_bytes(b"")
+    head = _header("ascii", 3, 1, ["float x", "float y", "float z"], ["list uchar int vertex_indices"], ["X"])
+    mesh = ply_io.read(head.replace(b"TextureFile X", b"TextureFile caf\xe9.png") + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    found, per_face, missing = ply_io.face_textures(mesh, str(tmp_path))
+    assert [os.fsencode(Path(f).name) for f in found] == [b"caf\xe9.png"] and missing == [], (found, missing)
+    assert per_face.tolist() == [0]

@@ -294,7 +294,8 @@ def print_report(result: job.JobResult, m: dict, fidelity: dict, t_load: float) 
     r = result.report
     print(f"  charts        {r['charts_before']} -> {r['charts_after']} (aggregated {r['charts_aggregated']}, "
           f"split back: {r['splits_overlap']} overlap, {r['splits_density']} density, {r['splits_solver']} solver, "
-          f"{r['splits_not_disk']} topology; relief cuts: {r['relief_cuts']}; "
+          f"{r['splits_not_disk']} topology; lone charts overlapping themselves halved: {r['overlap_halved']}; "
+          f"relief cuts: {r['relief_cuts']}; "
           f"density repairs: {r['density_repaired']})")
     stops = ", ".join(f"{reason} {n}" for reason, n in r["aggregate_stops"].items() if n)
     print(f"  merges left   {stops or 'none'} (adjacent chart pairs, by what refused them)")

@@ -81,8 +81,9 @@ def load_image(source) -> np.ndarray:
     if img.mode.startswith("I;16") or img.mode == "I":  # 16-bit grey: Pillow's convert would clip it
         pixels = (np.asarray(img).astype(np.uint32) >> 8).clip(0, 255).astype(np.uint8)[::-1]
         return np.ascontiguousarray(pixels[..., None])
-    if img.mode not in ("L", "RGB", "RGBA"):
-        img = img.convert("RGBA" if "A" in img.getbands() else "RGB")
+    keyed = "transparency" in img.info  # a tRNS chunk: palette or colour-key alpha, as Blender reads it
+    if img.mode not in ("L", "RGB", "RGBA") or keyed:
+        img = img.convert("RGBA" if "A" in img.getbands() or keyed else "RGB")
     pixels = np.asarray(img)[::-1]
     return np.ascontiguousarray(pixels[..., None] if pixels.ndim == 2 else pixels)
 
@@ -216,14 +217,15 @@ _MTL_MAP_ROLES = {"map_kd": "base_color", "norm": "normal", "map_bump": "normal"
 _GREY_MODES = ("1", "L", "LA", "I", "I;16", "F")
 
 
-def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, dict[str, Path]]:
-    """material name -> {role: the file its first map statement of that role
-    names (which may not exist)}, for every material the libraries define.
-    Names are decoded as _native.read_obj decodes usemtl names, so that they
-    match byte for byte."""
+def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> tuple[dict[str, dict[str, Path]], set]:
+    """(material name -> {role: the file its first map statement of that role
+    names (which may not exist)}, for every material the libraries define;
+    the materials whose colour map says -clamp on). Names are decoded as
+    _native.read_obj decodes usemtl names, so that they match byte for byte."""
     from atlas_defrag import mtl_text
 
     textures: dict[str, dict[str, Path]] = {}
+    clamped = set()
     for mtl in libraries:
         if not mtl.is_file():
             continue
@@ -241,9 +243,11 @@ def _read_mtl_textures(obj_path: Path, libraries: list[Path]) -> dict[str, dict[
                     raise ValueError(f"{mtl.name}: material '{current}' reads its texture through "
                                      f"'{mtl_text.uv_transform(rest)}' (UVs moved or scaled), "
                                      "which this reader does not apply")
+                if keyword == "map_kd" and "base_color" not in textures[current] and mtl_text.clamps(rest):
+                    clamped.add(current)
                 textures.setdefault(current, {}).setdefault(_MTL_MAP_ROLES[keyword],
                                                             _texture_path(rest, [mtl.parent, obj_path.parent]))
-    return textures
+    return textures, clamped
 
 
 def _other_maps(maps: dict[str, Path], material: str, warnings: list) -> dict[str, Path]:
@@ -283,7 +287,7 @@ def load_obj(path: Path) -> Scan:
     uvs[~has_uv] = 0.0
 
     libraries, missing = _material_libraries(path, obj["material_libraries"])
-    textures = _read_mtl_textures(path, libraries)
+    textures, clamped = _read_mtl_textures(path, libraries)
     pages, page_of = [], {}
     warnings = [f"material library {m} not found beside {path.name}: the materials it defines are left untextured"
                 for m in missing]
@@ -310,12 +314,25 @@ def load_obj(path: Path) -> Scan:
             page_of[key] = len(pages)
             pages.append(page)
         material_page[m] = page_of[key]
+        if name in clamped:
+            warnings += _clamped_map_warning(name, uvs[has_uv & (obj["face_material"] == m)])
     face_page = np.where(has_uv, material_page[obj["face_material"]], -1).astype(np.int32)
     bases = [page["base_color"] for page in pages]
     sizes = np.array([image_size(p) for p in bases], dtype=np.int32).reshape(-1, 2)
     return Scan(obj["positions"], tris, uvs, face_page, sizes, bases, pages,
                 files=[path] + libraries + [p for page in pages for p in page.values()],
                 warnings=warnings)
+
+
+def _clamped_map_warning(material: str, corners: np.ndarray) -> list:
+    """A warning when a colour map read with -clamp on has these UVs leave
+    its page: the bake repeats every image."""
+    from atlas_defrag.job import reaches_past_page
+
+    if not reaches_past_page(corners):
+        return []
+    return [f"material '{material}' clamps its colour texture (-clamp on) where faces reach past its edges: "
+            "the new texture repeats it there"]
 
 
 # ---- PLY ------------------------------------------------------------------
@@ -331,7 +348,7 @@ def load_ply(path: Path) -> Scan:
     face_page = face_page.astype(np.int32) if mesh.uvs is not None else np.full(len(mesh.triangles), -1, np.int32)
     uvs = mesh.uvs if mesh.uvs is not None else np.zeros((len(mesh.triangles), 3, 2))
     sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
-    warnings = [f"texture {name} not found: its faces are left untextured" for name in missing]
+    warnings = [f"texture {name} not found: its faces are left untextured" for name in missing] + mesh.notes
     if mesh.colours is not None:
         warnings.append(_VERTEX_COLOURS)
     return Scan(mesh.positions, mesh.triangles.astype(np.int32), uvs, face_page, sizes, pages,
@@ -504,7 +521,7 @@ def load_glb(path: Path) -> Scan:
 
 def load_gltf(path: Path) -> Scan:
     """A .gltf file: JSON, with buffers and images in files beside it or in data: URIs."""
-    gltf = _parsed_json(path.read_text(encoding="utf-8"))
+    gltf = _parsed_json(path.read_bytes())
     return _checked_gltf(path, gltf, lambda: [_uri_bytes(b["uri"], path.parent) for b in gltf.get("buffers", [])])
 
 
@@ -517,12 +534,15 @@ _READ_EXTENSIONS = {"KHR_materials_pbrSpecularGlossiness", "EXT_texture_webp", "
                     "KHR_materials_unlit"}
 
 
-def _parsed_json(text):
-    """The glTF's JSON; ValueError also for nesting too deep for Python's parser."""
+def _parsed_json(data: bytes):
+    """The glTF's JSON; ValueError saying so for text that is not UTF-8 JSON (a
+    file cut short, say) or that nests too deeply for Python's parser."""
     try:
-        return json.loads(text)
+        return json.loads(data.decode("utf-8-sig"))
     except RecursionError:
         raise ValueError("malformed glTF (its JSON nests too deeply)") from None
+    except ValueError as exc:  # UnicodeDecodeError and JSONDecodeError
+        raise ValueError(f"malformed glTF (its JSON part is not valid UTF-8 JSON: {exc})") from None
 
 
 def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
@@ -597,25 +617,46 @@ def _colour_texture(material: dict):
         "extensions", {}).get("KHR_materials_pbrSpecularGlossiness", {}).get("diffuseTexture")
 
 
-def _material_maps(gltf: dict, buffers: list, folder: Path, material: dict) -> dict:
+def _map_slots(material: dict) -> list:
+    """(role, texture slot) of each map a textured material has, base colour first."""
+    pbr = material.get("pbrMetallicRoughness", {})
+    slots = [("base_color", _colour_texture(material)), ("normal", material.get("normalTexture")),
+             ("occlusion", material.get("occlusionTexture")),
+             ("metallic_roughness", pbr.get("metallicRoughnessTexture")), ("emission", material.get("emissiveTexture"))]
+    return [(role, slot) for role, slot in slots if slot is not None]
+
+
+def _material_maps(gltf: dict, buffers: list, folder: Path, material: dict, warnings: set) -> dict:
     """role -> image bytes of a textured material: base colour, then the
     normal, occlusion, metallic-roughness and emission maps it has. A map
-    only in a format Pillow cannot read is left out: the colour still bakes."""
-    pbr = material.get("pbrMetallicRoughness", {})
-    roles = {"base_color": _image_bytes(gltf, buffers, folder, _colour_texture(material)["index"])}
-    if any(slot is not None and slot.get("texCoord", 0) != _colour_texture(material).get("texCoord", 0)
-           for slot in (material.get("normalTexture"), material.get("occlusionTexture"),
-                        pbr.get("metallicRoughnessTexture"), material.get("emissiveTexture"))):
+    only in a format Pillow cannot read is left out: the colour still bakes.
+    So is a map whose file is missing, with a warning, as the OBJ reader does."""
+    (_, colour), *others = _map_slots(material)
+    if any(slot.get("texCoord", 0) != colour.get("texCoord", 0) for _, slot in others):
         raise Unsupported("a material's maps read different TEXCOORD sets, which this reader does not support")
-    for role, slot in (("normal", material.get("normalTexture")), ("occlusion", material.get("occlusionTexture")),
-                       ("metallic_roughness", pbr.get("metallicRoughnessTexture")),
-                       ("emission", material.get("emissiveTexture"))):
-        if slot is not None:
-            try:
-                roles[role] = _image_bytes(gltf, buffers, folder, slot["index"])
-            except UnreadableTexture:
-                pass
+    roles = {"base_color": _image_bytes(gltf, buffers, folder, colour["index"])}
+    for role, slot in others:
+        try:
+            roles[role] = _image_bytes(gltf, buffers, folder, slot["index"])
+        except UnreadableTexture:
+            pass
+        except FileNotFoundError as exc:
+            warnings.add(f"{role} map {exc.filename} of material '{material.get('name', '')}' not found: left out")
     return roles
+
+
+def _page_key(gltf: dict, material: dict) -> tuple:
+    """What tells a textured material's page: the image of each of its maps.
+    Materials naming the same images share one page, as OBJ materials naming
+    one file do (a texture whose image cannot be read counts by its index)."""
+    key = []
+    for role, slot in _map_slots(material):
+        texture = _item(gltf["textures"], slot["index"], "texture")
+        try:
+            key.append((role, _texture_source(texture)))
+        except UnreadableTexture:
+            key.append((role, ("texture", slot["index"])))
+    return tuple(key)
 
 
 def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
@@ -645,11 +686,12 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
                 uvs.append(uv[idx])
                 if _colour_texture(material) is not None:
                     warnings |= _clamped_past_edges(gltf, material, uv[idx])
-                    if prim.get("material") not in page_of:
-                        page_of[prim.get("material")] = len(maps)
-                        maps.append(_material_maps(gltf, buffers, folder, material))
+                    key = _page_key(gltf, material)
+                    if key not in page_of:
+                        page_of[key] = len(maps)
+                        maps.append(_material_maps(gltf, buffers, folder, material, warnings))
                         names.append(_image_name(gltf, _colour_texture(material)["index"]))
-                    page = page_of[prim.get("material")]
+                    page = page_of[key]
             else:
                 uvs.append(np.zeros((len(idx), 3, 2)))
             positions.append(pos)

@@ -189,12 +189,14 @@ def _run_importer(path: str) -> None:
         bpy.ops.import_scene.gltf(filepath=path)
     elif ext == ".ply":  # Blender's importers drop per-face UVs (see ply_import)
         try:
-            _, missing = _package().ply_import.import_ply(path)
+            _, missing, notes = _package().ply_import.import_ply(path)
         except (OSError, ValueError, MemoryError) as exc:
             raise BatchError(f"cannot read {path}: {str(exc) or 'out of memory'}") from exc
         if missing:
             print(f"atlas_defrag: warning: texture files the PLY names are missing: {', '.join(missing)}",
                   file=sys.stderr)
+        for note in notes:
+            print(f"atlas_defrag: warning: {note}", file=sys.stderr)
     else:
         raise BatchError(f"unsupported input format '{ext}' (use {', '.join(INPUT_EXTS)})")
 

@@ -334,7 +334,7 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
                   pages_after=int(len(layout.page_sizes)), images_written=len(images),
                   padding=int(layout.page_padding.min(initial=options.padding)),
                   copied_share=texels["copied_texels"] / max(1, texels["covered_texels"]))
-    report["warnings"] = _size_warnings(report, options)
+    report["warnings"] = _size_warnings(report, options, _chart_texels(layout))
     if progress is not None:
         progress("done", 1.0)
     return JobResult(uvs=layout.uvs, face_page=layout.face_page, page_sizes=layout.page_sizes,
@@ -346,19 +346,29 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
 _GROWTH_TOLD = 2.0
 
 
-def _size_warnings(report: dict, options: Options) -> List[str]:
+def _size_warnings(report: dict, options: Options, chart_texels: float) -> List[str]:
     """What the size of the new pages calls for saying: charts shrunk, or
-    pages far larger than the input's, because its faces shared texels."""
+    pages far larger than the input's because its faces shared texels: then
+    the charts alone cover more texels than the input's pages hold at the
+    density asked for (padding alone can outgrow tiny pages)."""
     if report.get("shrunk"):
-        return [f"charts scaled to {report.get('scale', 0):.3g} of the texel density asked for, "
-                "to fit max_page_size, max_pages or the input's texel count"]
+        return [f"charts scaled to {report.get('scale', 0):.3g}x the input's texel density, below the density "
+                "asked for, to fit max_page_size, max_pages, fixed_page_size or the input's texel count"]
     before, after = report.get("texels_before", 0), report.get("texels_after", 0)
     expected = before * options.density_scale ** 2
-    if options.texels_per_unit or not before or after <= _GROWTH_TOLD * expected:
+    if options.texels_per_unit or not before or after <= _GROWTH_TOLD * expected or chart_texels <= expected:
         return []
-    return [f"the new pages hold {after / before:.1f}x the input's texels: its faces share or repeat texels "
-            "(UVs that overlap or run outside the page), and each face now gets texels of its own; "
-            "texels_at_most_input keeps the input's count, at a lower density"]
+    return [f"the new pages hold {after / expected:.1f}x the input's texels at the density asked for: its faces "
+            "share or repeat texels (UVs that overlap or run outside the page), and each face now gets texels "
+            "of its own; texels_at_most_input keeps the input's count, at a lower density"]
+
+
+def _chart_texels(layout: _Layout) -> float:
+    """Texels the new triangles cover: their area on their pages."""
+    on_page = layout.face_page >= 0
+    uv = layout.uvs[on_page] * layout.page_sizes[layout.face_page[on_page]][:, None, :]
+    e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    return 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
 
 
 def _group_count(job: JobInput) -> int:

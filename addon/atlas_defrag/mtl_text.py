@@ -54,6 +54,13 @@ def uv_transform(arguments: str) -> str:
     return " ".join(found)
 
 
+def clamps(arguments: str) -> bool:
+    """Whether a map statement's options say `-clamp on`: the texture is then
+    read clamped to its edges, not repeated, where UVs leave [0, 1]."""
+    words = [w.lower() for w in arguments.split()[:-1]]  # the last word is the file
+    return any(w == "-clamp" and words[i + 1:i + 2] == ["on"] for i, w in enumerate(words))
+
+
 def _is_number(word: str) -> bool:
     try:
         float(word)

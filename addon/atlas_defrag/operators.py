@@ -597,12 +597,14 @@ class IMPORT_MESH_OT_textured_scan_ply(bpy.types.Operator, ImportHelper):
 
     def execute(self, context):
         try:
-            obj, missing = ply_import.import_ply(self.filepath)
+            obj, missing, notes = ply_import.import_ply(self.filepath)
         except (OSError, ValueError, MemoryError) as exc:
             self.report({"ERROR"}, f"Cannot import {os.path.basename(self.filepath)}: {str(exc) or 'out of memory'}")
             return {"CANCELLED"}
         if missing:
             self.report({"WARNING"}, f"Texture files not found beside the PLY: {', '.join(missing)}")
+        for note in notes:
+            self.report({"WARNING"}, note)
         for other in context.view_layer.objects:
             other.select_set(False)
         obj.select_set(True)

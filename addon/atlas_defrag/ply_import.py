@@ -47,7 +47,7 @@ def image_material(image_path: str):
         img = bpy.data.images.load(image_path, check_existing=True)
     except RuntimeError as exc:
         raise ValueError(f"cannot open the texture {image_path}: {exc}") from exc
-    mat = bpy.data.materials.new(os.path.splitext(os.path.basename(image_path))[0])
+    mat = bpy.data.materials.new(ply_io.readable(os.path.splitext(os.path.basename(image_path))[0]))
     if bpy.app.version < (5, 0, 0):  # always on in 5.0, where the property is deprecated
         mat.use_nodes = True
     tree = mat.node_tree
@@ -77,8 +77,9 @@ def _assign_materials(me, mesh: ply_io.PlyMesh, folder: str) -> list:
 
 def import_ply(path: str):
     """(the new object, linked to the active collection; the texture files
-    the header names that are missing). ValueError saying what is wrong with
-    the file; nothing is then added."""
+    the header names that are missing; notes on faces the file leaves
+    untextured). ValueError saying what is wrong with the file; nothing is
+    then added."""
     with open(path, "rb") as f:
         mesh = ply_io.read(f.read())
     name = os.path.splitext(os.path.basename(path))[0]
@@ -96,4 +97,4 @@ def import_ply(path: str):
     # As an import operator does: without it bpy 4.5's OBJ export, which
     # reads the evaluated scene, finds the object empty.
     bpy.context.view_layer.update()
-    return obj, missing
+    return obj, missing, mesh.notes

@@ -50,6 +50,7 @@ class PlyMesh:
                               # -1 where a face's texcoord list is not two values per corner)
     textures: list            # file names from the header, as written
     colours: np.ndarray = None  # (V, 4) float32 sRGB in 0..1 (alpha 1 when absent); None: no vertex colours
+    notes: list = field(default_factory=list)  # faces left untextured by what the file says, in words
 
 
 def _type(name: str) -> str:
@@ -81,11 +82,24 @@ def _header_lines(data: bytes):
 
 
 def _utf8(name: str) -> str:
-    """A header word read as latin-1, as UTF-8 where its bytes are (writers put file names so)."""
+    """A header word read as latin-1, as UTF-8 (writers put file names so); bytes that
+    are not UTF-8 (a Latin-1 name) are kept as surrogates, which name that very file."""
+    return name.encode("latin-1").decode("utf-8", "surrogateescape")
+
+
+def _unquoted(name: str) -> str:
+    """A name some writers put in double quotes (for its spaces), without them."""
+    return name[1:-1] if len(name) > 1 and name[0] == name[-1] == '"' else name
+
+
+def readable(name: str) -> str:
+    """A header file name for messages: its bytes that are not UTF-8 read as Latin-1, which
+    (unlike the surrogates _utf8 keeps) Blender's reports and every terminal can show."""
+    raw = name.encode("utf-8", "surrogateescape")
     try:
-        return name.encode("latin-1").decode("utf-8")
+        return raw.decode("utf-8")
     except UnicodeDecodeError:
-        return name
+        return raw.decode("latin-1")
 
 
 def _element(words: list, line: str) -> Element:
@@ -113,7 +127,7 @@ def parse_header(data: bytes):
         if words[0] == "format" and len(words) > 1:
             fmt = words[1]
         elif words[0] == "comment" and len(words) > 2 and words[1].lower() == "texturefile":
-            textures.append(_utf8(line.split(None, 2)[2].strip()))
+            textures.append(_utf8(_unquoted(line.split(None, 2)[2].strip())))
         elif words[0] == "element":
             elements.append(_element(words, line))
         elif words[0] == "property":
@@ -372,13 +386,18 @@ def read(data: bytes) -> PlyMesh:
     if len(triangles) and (triangles.min() < 0 or triangles.max() >= len(positions)):
         raise ValueError(f"a face refers to a vertex outside 0..{len(positions) - 1}")
     texnumber = face.get("texnumber")
-    texnumber = np.zeros(len(triangles), np.int64) if texnumber is None or isinstance(texnumber, tuple) \
-        else texnumber.astype(np.int64)[polygon]
+    texnumber = np.zeros(len(indices[1]), np.int64) if texnumber is None or isinstance(texnumber, tuple) \
+        else texnumber.astype(np.int64)
+    notes = _texnumber_notes(texnumber[np.asarray(indices[1]) >= 3], len(textures))
+    texnumber = texnumber[polygon]
     uvs = None
     texcoord = face.get("texcoord")
     if isinstance(texcoord, tuple):
         uvs, whole = _face_uvs(texcoord, indices[1], corners, polygon)
         texnumber[~whole] = -1  # a face without two values per corner has no texture
+        if not whole.all():
+            notes.append(f"texcoord lists without two values per corner leave {np.unique(polygon[~whole]).size} "
+                         "face(s) untextured")
     elif (per_vertex := _vertex_uvs(vertex)) is not None:
         uvs = per_vertex[triangles]
     # Blender's mesh validation would turn them into zeros without a word.
@@ -388,7 +407,18 @@ def read(data: bytes) -> PlyMesh:
     if uvs is not None and not np.isfinite(uvs).all():
         raise ValueError("a texture coordinate is not a finite number (NaN or infinity)")
     types = {p.name: p.type for e in elements if e.name == "vertex" for p in e.properties}
-    return PlyMesh(positions, triangles, uvs, texnumber, textures, _vertex_colours(vertex, types))
+    return PlyMesh(positions, triangles, uvs, texnumber, textures, _vertex_colours(vertex, types), notes)
+
+
+def _texnumber_notes(texnumber: np.ndarray, texture_count: int) -> list:
+    """A note when faces name a texture the header has no TextureFile for
+    (texnumber per face; a negative one is how OpenMVS says a face has none,
+    and a header without any leaves every face untextured, which the caller says)."""
+    outside = int((texnumber >= texture_count).sum()) if texture_count else 0
+    if not outside:
+        return []
+    return [f"texture numbers outside the header's {texture_count} TextureFile line(s) (0..{texture_count - 1}) "
+            f"leave {outside} face(s) untextured"]
 
 
 def _face_uvs(texcoord, corner_counts: np.ndarray, corners: np.ndarray, polygon: np.ndarray):
@@ -423,6 +453,6 @@ def face_textures(mesh: PlyMesh, folder: str):
             index[k] = len(found)
             found.append(path)
         else:
-            missing.append(mesh.textures[k])
+            missing.append(readable(mesh.textures[k]))
     known = (mesh.texnumber >= 0) & (mesh.texnumber < len(paths))
     return found, index[np.where(known, mesh.texnumber, len(paths))], missing

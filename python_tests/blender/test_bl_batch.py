@@ -172,8 +172,8 @@ def test_batch_failures(tmp_path, runner):
     proc = run(NO_UV_OBJ, tmp_path / "o2.obj")
     assert proc.returncode == 1 and "has no uv map" in proc.stderr.lower(), proc.stderr[-2000:]
     assert not (tmp_path / "o2.obj").exists()
-    proc = run(H.model_path("tetra"), tmp_path / "o3.fbx")
-    assert proc.returncode == 1 and "unsupported output" in proc.stderr, proc.stderr[-2000:]
+    proc = run(H.model_path("tetra"), tmp_path / "o3.fbx")  # a usage error, before Blender works
+    assert proc.returncode == 2 and "unsupported output" in proc.stderr, proc.stderr[-2000:]
     proc = run(H.ASSIMP / "OBJ" / "point_cloud.obj", tmp_path / "o4.glb")  # vertices only
     assert proc.returncode == 1 and "has no faces" in proc.stderr, proc.stderr[-2000:]
 
@@ -354,6 +354,7 @@ def test_batch_openmvs_ply_keeps_its_face_uvs(tmp_path, runner):
     assert proc.returncode == 0, proc.stderr[-3000:]
     (report,) = json.loads((tmp_path / "r.json").read_text())["objects"]
     assert textured > 13000 and report["charts_before"] == 159 and report["charts_after"] <= 40, report
+    assert "untextured" not in proc.stderr, proc.stderr  # OpenMVS's texnumber -1 says so on purpose
     _, maps = _read_obj_output(out)
     assert maps == ["scan_textured_0_v2_defrag.png"], maps
 

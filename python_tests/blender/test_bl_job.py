@@ -201,3 +201,18 @@ def test_pages_far_larger_than_the_input_say_why(job, native):
     small = job.run(shared_texels_job(job), job.Options(texels_at_most_input=True))
     assert not any("input's texels" in w for w in small.report["warnings"]), small.report["warnings"]
     assert not job.run(grid_job(job), job.Options()).report["warnings"]
+    # At a low density the padding alone outgrows the tiny pages: nothing shared, nothing said.
+    low = job.run(grid_job(job), job.Options(density_scale=0.03))
+    assert low.report["texels_after"] > 2 * 0.03 ** 2 * low.report["texels_before"], low.report
+    assert not low.report["warnings"], low.report["warnings"]
+
+
+def test_charts_shrunk_say_by_how_much_against_the_input(job, native):
+    """Asked for 4x the input's density on a page too small for it, the
+    charts get less: the warning gives the density they got, against the input's."""
+    res = job.run(grid_job(job), job.Options(density_scale=4, max_pages=1, max_page_size=128))
+    scale = res.report["scale"]
+    assert res.report["shrunk"] and 1 < scale < 4, res.report
+    assert res.report["warnings"] == [
+        f"charts scaled to {scale:.3g}x the input's texel density, below the density asked for, to fit "
+        "max_page_size, max_pages, fixed_page_size or the input's texel count"], res.report["warnings"]
