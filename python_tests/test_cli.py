@@ -768,6 +768,28 @@ def test_a_failed_write_leaves_the_earlier_runs_files_as_they_were(tmp_path, too
     assert list((tmp_path / "fresh").iterdir()) == []
 
 
+def test_a_move_into_place_that_fails_puts_back_the_files_already_replaced(tmp_path, tool_env):
+    """The image's move fails after the MTL was moved over an earlier run's:
+    it is put back (the very file, not a copy), and nothing of the new run
+    is left."""
+    source = _two_material_obj(tmp_path / "in", "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
+    out = tmp_path / "out"
+    assert subprocess.run([sys.executable, str(CLI), str(source), str(out)], capture_output=True,
+                          timeout=300, env=tool_env).returncode == 0
+    earlier = {p.name: (p.stat().st_ino, p.read_bytes()) for p in out.iterdir()}
+    assert "m_defrag.mtl" in earlier and "m_defrag_page0_base_color.png" in earlier, earlier.keys()
+    code = ("import os, sys, defrag_scan\nreal, failed = os.replace, []\n"
+            "def replace(src, dst):\n"
+            "    if str(dst).endswith('_page0_base_color.png') and '.replaced' not in str(dst) and not failed:\n"
+            "        failed.append(dst)\n        raise OSError(28, 'No space left on device')\n"
+            "    real(src, dst)\nos.replace = replace\nsys.exit(defrag_scan.main(sys.argv[1:]))\n")
+    env = dict(tool_env, PYTHONPATH=os.pathsep.join([str(CLI.parent), tool_env["PYTHONPATH"]]))
+    run = subprocess.run([sys.executable, "-c", code, str(source), str(out)], capture_output=True, text=True,
+                         timeout=300, env=env)
+    assert run.returncode == 1 and "No space left" in run.stderr, run.stderr
+    assert {p.name: (p.stat().st_ino, p.read_bytes()) for p in out.iterdir()} == earlier
+
+
 def test_the_native_obj_writer_fails_as_python_writes_do(native, tmp_path):
     """A file the writer cannot write is an OSError with its errno (a full disk here)."""
     args = (np.zeros((3, 3)), np.array([[0, 1, 2]]), np.zeros((1, 3, 2)), np.zeros(1, np.int64), ["a"])

@@ -256,13 +256,35 @@ def write_checked(args, scan, laid, rows, inp, result, old):
             raise Failed(f"writing into {args.output} failed: {exc}") from exc
         try:
             unnamed = write_obj(scratch / outputs[0].name, scan, *every_instance(result, rows), maps)
-            for path in outputs[1:] + outputs[:1]:
-                os.replace(scratch / path.name, path)
+            swap_in(scratch, outputs[1:] + outputs[:1])
         except OSError as exc:
             raise Failed(f"writing into {args.output} failed: {exc}") from exc
         finally:  # Ctrl-C and encoder errors too: nothing half written is left
             shutil.rmtree(scratch, ignore_errors=True)
         return (measured.result() if measured else (None, None)), unnamed
+
+
+def swap_in(scratch: Path, outputs: list[Path]) -> None:
+    """Moves the files of these names from scratch over outputs, in order.
+    The files they replace wait in scratch until all are in; when a move
+    fails (or is interrupted), every output is put back as it was."""
+    kept = scratch / ".replaced"
+    kept.mkdir()
+    done = []  # (output, whether an earlier file was kept), as far as the moves went
+    try:
+        for path in outputs:
+            had = os.path.lexists(path)
+            if had:
+                os.replace(path, kept / path.name)
+            done.append((path, had))
+            os.replace(scratch / path.name, path)
+    except BaseException:
+        for path, had in reversed(done):
+            if had:
+                os.replace(kept / path.name, path)
+            elif os.path.lexists(path):
+                os.remove(path)
+        raise
 
 
 def main(argv=None) -> int:
