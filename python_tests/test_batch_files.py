@@ -110,13 +110,17 @@ def test_a_run_into_its_input_folder_takes_no_output_for_an_input(tmp_path):
     """An earlier run's output is known by the report beside it naming another
     input, not by its name: rock_2.obj, and a.glb beside a.obj, may be scans
     of their own (both were dropped, and the run said 0 done, exit 0). A
-    model given twice, by itself and in its folder, is done once."""
-    for name in ("a.obj", "a.glb", "a_2.glb", "b.glb", "rock.obj", "rock_2.obj"):
+    model given twice, by itself and in its folder, is done once. An earlier
+    run's OBJ output is known so as well in a run writing GLB."""
+    for name in ("a.obj", "a.glb", "a_2.glb", "b.glb", "rock.obj", "rock_2.obj", "c.obj", "c_2.obj"):
         (tmp_path / name).write_bytes(b"")
     (tmp_path / "a_2.report.json").write_text(json.dumps({"input": str(tmp_path / "a.obj")}))
+    (tmp_path / "c_2.report.json").write_text(json.dumps({"input": str(tmp_path / "c.obj")}))
     (tmp_path / "rock_2.report.json").write_text("not a report")
     files = batch._expand([str(tmp_path), str(tmp_path / "b.glb")])
-    kept = batch._without_outputs(files, str(tmp_path), "glb")
+    kept = batch._without_outputs(files, str(tmp_path))
+    assert [p.split("/")[-1] for p in kept if p.split("/")[-1].startswith("c")] == ["c.obj"], kept
+    kept = [p for p in kept if not p.split("/")[-1].startswith("c")]
     assert [p.split("/")[-1] for p in kept] == ["a.glb", "a.obj", "b.glb", "rock.obj", "rock_2.obj"]
     jobs = batch._output_names(kept, str(tmp_path), "glb")
     # Never onto an input, nor onto another input's earlier output; a.obj's is a_2.glb again (then skipped).

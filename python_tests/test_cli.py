@@ -14,6 +14,21 @@ import pytest
 CLI = Path(__file__).resolve().parent.parent / "tools" / "defrag_scan.py"
 
 
+def test_cli_runs_from_a_checkout_without_pythonpath_and_refuses_formats_it_cannot_read(tmp_path):
+    """As a newcomer types it; an extension it cannot read is a usage error
+    (exit 2), as in the batch entry."""
+    from conftest import BUILD, REPO
+
+    if BUILD != REPO / "build":
+        pytest.skip("the fallback finds the checkout's own build/ only")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    run = subprocess.run([sys.executable, str(CLI), "--help"], capture_output=True, text=True, timeout=60, env=env)
+    assert run.returncode == 0 and "_defrag_page<P>_<map>.png" in run.stdout, run.stderr
+    run = subprocess.run([sys.executable, str(CLI), str(tmp_path / "m.fbx"), str(tmp_path)], capture_output=True,
+                         text=True, timeout=60, env=env)
+    assert run.returncode == 2 and "unsupported scan format '.fbx'" in run.stderr, run.stderr
+
+
 def test_cli_output_loads_back_flip_free_with_the_colours_kept(native, scans, scan_path, tool_env, tmp_path):
     import scan_io
 

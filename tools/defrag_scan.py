@@ -3,7 +3,8 @@
     PYTHONPATH=build/addon .venv/bin/python tools/defrag_scan.py IN.obj|IN.gltf|IN.glb|IN.ply OUT_DIR [options]
 
 Runs the add-on's job (atlas_defrag.job.run, the same layout and bake as in
-Blender), writes OUT_DIR/<name>.obj + .mtl + one PNG per page and map, and
+Blender), writes OUT_DIR/<name>_defrag.obj + <name>_defrag.mtl + one
+<name>_defrag_page<P>_<map>.png per page and map, and
 prints charts, seam length, texels and seconds per stage (--metrics adds
 flips, overlap, density loss and PSNR, measured independently of the job).
 The other options are those of the add-on (--help lists them). This entry
@@ -24,7 +25,9 @@ import numpy as np
 
 import scan_io  # beside this file
 
-try:  # the add-on's bpy-free modules, from the build (scripts/demo.sh sets PYTHONPATH)
+# The add-on's bpy-free modules: from PYTHONPATH (scripts/demo.sh sets it), else from this checkout's build.
+sys.path.append(str(Path(__file__).resolve().parent.parent / "build" / "addon"))
+try:
     from atlas_defrag import _native, job, options, png_files
 except ImportError as exc:
     sys.exit(f"defrag_scan: {exc}: build the module (cmake --build build) and put its folder "
@@ -160,7 +163,10 @@ def parse_args(argv):
                              "colour PSNR) while the files are written, at some cost in time (bench/RESULTS.md; "
                              "default: off)")
     options.add_arguments(parser)
-    return options.parsed(parser, argv)
+    args = options.parsed(parser, argv)
+    if args.input.suffix.lower() not in scan_io.SCAN_EXTS:
+        parser.error(f"unsupported scan format '{args.input.suffix}' (use {', '.join(scan_io.SCAN_EXTS)})")
+    return args
 
 
 def folder_problem(folder: Path) -> str:

@@ -121,6 +121,9 @@ _VERTEX_COLOURS = ("the mesh has vertex colours, which the command line does not
                    "(in Blender they stay on the mesh)")
 
 
+SCAN_EXTS = (".obj", ".gltf", ".glb", ".ply")
+
+
 def load(path) -> Scan:
     path = Path(path)
     suffix = path.suffix.lower()

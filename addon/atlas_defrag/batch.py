@@ -1424,7 +1424,7 @@ def main_multi(argv) -> int:
     if problem:
         print(f"atlas_defrag: error: {problem}", file=sys.stderr)
         return 2
-    files = _without_outputs(_expand(args.inputs), args.out_dir, args.format)
+    files = _without_outputs(_expand(args.inputs), args.out_dir)
     if not files:
         print("atlas_defrag: error: no input models", file=sys.stderr)
         return 2
@@ -1477,16 +1477,16 @@ def _passthrough(args) -> list:
     return out
 
 
-def _without_outputs(files, out_dir: str, fmt: str) -> list:
-    """files less the models a run into out_dir wrote there before: a file in
-    out_dir in the output format whose report beside it (see _output_names)
-    names another file as its input. A name alone proves nothing: rock_2.obj
-    may be a scan of its own."""
+def _without_outputs(files, out_dir: str) -> list:
+    """files less the models a run into out_dir wrote there before, in any
+    output format (an earlier run may have written another): a file in
+    out_dir whose report beside it (see _output_names) names another file as
+    its input. A name alone proves nothing: rock_2.obj may be a scan of its own."""
     out = _real(out_dir)
 
     def earlier_output(f: str) -> bool:
         stem, ext = os.path.splitext(os.path.basename(f))
-        if ext.lower() != "." + fmt or _real(os.path.dirname(os.path.abspath(f))) != out:
+        if ext.lower() not in OUTPUT_EXTS or _real(os.path.dirname(os.path.abspath(f))) != out:
             return False
         source = _report_input(os.path.join(out_dir, f"{stem}.report.json"))
         return bool(source) and _real(source) != _real(f)
