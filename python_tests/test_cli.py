@@ -247,7 +247,6 @@ def test_cli_names_what_is_wrong_with_a_bad_gltf(tool_env, tmp_path, changes, me
     ({}, [[0, 1, 2]]),
     ({"nodes": [{"mesh": 0, "scale": [-1, 1, 1]}]}, [[2, 1, 0]]),  # mirrored: the winding turns round
     ({"meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": 5}]}]}, [[0, 1, 2]]),  # a strip
-    ({"meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": 6}]}]}, [[0, 1, 2]]),  # a fan
 ])
 def test_gltf_triangles_as_the_primitive_and_its_node_give_them(tmp_path, changes, triangles):
     import scan_io
@@ -273,6 +272,21 @@ def test_gltf_strips_keep_one_winding_and_drop_their_joins(tmp_path):
         bufferViews=[{"buffer": 0, "byteLength": 72}, {"buffer": 0, "byteOffset": 72, "byteLength": 20}],
         buffers=[{"byteLength": len(data), "uri": "data:;base64," + base64.b64encode(data).decode()}])
     assert scan_io.load(path).triangles.tolist() == [[0, 1, 2], [2, 1, 3], [2, 3, 4], [4, 3, 5]]
+
+
+def test_gltf_fans_turn_round_their_first_vertex(tmp_path):
+    """A fan of five vertices: three triangles, each from vertex 0."""
+    import base64
+
+    import scan_io
+
+    data = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [-1, 1, 0]], np.float32).tobytes()
+    path = _one_triangle_gltf(
+        tmp_path, "fan.gltf", meshes=[{"primitives": [{"attributes": {"POSITION": 0}, "mode": 6}]}],
+        accessors=[{"bufferView": 0, "componentType": 5126, "count": 5, "type": "VEC3"}],
+        bufferViews=[{"buffer": 0, "byteLength": len(data)}],
+        buffers=[{"byteLength": len(data), "uri": "data:;base64," + base64.b64encode(data).decode()}])
+    assert scan_io.load(path).triangles.tolist() == [[0, 1, 2], [0, 2, 3], [0, 3, 4]]
 
 
 def test_gltf_sparse_accessors_are_applied(tmp_path):

@@ -551,13 +551,18 @@ def test_a_small_max_page_size_shrinks_and_says_so(native, scans):
 
 def test_page_side_modes_and_texel_density_target(native, scans, tetra_result):
     scan, full = tetra_result
+    side = {}
     for sides, square in (("power_of_two", False), ("multiple_of_4", True), ("tight", False)):
         result = native.defragment(*args(scan), options={"page_sides": sides, "square_pages": square})
         (w, h), = result["page_sizes"].tolist()
+        side[sides] = (w, h)
         if sides == "power_of_two":
             assert w & (w - 1) == 0 and h & (h - 1) == 0
         if square:
             assert w == h and w % 4 == 0
+    # A tight page is not rounded (on this scan a side is no multiple of 4), and takes less area.
+    (w, h), (pw, ph), (mw, mh) = side["tight"], side["power_of_two"], side["multiple_of_4"]
+    assert (w % 4 or h % 4) and w <= pw and h <= ph and w * h < min(pw * ph, mw * mh), side
     # A density target of twice the input's texels per unit of length.
     textured = scan.face_page >= 0
     uv = scan.uvs[textured] * np.asarray(scan.page_sizes)[scan.face_page[textured]][:, None, :]

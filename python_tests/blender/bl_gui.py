@@ -24,6 +24,7 @@ ARGS = ap.parse_args(argv)
 sys.path.insert(0, ARGS.addon_parent)
 
 import bpy  # noqa: E402
+import numpy as np  # noqa: E402
 
 import atlas_defrag  # noqa: E402
 import blhelp as H  # noqa: E402
@@ -44,6 +45,14 @@ def done(name, ok, info=None):
     RESULT["steps"][name] = {"ok": ok, "info": info}
     with open(ARGS.out, "w") as f:
         json.dump(RESULT, f, indent=1, default=str)
+
+
+def new_uvs(name):
+    """The UVs of the object's first new map, per loop."""
+    layer = next(u for u in bpy.data.objects[name].data.uv_layers if u.name.endswith("_defrag"))
+    uv = np.empty(2 * len(layer.data), np.float32)
+    layer.data.foreach_get("uv", uv)
+    return uv
 
 
 def new_uv_present(name):
@@ -166,14 +175,17 @@ def driver():
     try:
         op = bpy.context.window_manager.operators[-1]
         op.properties.run_again, op.properties.padding = True, 8
+        active = bpy.context.view_layer.objects.active.name
+        uv_before = new_uvs(active)
         OUTCOME["status"] = None
         win, override = ctx()
         with override:
             res = bpy.ops.ed.undo_redo()  # what the redo panel calls
         assert res == {"FINISHED"}, res
         assert OUTCOME["status"] == "finished", OUTCOME  # already: nothing left running
-        active = bpy.context.view_layer.objects.active.name
+        assert OUTCOME["report"][0]["padding"] == 8, OUTCOME["report"][0].get("padding")
         assert new_uv_present(active), [u.name for u in bpy.data.objects[active].data.uv_layers]
+        assert not np.array_equal(new_uvs(active), uv_before), "the redo left the layout of padding 4"
         yield 0.3
         with override:
             bpy.ops.ed.undo()
