@@ -583,6 +583,16 @@ def test_a_clamped_colour_map_is_warned_of_where_faces_leave_the_page(tmp_path, 
                          "the new texture repeats it there"] if warned else []), warnings
 
 
+def test_an_obj_texture_in_a_format_pillow_cannot_read_is_named(tmp_path):
+    """An OpenEXR map (Blender's entries read it; this one reads what Pillow reads)."""
+    import scan_io
+
+    path = _two_material_obj(tmp_path, "newmtl a\nmap_Kd t0.exr\nnewmtl b\nmap_Kd t1.png\n")
+    (tmp_path / "t0.exr").write_bytes(b"\x76\x2f\x31\x01" + bytes(60))
+    with pytest.raises(ValueError, match="^its t0.exr is in no image format this reader decodes$"):
+        scan_io.load(path)
+
+
 def test_an_obj_may_name_two_material_libraries(tmp_path):
     import scan_io
 

@@ -321,7 +321,7 @@ def load_obj(path: Path) -> Scan:
             warnings += _clamped_map_warning(name, uvs[has_uv & (obj["face_material"] == m)])
     face_page = np.where(has_uv, material_page[obj["face_material"]], -1).astype(np.int32)
     bases = [page["base_color"] for page in pages]
-    sizes = np.array([image_size(p) for p in bases], dtype=np.int32).reshape(-1, 2)
+    sizes = np.array([_decodable_size(p, p.name) for p in bases], dtype=np.int32).reshape(-1, 2)
     return Scan(obj["positions"], tris, uvs, face_page, sizes, bases, pages,
                 files=[path] + libraries + [p for page in pages for p in page.values()],
                 warnings=warnings)
@@ -350,7 +350,7 @@ def load_ply(path: Path) -> Scan:
     pages = [Path(p) for p in found]
     face_page = face_page.astype(np.int32) if mesh.uvs is not None else np.full(len(mesh.triangles), -1, np.int32)
     uvs = mesh.uvs if mesh.uvs is not None else np.zeros((len(mesh.triangles), 3, 2))
-    sizes = np.array([image_size(p) for p in pages], dtype=np.int32).reshape(-1, 2)
+    sizes = np.array([_decodable_size(p, p.name) for p in pages], dtype=np.int32).reshape(-1, 2)
     warnings = [f"texture {name} not found: its faces are left untextured" for name in missing] + mesh.notes
     if mesh.colours is not None:
         warnings.append(_VERTEX_COLOURS)
@@ -461,8 +461,8 @@ def _image_name(gltf: dict, texture_index: int) -> str:
     return f"image {index}" if uri.startswith("data:") else urllib.parse.unquote(uri)
 
 
-def _decodable_size(data: bytes, name: str) -> tuple[int, int]:
-    """image_size of a glTF's image, UnreadableTexture naming it when Pillow cannot read it."""
+def _decodable_size(data, name: str) -> tuple[int, int]:
+    """image_size of a scan's image (its bytes or file), UnreadableTexture naming it when Pillow cannot read it."""
     from PIL import UnidentifiedImageError
 
     try:

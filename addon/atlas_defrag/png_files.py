@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: MIT
-"""8-bit PNG files to and from numpy arrays: grey, RGB and RGBA written,
-RGB and RGBA read.
+"""PNG files to and from numpy arrays: 8- or 16-bit grey, RGB and RGBA
+written, 8-bit RGB and RGBA read.
 
 Blender's Image.save() encodes one image at a time on one core, with zlib.
 Here the pixel data is compressed and inflated natively (_native.zlib_compress
@@ -45,12 +45,15 @@ def _scanlines(pixels: np.ndarray) -> np.ndarray:
     filter type, Up: at the fastest deflate level it compresses baked
     textures nearly as well as slower levels, in a fraction of their time
     (bench/README.md)."""
-    if pixels.dtype != np.uint8 or pixels.ndim != 3 or pixels.shape[2] not in _COLOUR_TYPE or 0 in pixels.shape:
-        raise ValueError(f"encode_png needs (H, W, 1, 3 or 4) uint8 pixels, H and W >= 1 (PNG has no empty "
-                         f"image), got {pixels.shape} {pixels.dtype}")
-    height, width, channels = pixels.shape
-    rows = pixels[::-1].reshape(height, channels * width)  # PNG rows run top down (a view, no copy)
-    scanlines = np.empty((height, channels * width + 1), dtype=np.uint8)
+    if pixels.dtype not in (np.uint8, np.uint16) or pixels.ndim != 3 or pixels.shape[2] not in _COLOUR_TYPE \
+            or 0 in pixels.shape:
+        raise ValueError(f"encode_png needs (H, W, 1, 3 or 4) uint8 or uint16 pixels, H and W >= 1 (PNG has no "
+                         f"empty image), got {pixels.shape} {pixels.dtype}")
+    height = pixels.shape[0]
+    if pixels.dtype == np.uint16:  # PNG's samples are big-endian; its filters work on bytes
+        pixels = pixels.astype(">u2").view(np.uint8)
+    rows = pixels[::-1].reshape(height, -1)  # PNG rows run top down (a view, no copy)
+    scanlines = np.empty((height, rows.shape[1] + 1), dtype=np.uint8)
     scanlines[:, 0] = _UP_FILTER
     np.subtract(rows[1:], rows[:-1], out=scanlines[1:, 1:])  # the first row has zeros above it
     scanlines[0, 1:] = rows[0]
@@ -60,7 +63,7 @@ def _scanlines(pixels: np.ndarray) -> np.ndarray:
 def _write_png(out: BinaryIO, pixels: np.ndarray, stream: np.ndarray) -> None:
     """The PNG of pixels whose rows compress to the zlib stream `stream`."""
     height, width, channels = pixels.shape
-    header = _IHDR.pack(width, height, 8, _COLOUR_TYPE[channels], 0, 0, 0)  # 8-bit, no interlace
+    header = _IHDR.pack(width, height, 8 * pixels.itemsize, _COLOUR_TYPE[channels], 0, 0, 0)  # no interlace
     out.write(SIGNATURE)
     _write_chunk(out, b"IHDR", header)
     _write_chunk(out, b"IDAT", memoryview(stream))
@@ -73,7 +76,7 @@ def _compressed_rows(pixels: np.ndarray) -> np.ndarray:
 
 
 def encode_png(pixels: np.ndarray) -> bytes:
-    """(H, W, 1, 3 or 4) uint8 pixels, row 0 at the bottom as Blender stores them, as a PNG."""
+    """(H, W, 1, 3 or 4) uint8 or uint16 pixels, row 0 at the bottom as Blender stores them, as a PNG."""
     out = io.BytesIO()
     _write_png(out, pixels, _compressed_rows(pixels))
     return out.getvalue()

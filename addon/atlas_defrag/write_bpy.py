@@ -110,6 +110,30 @@ def _save_exr(img, path: str, tag: str) -> None:
     _point_at(img, path)
 
 
+def _within_unit(pixels: np.ndarray) -> bool:
+    """Whether a source map's values all lie in [0, 1], as a 16-bit PNG's or
+    TIFF's do (up to the round-off of Blender's turning them linear)."""
+    return not pixels.size or (float(pixels.min()) >= -1e-4 and float(pixels.max()) <= 1 + 1e-4)
+
+
+def _sixteen_bit_srgb(pixels: np.ndarray) -> np.ndarray:
+    """The 16-bit samples of a PNG holding an sRGB float map whose source lies
+    in [0, 1] (a 16-bit PNG or TIFF), as Blender holds it (scene linear,
+    colours premultiplied by alpha): colours divided by alpha, clipped to
+    [0, 1] (where resampling overshot), then sRGB-encoded. Written as OpenEXR,
+    such a map would hold sRGB values, which every other reader takes for linear."""
+    if pixels.shape[2] not in (1, 3, 4):
+        pixels = with_channels(pixels, 4)
+    colour = np.clip(pixels, 0, 1, dtype=np.float32)
+    if colour.shape[2] == 4:
+        alpha = colour[:, :, 3:]
+        np.divide(colour[:, :, :3], alpha, out=colour[:, :, :3], where=alpha > 0)
+        np.minimum(colour[:, :, :3], 1, out=colour[:, :, :3])
+    rgb = colour[:, :, :3] if colour.shape[2] == 4 else colour
+    rgb[...] = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * np.power(rgb, 1 / 2.4) - 0.055)
+    return np.rint(colour * 65535).astype(np.uint16)
+
+
 def _raw_file_tag(img) -> str:
     """Blender saves an sRGB float image's buffer (scene linear) as sRGB
     values, and would save any other as sRGB too and tag it sRGB. "" for an
@@ -389,21 +413,38 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
         k = pages.index(out.page) if out.page in pages else 0
         stem = image_stem(out.source)
         name = f"{stem}{SUFFIX}" if k == 0 else f"{stem}{SUFFIX}_{k + 1}"
-        path = _unique_path(image_dir, _safe_file_stem(name), ".exr" if out.is_float else ".png", taken)
+        source = target.read.job.images.get(out.source)
+        samples = _sixteen_bit_srgb(out.pixels) if out.is_float and out.colorspace == "sRGB" and \
+            (source is None or _within_unit(source.pixels)) else None
+        ext = ".exr" if out.is_float and samples is None else ".png"
+        path = _unique_path(image_dir, _safe_file_stem(name), ext, taken)
         journal.add(lambda p=path: _remove_file(p))  # a file is written only once its path is journalled
-        if not out.is_float:
-            png_files_due.append((out, name, path))
+        if ext == ".png":
+            png_files_due.append((out, name, path, out.pixels if samples is None else samples))
             continue
         img, tag = _new_float_image(out, name)
         created(out, img)
         _save_exr(img, path, tag)
-    png_files.write_pngs((path, out.pixels) for out, _, path in png_files_due)
-    for out, name, path in png_files_due:
+    png_files.write_pngs((path, pixels) for _, _, path, pixels in png_files_due)
+    for out, name, path, _ in png_files_due:
         created(out, _load_saved_png(out, name, path))
     if storage == "PACK":
         for img in page_role_image.values():
-            img.pack()
+            _pack_beside_blend(img)
     return page_role_image, created_images
+
+
+def _pack_beside_blend(img) -> None:
+    """Packs the bytes of an image written to the temporary folder under the
+    name of its file beside the .blend ('//'): unpacking it to its original
+    place must not write into a folder that Blender deletes on exit. (The
+    packed file keeps the path it was packed from, so the path comes first;
+    filepath_raw changes it without reloading the image from there.)"""
+    path = bpy.path.abspath(img.filepath)
+    with open(path, "rb") as f:
+        data = f.read()
+    img.filepath_raw = "//" + os.path.basename(path)
+    img.pack(data=data, data_len=len(data))
 
 
 def _write_uv_map(target: _Target, first: bool, active_name: Optional[str]) -> str:

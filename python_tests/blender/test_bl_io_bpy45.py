@@ -153,6 +153,69 @@ def test_write_float_image_and_save(pkg, tmp_path):
     assert np.allclose(b.reshape(8, 16, 4), src.pixels, atol=1e-4)
 
 
+def _png16_samples(path) -> np.ndarray:
+    """(H, W, C) uint16 samples, row 0 at the bottom, of a 16-bit PNG as png_files writes it (Up filters)."""
+    import struct
+    import zlib
+
+    data = open(path, "rb").read()
+    width, height, depth, colour = struct.unpack(">IIBB", data[16:26])
+    assert depth == 16, depth
+    channels = {0: 1, 2: 3, 6: 4}[colour]
+    rows = np.frombuffer(zlib.decompress(data[41:data.index(b"IEND") - 8]), np.uint8).reshape(height, -1)
+    assert set(rows[:, 0]) <= {2}, set(rows[:, 0])
+    raw = np.cumsum(rows[:, 1:], axis=0, dtype=np.uint8)  # undoes Up, modulo 256
+    return raw.view(">u2").reshape(height, width, channels)[::-1].astype(np.uint16)
+
+
+def test_sixteen_bit_colour_map_stays_a_sixteen_bit_png(pkg, tmp_path):
+    """A 16-bit sRGB map (Blender holds it as linear floats, premultiplied) is
+    written as a 16-bit PNG of the same samples, straight alpha kept: as
+    OpenEXR it held sRGB values, which other readers take for linear (an OBJ
+    reopened twice as bright), and half-transparent texels took colours
+    premultiplied twice."""
+    H.reset()
+    rng = np.random.default_rng(5)
+    source = rng.integers(0, 65536, (8, 16, 4), dtype=np.uint16)
+    source[:, :8, 3] = 65535
+    source[:, 8:, 3] = 20000  # about 0.3
+    (tmp_path / "in").mkdir()
+    path = tmp_path / "in" / "deep.png"
+    path.write_bytes(pkg.png_files.encode_png(source))
+    obj = H.textured_plane(image_size=(16, 8))
+    node = next(n for n in H.image_nodes(obj.material_slots[0].material))
+    node.image = bpy.data.images.load(str(path))
+    assert node.image.is_float and node.image.colorspace_settings.name == "sRGB"
+    settings = pkg.api.Settings.from_kwargs(storage="SAVE", image_dir=str(tmp_path / "out"))
+    read = pkg.api.prepare(obj, settings)
+    report = pkg.api.finish(obj, read, identity_result(pkg, read), settings)
+    img = bpy.data.images[report["images"][0]]
+    assert img.is_float and img.colorspace_settings.name == "sRGB" and img.filepath.endswith(".png"), img.filepath
+    written = _png16_samples(bpy.path.abspath(img.filepath))
+    assert np.array_equal(written[:, :, 3], source[:, :, 3])
+    error = np.abs(written[:, :, :3].astype(np.int64) - source[:, :, :3])
+    assert error[:, :8].max() <= 2 and error[:, 8:].max() <= 8, (error[:, :8].max(), error[:, 8:].max())
+
+
+def test_packed_images_unpack_beside_the_blend(pkg, tmp_path):
+    """Unpacked to their original place, the new images land beside the
+    .blend, not in the temporary folder they were written to first (which
+    Blender deletes on exit)."""
+    H.reset()
+    obj = H.textured_plane(image_size=(16, 8))
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    report = pkg.defragment(bpy.data.objects[obj.name])
+    img = bpy.data.images[report["images"][0]]
+    pixels = np.empty(len(img.pixels), np.float32)
+    img.pixels.foreach_get(pixels)
+    assert img.packed_file is not None and img.filepath == "//Plane_tex_defrag.png", img.filepath
+    img.unpack(method="WRITE_ORIGINAL")
+    assert (tmp_path / "Plane_tex_defrag.png").is_file(), sorted(p.name for p in tmp_path.iterdir())
+    again = np.empty(len(img.pixels), np.float32)
+    img.pixels.foreach_get(again)
+    assert np.array_equal(again, pixels)
+
+
 def test_settings_validation(pkg):
     with pytest.raises(pkg.DefragError, match="weighting"):
         pkg.api.Settings.from_kwargs(weighting="xyz")
@@ -263,8 +326,7 @@ def test_write_float_image_packed(pkg):
     report = pkg.api.finish(obj, read, identity_result(pkg, read), settings)
     img = bpy.data.images[report["images"][0]]
     assert img.is_float and img.packed_file is not None
-    assert os.path.basename(img.filepath) == "Plane_tex_defrag.exr", img.filepath
-    assert not os.path.exists(os.path.dirname(bpy.path.abspath(img.filepath)))
+    assert img.filepath == "//Plane_tex_defrag.exr", img.filepath  # not the temporary file, gone
     b = np.empty(len(img.pixels), np.float32)
     img.pixels.foreach_get(b)
     assert np.allclose(b.reshape(8, 16, 4), src.pixels, atol=1e-4)

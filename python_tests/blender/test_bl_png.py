@@ -67,6 +67,28 @@ def test_png_loads_into_blender_as_written(pkg, tmp_path):
         bpy.data.images.remove(img)
 
 
+@pytest.mark.parametrize("channels", [1, 3, 4])
+def test_sixteen_bit_png_holds_its_samples(pkg, tmp_path, channels):
+    """Big-endian samples, as Pillow (grey) and Blender (every layout, read raw) read them."""
+    import bpy
+    from PIL import Image
+
+    image = np.random.default_rng(channels).integers(0, 65536, (23, 37, channels), dtype=np.uint16)
+    if channels == 4:
+        image[:, :, 3] = 65535  # Blender premultiplies a float buffer's colours by alpha
+    path = tmp_path / "deep.png"
+    path.write_bytes(pkg.png_files.encode_png(image))
+    if channels == 1:
+        assert np.array_equal(np.asarray(Image.open(path)).astype(np.uint16), image[::-1, :, 0])
+    img = bpy.data.images.load(str(path), check_existing=False)
+    img.colorspace_settings.name = "Non-Color"  # the samples as they are, not turned linear
+    got = np.empty(len(img.pixels), np.float32)
+    img.pixels.foreach_get(got)
+    got = np.rint(got * 65535).reshape(image.shape[:2] + (4,))
+    assert img.is_float and np.array_equal(got[:, :, :channels] if channels > 1 else got[:, :, :1], image)
+    bpy.data.images.remove(img)
+
+
 def test_png_refuses_other_pixel_formats(pkg):
     with pytest.raises(ValueError, match="uint8"):
         pkg.png_files.encode_png(np.zeros((4, 4, 2), np.uint8))
