@@ -147,12 +147,23 @@ def _raw_file_tag(img) -> str:
 
 
 def _load_saved_png(out: OutputImage, name: str, path: str):
-    """The image written by png_files at path, as a FILE image named name."""
+    """The image written by png_files at path, as a FILE image named name
+    (name.001, ... where an image has that name: Blender 3.4 would give the
+    name to the new image and rename the other)."""
     img = bpy.data.images.load(path, check_existing=False)
-    img.name = name
+    img.name = _untaken(name, bpy.data.images, img)
     _set_look(img, out)
     _point_at(img, path)
     return img
+
+
+def _untaken(name: str, ids, own) -> str:
+    """name, or the first of name.001, name.002, ... that no ID in ids but own has."""
+    candidate, k = name, 0
+    while candidate in ids and ids[candidate] != own:
+        k += 1
+        candidate = f"{name}.{k:03d}"
+    return candidate
 
 
 def _point_at(img, path: str) -> None:

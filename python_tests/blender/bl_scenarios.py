@@ -1244,6 +1244,21 @@ def default_uv_readers_keep_the_old_map(pkg):
     assert bpy.data.objects["Readers"].modifiers["Displace"].uv_layer == ""
 
 
+def an_image_already_named_as_the_new_one_keeps_its_name(pkg):
+    """A user's image named <image>_defrag stays that image; the new one is
+    numbered (Blender 3.4 gave a renamed image the name, numbering the other)."""
+    H.reset()
+    obj = H.textured_plane("Named")
+    theirs = bpy.data.images.new("Named_tex_defrag", 8, 8)
+    pointer = theirs.as_pointer()
+    H.make_active(obj)
+    report = pkg.defragment(obj)
+    assert bpy.data.images["Named_tex_defrag"].as_pointer() == pointer
+    assert tuple(bpy.data.images["Named_tex_defrag"].size) == (8, 8)
+    assert report["images"] == ["Named_tex_defrag.001"], report["images"]
+    return report["images"]
+
+
 def long_uv_map_names_fit_the_nodes(pkg):
     """A UV Map node holds 63 bytes of a map's name (4.x maps may be longer):
     the new map's name is cut to fit, and a render map longer than that is
@@ -1308,6 +1323,7 @@ SCENARIOS = {
     "obj_output_names_a_base_colour_behind_a_mix": obj_output_names_a_base_colour_behind_a_mix,
     "default_uv_readers_keep_the_old_map": default_uv_readers_keep_the_old_map,
     "long_uv_map_names_fit_the_nodes": long_uv_map_names_fit_the_nodes,
+    "an_image_already_named_as_the_new_one_keeps_its_name": an_image_already_named_as_the_new_one_keeps_its_name,
     "material_shared_with_an_unselected_object": material_shared_with_an_unselected_object,
 }
 for _case in ERRORS:

@@ -17,7 +17,8 @@ GROUPS = {
     "light": ["write_identity_layout", "material_index_past_the_slots_keeps_drawing_with_the_last",
               "linked_duplicate_with_its_own_material_is_named", "png_read_from_file", "redo_asks_first",
               "source_uv_warning_names_rendered_nodes", "default_uv_readers_keep_the_old_map",
-              "long_uv_map_names_fit_the_nodes", "material_shared_with_an_unselected_object",
+              "long_uv_map_names_fit_the_nodes", "an_image_already_named_as_the_new_one_keeps_its_name",
+              "material_shared_with_an_unselected_object",
               "operator_takes_what_it_is_told", "image_settings_the_bake_cannot_follow_are_said",
               "linear_float_images_keep_their_colour_space", "obj_output_names_a_base_colour_behind_a_mix"]
     + ["error_" + c for c in sorted(S.ERRORS)],

@@ -15,7 +15,8 @@ NATIVE_SCENARIOS = ["operator_tetra", "png_read_from_file", "edit_mode_undo", "p
                     "several_objects_one_fails", "one_atlas_for_all_selected", "one_atlas_shared_material",
                     "shared_material_one_at_a_time", "quads_stay_whole", "scan_quads_stay_whole",
                     "source_uv_warning_names_rendered_nodes", "default_uv_readers_keep_the_old_map",
-                    "long_uv_map_names_fit_the_nodes", "material_shared_with_an_unselected_object",
+                    "long_uv_map_names_fit_the_nodes", "an_image_already_named_as_the_new_one_keeps_its_name",
+                    "material_shared_with_an_unselected_object",
                     "operator_takes_what_it_is_told", "image_settings_the_bake_cannot_follow_are_said",
                     "linear_float_images_keep_their_colour_space", "obj_output_names_a_base_colour_behind_a_mix",
                     "linked_duplicate_with_its_own_material_is_named"]
