@@ -160,7 +160,11 @@ def import_model(path: str):
     try:
         _run_importer(path)
     except RuntimeError as exc:
-        raise BatchError(f"Blender's importer failed: {_operator_error(exc)}") from exc
+        error = _operator_error(exc)
+        if re.match(r"^\w+(Error|Exception):", error):  # Python's own words from inside the importer
+            error += " (the importer broke on the file: it may break its format's specification, or use " \
+                     "what this Blender's importer cannot read)"
+        raise BatchError(f"Blender's importer failed: {error}") from exc
     new = [o for o in bpy.data.objects if o not in before]
     if not any(o.type == "MESH" for o in new):
         raise BatchError(f"no mesh imported from {path}")

@@ -321,6 +321,18 @@ def test_an_output_named_as_an_input_texture_is_refused(tmp_path):
     assert _digest(tmp_path) == before
 
 
+def test_an_importer_that_breaks_on_the_file_is_said_to(tmp_path):
+    """Blender's glTF importer raises a bare IndexError on a file whose index
+    lies out of range: the message says the importer broke on the file."""
+    source = H.ASSIMP / "glTF2" / "IndexOutOfRange" / "IndexOutOfRange.gltf"
+    proc = subprocess.run([sys.executable, str(BATCH), str(source), str(tmp_path / "o.glb")], capture_output=True,
+                          text=True, timeout=300)
+    last = proc.stderr.strip().splitlines()[-1]
+    assert proc.returncode == 1 and f"{source}: Blender's importer failed: " in last, last
+    assert "Error:" in last and "the importer broke on the file" in last, last
+    assert not (tmp_path / "o.glb").exists()
+
+
 @pytest.mark.parametrize("source, target, message", [
     ("tetra", "o.fbx", "unsupported output format '.fbx'"), ("tetra", "o", "unsupported output format ''"),
     ("model.stl", "o.glb", "unsupported input format '.stl'")])
