@@ -111,15 +111,20 @@ def test_a_run_into_its_input_folder_takes_no_output_for_an_input(tmp_path):
     input, not by its name: rock_2.obj, and a.glb beside a.obj, may be scans
     of their own (both were dropped, and the run said 0 done, exit 0). A
     model given twice, by itself and in its folder, is done once. An earlier
-    run's OBJ output is known so as well in a run writing GLB."""
-    for name in ("a.obj", "a.glb", "a_2.glb", "b.glb", "rock.obj", "rock_2.obj", "c.obj", "c_2.obj"):
+    run's OBJ output is known so as well in a run writing GLB, and a model of
+    the same name in another format is not taken for it."""
+    for name in ("a.obj", "a.glb", "a_2.glb", "b.glb", "rock.obj", "rock_2.obj", "c.obj", "c_2.obj", "c_3.glb",
+                 "c_3.obj"):
         (tmp_path / name).write_bytes(b"")
-    (tmp_path / "a_2.report.json").write_text(json.dumps({"input": str(tmp_path / "a.obj")}))
-    (tmp_path / "c_2.report.json").write_text(json.dumps({"input": str(tmp_path / "c.obj")}))
+    (tmp_path / "a_2.report.json").write_text(json.dumps({"input": str(tmp_path / "a.obj"),
+                                                          "output": str(tmp_path / "a_2.glb")}))
+    for stem, ext in (("c_2", "obj"), ("c_3", "glb")):
+        (tmp_path / f"{stem}.report.json").write_text(json.dumps({"input": str(tmp_path / "c.obj"),
+                                                                  "output": str(tmp_path / f"{stem}.{ext}")}))
     (tmp_path / "rock_2.report.json").write_text("not a report")
     files = batch._expand([str(tmp_path), str(tmp_path / "b.glb")])
     kept = batch._without_outputs(files, str(tmp_path))
-    assert [p.split("/")[-1] for p in kept if p.split("/")[-1].startswith("c")] == ["c.obj"], kept
+    assert [p.split("/")[-1] for p in kept if p.split("/")[-1].startswith("c")] == ["c.obj", "c_3.obj"], kept
     kept = [p for p in kept if not p.split("/")[-1].startswith("c")]
     assert [p.split("/")[-1] for p in kept] == ["a.glb", "a.obj", "b.glb", "rock.obj", "rock_2.obj"]
     jobs = batch._output_names(kept, str(tmp_path), "glb")
@@ -572,3 +577,12 @@ def test_a_folder_where_the_output_sets_a_file_aside_is_never_moved(tmp_path, mo
     assert (out / "scan.obj").read_bytes() == b"mtllib scan.mtl\n" + OBJ
     with pytest.raises(batch.BatchError, match="is a folder"):
         batch._refuse_folders(batch._model_files(str(out / "scan_tex.png")))
+
+
+@pytest.mark.parametrize("line, file_system", [
+    ("FileNotFoundError: [Errno 2] No such file or directory: 'a.bin'", True),
+    ("PermissionError: [Errno 13] Permission denied", True),
+    ("IndexError: index 255 is out of bounds", False),
+    ("Error: Couldn't parse glTF", False)])
+def test_an_importer_error_on_a_file_it_could_not_read_is_not_blamed_on_the_format(line, file_system):
+    assert batch._file_system_error(line) == file_system

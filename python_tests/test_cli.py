@@ -17,9 +17,8 @@ CLI = Path(__file__).resolve().parent.parent / "tools" / "defrag_scan.py"
 def test_cli_runs_from_a_checkout_without_pythonpath_and_refuses_formats_it_cannot_read(tmp_path):
     """As a newcomer types it; an extension it cannot read is a usage error
     (exit 2), as in the batch entry."""
-    from conftest import BUILD, REPO
-
-    if BUILD != REPO / "build":
+    repo = CLI.parent.parent
+    if Path(os.environ.get("ATLAS_BUILD_DIR", repo / "build")) != repo / "build":
         pytest.skip("the fallback finds the checkout's own build/ only")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     run = subprocess.run([sys.executable, str(CLI), "--help"], capture_output=True, text=True, timeout=60, env=env)

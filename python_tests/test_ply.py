@@ -309,12 +309,17 @@ def test_texture_names_in_utf8_or_from_another_machine_are_found(tmp_path):
 
 
 def test_a_texture_name_in_latin1_finds_the_file_of_those_bytes(tmp_path):
-    """Older Windows writers put the file name's own bytes in the header, not UTF-8."""
+    """Older Windows writers put the file name's own bytes in the header, not
+    UTF-8: the file of those bytes is found, else (a file system whose names are
+    Unicode, or a copy that turned them into UTF-8) the file of that name."""
     from atlas_defrag import ply_io
 
     (tmp_path / os.fsdecode(b"caf\xe9.png")).write_bytes(b"")
-    head = _header("ascii", 3, 1, ["float x", "float y", "float z"], ["list uchar int vertex_indices"], ["X"])
-    mesh = ply_io.read(head.replace(b"TextureFile X", b"TextureFile caf\xe9.png") + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    (tmp_path / "caf\u00e9 2.png").write_bytes(b"")
+    head = _header("ascii", 3, 2, ["float x", "float y", "float z"],
+                   ["list uchar int vertex_indices", "int texnumber"], ["X", "Y"])
+    head = head.replace(b"TextureFile X", b"TextureFile caf\xe9.png").replace(b"TextureFile Y", b"TextureFile caf\xe9 2.png")
+    mesh = ply_io.read(head + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2 0\n3 0 2 1 1\n")
     found, per_face, missing = ply_io.face_textures(mesh, str(tmp_path))
-    assert [os.fsencode(Path(f).name) for f in found] == [b"caf\xe9.png"] and missing == [], (found, missing)
-    assert per_face.tolist() == [0]
+    assert [os.fsencode(Path(f).name) for f in found] == [b"caf\xe9.png", "caf\u00e9 2.png".encode()], found
+    assert missing == [] and per_face.tolist() == [0, 1]

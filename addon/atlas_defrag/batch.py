@@ -161,7 +161,7 @@ def import_model(path: str):
         _run_importer(path)
     except RuntimeError as exc:
         error = _operator_error(exc)
-        if re.match(r"^\w+(Error|Exception):", error):  # Python's own words from inside the importer
+        if re.match(r"^\w+(Error|Exception):", error) and not _file_system_error(error):  # Python's own words
             error += " (the importer broke on the file: it may break its format's specification, or use " \
                      "what this Blender's importer cannot read)"
         raise BatchError(f"Blender's importer failed: {error}") from exc
@@ -169,6 +169,13 @@ def import_model(path: str):
     if not any(o.type == "MESH" for o in new):
         raise BatchError(f"no mesh imported from {path}")
     return new
+
+
+def _file_system_error(error: str) -> bool:
+    """Whether an error line names one of Python's OSErrors (a file the importer could not read)."""
+    import builtins
+    kind = getattr(builtins, error.split(":", 1)[0], None)
+    return isinstance(kind, type) and issubclass(kind, OSError)
 
 
 def _operator_error(exc: RuntimeError) -> str:
@@ -1482,30 +1489,38 @@ def _passthrough(args) -> list:
 
 
 def _without_outputs(files, out_dir: str) -> list:
-    """files less the models a run into out_dir wrote there before, in any
-    output format (an earlier run may have written another): a file in
-    out_dir whose report beside it (see _output_names) names another file as
-    its input. A name alone proves nothing: rock_2.obj may be a scan of its own."""
+    """files less the models a run into out_dir wrote there before, in either
+    output format (an earlier run may have written the other): a file in
+    out_dir whose report beside it (see _output_names) names it as the output
+    of another input. A name alone proves nothing: rock_2.obj may be a scan
+    of its own, and so may rock.obj beside the report of a rock.glb."""
     out = _real(out_dir)
 
     def earlier_output(f: str) -> bool:
-        stem, ext = os.path.splitext(os.path.basename(f))
-        if ext.lower() not in OUTPUT_EXTS or _real(os.path.dirname(os.path.abspath(f))) != out:
+        stem = os.path.splitext(os.path.basename(f))[0]
+        if _real(os.path.dirname(os.path.abspath(f))) != out:
             return False
-        source = _report_input(os.path.join(out_dir, f"{stem}.report.json"))
-        return bool(source) and _real(source) != _real(f)
+        source, written = _report_paths(os.path.join(out_dir, f"{stem}.report.json"))
+        return bool(source and written) and _real(source) != _real(f) and _real(written) == _real(f)
 
     return [f for f in files if not earlier_output(f)]
 
 
-def _report_input(report: str) -> str:
-    """The input the batch report at `report` names ('' without a report, or with one that is not ours)."""
+def _report_paths(report: str) -> tuple:
+    """(input, output) the batch report at `report` names ('' for either
+    without a report, or with one that is not ours)."""
     try:
         with open(report, encoding="utf-8") as f:
-            source = json.load(f).get("input")
+            paths = json.load(f)
+        paths = (paths.get("input"), paths.get("output"))
     except (OSError, ValueError, AttributeError):
-        return ""
-    return source if isinstance(source, str) else ""
+        return "", ""
+    return tuple(p if isinstance(p, str) else "" for p in paths)
+
+
+def _report_input(report: str) -> str:
+    """The input the batch report at `report` names ('' without a report, or with one that is not ours)."""
+    return _report_paths(report)[0]
 
 
 def _made_from_another(report: str, model: str) -> bool:

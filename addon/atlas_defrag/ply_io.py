@@ -443,16 +443,26 @@ def face_textures(mesh: PlyMesh, folder: str):
     """(paths of the header's textures whose files exist in folder, in order;
     per face (F,) the index into them, -1 where its texture is missing, out
     of range or none; the names of the textures missing)."""
-    paths = [os.path.join(folder, name.replace("\\", "/")) for name in mesh.textures]
-    index = np.full(len(paths) + 1, -1, dtype=np.int64)  # the last: no such texture
+    index = np.full(len(mesh.textures) + 1, -1, dtype=np.int64)  # the last: no such texture
     found, missing = [], []
-    for k, path in enumerate(paths):
-        if not os.path.isfile(path):  # a path from another machine (C:\\...): the file by its name here
-            path = os.path.join(folder, os.path.basename(path))
-        if os.path.isfile(path):
+    for k, name in enumerate(mesh.textures):
+        path = _texture_file(folder, name)
+        if path:
             index[k] = len(found)
             found.append(path)
         else:
-            missing.append(readable(mesh.textures[k]))
-    known = (mesh.texnumber >= 0) & (mesh.texnumber < len(paths))
-    return found, index[np.where(known, mesh.texnumber, len(paths))], missing
+            missing.append(readable(name))
+    known = (mesh.texnumber >= 0) & (mesh.texnumber < len(mesh.textures))
+    return found, index[np.where(known, mesh.texnumber, len(mesh.textures))], missing
+
+
+def _texture_file(folder: str, name: str) -> str:
+    """The file a TextureFile name gives in folder ('' if none): as written,
+    then as shown (a Latin-1 name on a system whose file names are Unicode),
+    each also by its file name alone (a path from another machine, C:\\...)."""
+    for written in dict.fromkeys((name, readable(name))):
+        path = os.path.join(folder, written.replace("\\", "/"))
+        for candidate in (path, os.path.join(folder, os.path.basename(path))):
+            if os.path.isfile(candidate):
+                return candidate
+    return ""

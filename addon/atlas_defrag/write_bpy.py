@@ -110,9 +110,18 @@ def _save_exr(img, path: str, tag: str) -> None:
     _point_at(img, path)
 
 
-def _within_unit(pixels: np.ndarray) -> bool:
-    """Whether a source map's values all lie in [0, 1], as a 16-bit PNG's or
-    TIFF's do (up to the round-off of Blender's turning them linear)."""
+def _sixteen_bit_colour(out: OutputImage, sources: dict) -> bool:
+    """Whether a float output is an sRGB colour map that a 16-bit PNG holds:
+    its source's values all in [0, 1], as a 16-bit PNG's or TIFF's are (up to
+    the round-off of Blender's turning them linear), and its alpha, if any,
+    straight (other modes keep OpenEXR, whose values Blender reads back
+    as they were written)."""
+    source = sources.get(out.source)
+    if not out.is_float or out.colorspace != "sRGB" or source is None:
+        return False
+    if out.pixels.shape[2] in (2, 4) and out.alpha_mode != "STRAIGHT":
+        return False
+    pixels = source.pixels
     return not pixels.size or (float(pixels.min()) >= -1e-4 and float(pixels.max()) <= 1 + 1e-4)
 
 
@@ -424,9 +433,7 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
         k = pages.index(out.page) if out.page in pages else 0
         stem = image_stem(out.source)
         name = f"{stem}{SUFFIX}" if k == 0 else f"{stem}{SUFFIX}_{k + 1}"
-        source = target.read.job.images.get(out.source)
-        samples = _sixteen_bit_srgb(out.pixels) if out.is_float and out.colorspace == "sRGB" and \
-            (source is None or _within_unit(source.pixels)) else None
+        samples = _sixteen_bit_srgb(out.pixels) if _sixteen_bit_colour(out, target.read.job.images) else None
         ext = ".exr" if out.is_float and samples is None else ".png"
         path = _unique_path(image_dir, _safe_file_stem(name), ext, taken)
         journal.add(lambda p=path: _remove_file(p))  # a file is written only once its path is journalled
@@ -447,15 +454,29 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
 
 def _pack_beside_blend(img) -> None:
     """Packs the bytes of an image written to the temporary folder under the
-    name of its file beside the .blend ('//'): unpacking it to its original
-    place must not write into a folder that Blender deletes on exit. (The
-    packed file keeps the path it was packed from, so the path comes first;
+    name of a file beside the .blend ('//') that neither exists nor names
+    another image: unpacking it to its original place must not write into a
+    folder that Blender deletes on exit, nor over another file. (The packed
+    file keeps the path it was packed from, so the path comes first;
     filepath_raw changes it without reloading the image from there.)"""
     path = bpy.path.abspath(img.filepath)
     with open(path, "rb") as f:
         data = f.read()
-    img.filepath_raw = "//" + os.path.basename(path)
+    img.filepath_raw = _free_blend_path(os.path.basename(path), img)
     img.pack(data=data, data_len=len(data))
+
+
+def _free_blend_path(file_name: str, own) -> str:
+    """'//file_name', or '//stem.001.ext', ... : a path beside the .blend that
+    no other image names and, for a saved .blend, no file takes."""
+    named = {bpy.path.abspath(i.filepath) for i in bpy.data.images if i != own and i.filepath}
+    stem, ext = os.path.splitext(file_name)
+    candidate, k = "//" + file_name, 0
+    while bpy.path.abspath(candidate) in named or (bpy.data.filepath and
+                                                     os.path.lexists(bpy.path.abspath(candidate))):
+        k += 1
+        candidate = f"//{stem}.{k:03d}{ext}"
+    return candidate
 
 
 def _write_uv_map(target: _Target, first: bool, active_name: Optional[str]) -> str:

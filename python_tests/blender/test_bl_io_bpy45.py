@@ -168,12 +168,14 @@ def _png16_samples(path) -> np.ndarray:
     return raw.view(">u2").reshape(height, width, channels)[::-1].astype(np.uint16)
 
 
-def test_sixteen_bit_colour_map_stays_a_sixteen_bit_png(pkg, tmp_path):
+@pytest.mark.parametrize("alpha_mode", ["STRAIGHT", "CHANNEL_PACKED", "PREMUL"])
+def test_sixteen_bit_colour_map_stays_a_sixteen_bit_png(pkg, tmp_path, alpha_mode):
     """A 16-bit sRGB map (Blender holds it as linear floats, premultiplied) is
     written as a 16-bit PNG of the same samples, straight alpha kept: as
     OpenEXR it held sRGB values, which other readers take for linear (an OBJ
     reopened twice as bright), and half-transparent texels took colours
-    premultiplied twice."""
+    premultiplied twice. Under other alpha modes it stays OpenEXR, which
+    Blender reads back as it was."""
     H.reset()
     rng = np.random.default_rng(5)
     source = rng.integers(0, 65536, (8, 16, 4), dtype=np.uint16)
@@ -185,11 +187,19 @@ def test_sixteen_bit_colour_map_stays_a_sixteen_bit_png(pkg, tmp_path):
     obj = H.textured_plane(image_size=(16, 8))
     node = next(n for n in H.image_nodes(obj.material_slots[0].material))
     node.image = bpy.data.images.load(str(path))
+    node.image.alpha_mode = alpha_mode
     assert node.image.is_float and node.image.colorspace_settings.name == "sRGB"
     settings = pkg.api.Settings.from_kwargs(storage="SAVE", image_dir=str(tmp_path / "out"))
     read = pkg.api.prepare(obj, settings)
     report = pkg.api.finish(obj, read, identity_result(pkg, read), settings)
     img = bpy.data.images[report["images"][0]]
+    if alpha_mode != "STRAIGHT":
+        assert img.filepath.endswith(".exr"), img.filepath
+        got, want = np.empty(len(img.pixels), np.float32), np.empty(len(node.image.pixels), np.float32)
+        img.pixels.foreach_get(got)
+        node.image.pixels.foreach_get(want)
+        assert np.allclose(got, want, atol=1e-4), np.abs(got - want).max()
+        return
     assert img.is_float and img.colorspace_settings.name == "sRGB" and img.filepath.endswith(".png"), img.filepath
     written = _png16_samples(bpy.path.abspath(img.filepath))
     assert np.array_equal(written[:, :, 3], source[:, :, 3])
@@ -214,6 +224,22 @@ def test_packed_images_unpack_beside_the_blend(pkg, tmp_path):
     again = np.empty(len(img.pixels), np.float32)
     img.pixels.foreach_get(again)
     assert np.array_equal(again, pixels)
+
+
+def test_packed_images_take_a_name_beside_the_blend_no_other_has(pkg, tmp_path):
+    """Two runs whose new images would share a file name, and a file of that
+    name already beside the .blend: each packed image names a file of its own."""
+    H.reset()
+    a, b = H.textured_plane("A"), H.textured_plane("B")
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    (tmp_path / "A_tex_defrag.png").write_bytes(b"the user's own file")
+    first = pkg.defragment(bpy.data.objects["A"])["images"][0]
+    bpy.data.images["A_tex"].name = "A_tex_before"
+    bpy.data.images["B_tex"].name = "A_tex"  # B's new image is named as A's was
+    second = pkg.defragment(bpy.data.objects["B"])["images"][0]
+    paths = [bpy.data.images[n].filepath for n in (first, second)]
+    assert paths == ["//A_tex_defrag.001.png", "//A_tex_defrag.002.png"], paths
+    assert (tmp_path / "A_tex_defrag.png").read_bytes() == b"the user's own file"
 
 
 def test_settings_validation(pkg):
