@@ -318,7 +318,8 @@ def load_obj(path: Path) -> Scan:
             pages.append(page)
         material_page[m] = page_of[key]
         if name in clamped:
-            warnings += _clamped_map_warning(name, uvs[has_uv & (obj["face_material"] == m)])
+            warnings += _clamp_warning(name, "clamps its colour texture (-clamp on)",
+                                       uvs[has_uv & (obj["face_material"] == m)])
     face_page = np.where(has_uv, material_page[obj["face_material"]], -1).astype(np.int32)
     bases = [page["base_color"] for page in pages]
     sizes = np.array([_decodable_size(p, p.name) for p in bases], dtype=np.int32).reshape(-1, 2)
@@ -327,15 +328,14 @@ def load_obj(path: Path) -> Scan:
                 warnings=warnings)
 
 
-def _clamped_map_warning(material: str, corners: np.ndarray) -> list:
-    """A warning when a colour map read with -clamp on has these UVs leave
-    its page: the bake repeats every image."""
+def _clamp_warning(material: str, how: str, corners: np.ndarray) -> list:
+    """A warning when a colour map read clamped (or mirrored), as `how` says,
+    has these corners' UVs leave its page: the bake repeats every image."""
     from atlas_defrag.job import reaches_past_page
 
     if not reaches_past_page(corners):
         return []
-    return [f"material '{material}' clamps its colour texture (-clamp on) where faces reach past its edges: "
-            "the new texture repeats it there"]
+    return [f"material '{material}' {how} where faces reach past its edges: the new texture repeats it there"]
 
 
 # ---- PLY ------------------------------------------------------------------
@@ -721,11 +721,10 @@ def _clamped_past_edges(gltf: dict, material: dict, corners: np.ndarray) -> set:
     texture = _item(gltf["textures"], _colour_texture(material)["index"], "texture")
     sampler = _item(gltf.get("samplers", []), texture["sampler"], "sampler") if "sampler" in texture else {}
     wraps = (sampler.get("wrapS", _REPEAT), sampler.get("wrapT", _REPEAT))
-    from atlas_defrag.job import reaches_past_page
-    if wraps == (_REPEAT, _REPEAT) or not reaches_past_page(corners):
+    if wraps == (_REPEAT, _REPEAT):
         return set()
-    return {f"material '{material.get('name', '')}' clamps or mirrors its colour texture (sampler wrap) where "
-            "faces reach past its edges: the new texture repeats it there"}
+    return set(_clamp_warning(material.get("name", ""), "clamps or mirrors its colour texture (sampler wrap)",
+                              corners))
 
 
 def _instance_corners(first_corners: dict, mesh_index: int, start: int, end: int, mirrors: bool) -> np.ndarray:

@@ -8,6 +8,7 @@ back before the exception propagates.
 
 from __future__ import annotations
 
+import itertools
 import os
 import re
 import shutil
@@ -60,12 +61,16 @@ def _safe_file_stem(name: str) -> str:
     return stem
 
 
+def _numbered(stem: str, ext: str = ""):
+    """stem + ext, then stem.001 + ext, stem.002 + ext, ...: how Blender numbers a name taken."""
+    yield stem + ext
+    for k in itertools.count(1):
+        yield f"{stem}.{k:03d}{ext}"
+
+
 def _unique_path(directory: str, stem: str, ext: str, taken: set) -> str:
-    path = os.path.join(directory, stem + ext)
-    k = 1
-    while path in taken or os.path.exists(path):
-        path = os.path.join(directory, f"{stem}.{k:03d}{ext}")
-        k += 1
+    path = next(p for p in (os.path.join(directory, n) for n in _numbered(stem, ext))
+                if p not in taken and not os.path.exists(p))
     taken.add(path)
     return path
 
@@ -138,7 +143,7 @@ def _sixteen_bit_srgb(pixels: np.ndarray) -> np.ndarray:
         alpha = colour[:, :, 3:]
         np.divide(colour[:, :, :3], alpha, out=colour[:, :, :3], where=alpha > 0)
         np.minimum(colour[:, :, :3], 1, out=colour[:, :, :3])
-    rgb = colour[:, :, :3] if colour.shape[2] == 4 else colour
+    rgb = colour[:, :, :3]  # a view: colour itself but for alpha
     rgb[...] = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * np.power(rgb, 1 / 2.4) - 0.055)
     return np.rint(colour * 65535).astype(np.uint16)
 
@@ -168,11 +173,7 @@ def _load_saved_png(out: OutputImage, name: str, path: str):
 
 def _untaken(name: str, ids, own) -> str:
     """name, or the first of name.001, name.002, ... that no ID in ids but own has."""
-    candidate, k = name, 0
-    while candidate in ids and ids[candidate] != own:
-        k += 1
-        candidate = f"{name}.{k:03d}"
-    return candidate
+    return next(n for n in _numbered(name) if n not in ids or ids[n] == own)
 
 
 def _point_at(img, path: str) -> None:
@@ -470,13 +471,12 @@ def _free_blend_path(file_name: str, own) -> str:
     """'//file_name', or '//stem.001.ext', ... : a path beside the .blend that
     no other image names and, for a saved .blend, no file takes."""
     named = {bpy.path.abspath(i.filepath) for i in bpy.data.images if i != own and i.filepath}
-    stem, ext = os.path.splitext(file_name)
-    candidate, k = "//" + file_name, 0
-    while bpy.path.abspath(candidate) in named or (bpy.data.filepath and
-                                                     os.path.lexists(bpy.path.abspath(candidate))):
-        k += 1
-        candidate = f"//{stem}.{k:03d}{ext}"
-    return candidate
+
+    def free(path: str) -> bool:
+        absolute = bpy.path.abspath(path)
+        return absolute not in named and not (bpy.data.filepath and os.path.lexists(absolute))
+
+    return next(p for p in ("//" + n for n in _numbered(*os.path.splitext(file_name))) if free(p))
 
 
 def _write_uv_map(target: _Target, first: bool, active_name: Optional[str]) -> str:
