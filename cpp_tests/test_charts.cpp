@@ -3,15 +3,18 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 
 #include <Eigen/Geometry>
 
 #include "charts/aggregate.hpp"
 #include "charts/chart_graph.hpp"
 #include "charts/disk_merge.hpp"
+#include "charts/mesh_holes.hpp"
 #include "core/angle_defects.hpp"
 #include "core/corners.hpp"
 #include "core/geometry.hpp"
+#include "flatten/fill_holes.hpp"
 #include "test_meshes.hpp"
 
 using namespace atlas;
@@ -75,6 +78,40 @@ Mesh cylinder_sheet(int rows, int columns, double turn) {
       chart.insert(chart.end(), 2, j < columns / 2 ? 0 : 1);
     }
   return atlas::testing::with_chart_uvs(positions, triangles, chart);
+}
+
+// The mesh without the faces `drop`: holes where they were.
+Mesh without_faces(const Mesh& mesh, std::vector<int> drop) {
+  std::sort(drop.begin(), drop.end());
+  Mesh out = mesh;
+  const Eigen::Index kept = mesh.face_count() - static_cast<Eigen::Index>(drop.size());
+  out.triangles.resize(kept, 3);
+  out.corner_uv.resize(3 * kept, 2);
+  out.face_page.resize(kept);
+  Eigen::Index at = 0;
+  for (int f = 0; f < mesh.face_count(); ++f) {
+    if (std::binary_search(drop.begin(), drop.end(), f)) continue;
+    out.triangles.row(at) = mesh.triangles.row(f);
+    out.corner_uv.middleRows(3 * at, 3) = mesh.corner_uv.middleRows(3 * f, 3);
+    out.face_page[at++] = mesh.face_page[f];
+  }
+  return out;
+}
+
+// The 12 x 12 grid in 3 x 3 charts of 4 x 4 quads, with quads (1, 1) and
+// (10, 10) cut out: a hole inside each of the two corner charts 0 and 8.
+Mesh grid_with_two_holes() {
+  return without_faces(checkered_grid(12, 3), {2 * (1 * 12 + 1), 2 * (1 * 12 + 1) + 1,  //
+                                               2 * (10 * 12 + 10), 2 * (10 * 12 + 10) + 1});
+}
+
+// chi = V - E + F of triangles over vertex_count vertices.
+long long euler_characteristic(const RowMatrixX3i& triangles, int vertex_count) {
+  long long edges = 0;
+  for_each_edge_run(corners_by_edge(static_cast<int>(3 * triangles.rows()),
+                                    [&](int c) { return corner_vertex(triangles, c); }),
+                    [&](int, int) { ++edges; });
+  return vertex_count - edges + triangles.rows();
 }
 
 double sum(const std::vector<double>& values) {
@@ -297,6 +334,80 @@ TEST(Aggregate, IslandsThatFillOneHoleTogetherMerge) {
   const MergeCheck two = disks.check_merge(grown, 2);
   ASSERT_TRUE(two);
   EXPECT_TRUE(disks.is_disk(disks.merge(grown, 2, two)));
+}
+
+TEST(MeshHoles, EveryBorderLoopButThePiecesLongestIsAHole) {
+  const Mesh mesh = grid_with_two_holes();
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const MeshHoles holes = mesh_holes(mesh, topology);
+  ASSERT_EQ(holes.edges, (std::vector<int>{4, 4}));
+  int border = 0, on_holes = 0;
+  for (int e = 0; e < topology.edge_count(); ++e)
+    border += topology.edge_valence(e) == 1, on_holes += holes.edge_hole[e] >= 0;
+  EXPECT_EQ(border, 48 + 8);  // the grid's outline is no hole
+  EXPECT_EQ(on_holes, 8);
+  // A loop with an edge that may not be a hole is none.
+  std::vector<char> may_be_hole(topology.edge_count(), 1);
+  for (int e = 0; e < topology.edge_count(); ++e)
+    if (holes.edge_hole[e] == 0) may_be_hole[e] = 0;
+  EXPECT_EQ(mesh_holes(mesh, topology, may_be_hole).edges, (std::vector<int>{4}));
+}
+
+TEST(Aggregate, ChartsAroundHolesOfTheMeshMergeIntoOne) {
+  ChartRun r{grid_with_two_holes(), {}, {}, {}};
+  r.topology = build_topology(r.mesh.triangles, r.mesh.vertex_count());
+  r.graph = build_chart_graph(r.mesh, r.topology, {});
+  ASSERT_EQ(r.graph.chart_count(), 9);
+  // Counting every hole, no chart can hold both: two charts are left.
+  EXPECT_EQ(aggregate_charts(r.mesh, r.topology, r.graph, {}, RunControl()).chart_count(), 2);
+  r.graph.holes = mesh_holes(r.mesh, r.topology);
+  r.aggregation = aggregate_charts(r.mesh, r.topology, r.graph, {}, RunControl());
+  EXPECT_EQ(r.aggregation.chart_count(), 1);
+  EXPECT_EQ(open_edges(r), 0);
+  EXPECT_EQ(r.aggregation.stops.not_disk, 0);
+}
+
+TEST(FillHoles, AWholeHoleGetsACentreAndFacesWoundLikeTheChart) {
+  const Mesh mesh = grid_with_two_holes();
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const MeshHoles holes = mesh_holes(mesh, topology);
+  std::vector<int> faces(mesh.face_count());
+  std::iota(faces.begin(), faces.end(), 0);
+  RowMatrixX3i triangles = mesh.triangles;
+  std::vector<int> vertices(mesh.vertex_count());
+  std::iota(vertices.begin(), vertices.end(), 0);
+  ASSERT_EQ(euler_characteristic(triangles, mesh.vertex_count()), -1);  // a disk with two holes
+  const RowMatrixX3d centres = fill_holes(mesh, topology, holes, faces, triangles, vertices);
+  ASSERT_EQ(centres.rows(), 2);
+  EXPECT_EQ(triangles.rows(), mesh.face_count() + 8);
+  EXPECT_EQ(vertices.back(), mesh.vertex_count() + 1);
+  EXPECT_EQ(euler_characteristic(triangles, static_cast<int>(vertices.size())), 1);
+  // Wound like the chart: every edge runs once each way between its two faces.
+  const auto keyed = corners_by_edge(static_cast<int>(3 * triangles.rows()),
+                                     [&](int c) { return corner_vertex(triangles, c); });
+  for_each_edge_run(keyed, [&](int first, int count) {
+    if (count != 2) return;
+    const int a = keyed[first].second, b = keyed[first + 1].second;
+    EXPECT_EQ(corner_vertex(triangles, a), corner_vertex(triangles, next_corner(b)));
+  });
+  // The centre of the hole in quad (1, 1) of the unit square's 12 x 12 grid.
+  const Eigen::RowVector3d middle(1.5 / 12, 1.5 / 12, 0);
+  EXPECT_LT(std::min((centres.row(0) - middle).norm(), (centres.row(1) - middle).norm()), 1e-12);
+}
+
+TEST(FillHoles, AHoleThatTheChartHoldsInPartStaysOpen) {
+  const Mesh mesh = grid_with_two_holes();
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  std::vector<int> faces;
+  for (int f = 0; f < mesh.face_count(); ++f)
+    if (mesh.positions(mesh.triangles(f, 0), 1) > 0.5) faces.push_back(f);  // the upper half only
+  RowMatrixX3i triangles(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t i = 0; i < faces.size(); ++i) triangles.row(i) = mesh.triangles.row(faces[i]);
+  std::vector<int> vertices(mesh.vertex_count());
+  std::iota(vertices.begin(), vertices.end(), 0);
+  const RowMatrixX3d centres = fill_holes(mesh, topology, mesh_holes(mesh, topology), faces, triangles, vertices);
+  EXPECT_EQ(centres.rows(), 1);  // the hole at (10, 10); the one at (1, 1) has no face here
+  EXPECT_EQ(triangles.rows(), static_cast<Eigen::Index>(faces.size()) + 4);
 }
 
 TEST(Aggregate, ClosedSurfacesEndAsDisks) {

@@ -644,7 +644,8 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   // flip falls in two.
   const Mesh mesh = cut_internal_seams(welded, welded_topology, welded_graph);
   const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count(), face_polygon);
-  const ChartGraph graph = without_merges_of_handles(mesh, topology, build_chart_graph(mesh, topology, face_group));
+  ChartGraph graph = without_merges_of_handles(mesh, topology, build_chart_graph(mesh, topology, face_group));
+  graph.holes = mesh_holes(mesh, topology, on_holes(mesh_holes(welded, welded_topology), welded_topology, topology));
   clock.lap("charts");
   control.progress("charts", 1.0);
 

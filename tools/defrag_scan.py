@@ -324,7 +324,7 @@ def print_report(result: job.JobResult, m: dict, fidelity: dict, t_load: float) 
           f"split back: {r['splits_overlap']} overlap, {r['splits_density']} density, {r['splits_solver']} solver, "
           f"{r['splits_not_disk']} topology; lone charts overlapping themselves halved: {r['overlap_halved']}; "
           f"relief cuts: {r['relief_cuts']}; "
-          f"density repairs: {r['density_repaired']})")
+          f"density repairs: {r['density_repaired']}; holes of the mesh filled: {r['holes_filled']})")
     stops = ", ".join(f"{reason} {n}" for reason, n in r["aggregate_stops"].items() if n)
     print(f"  merges left   {stops or 'none'} (adjacent chart pairs, by what refused them)")
     print(f"  energy        median {r['energy_initial_median']:.2f} -> {r['energy_median']:.3f}, max {r['energy_max']:.2f} "

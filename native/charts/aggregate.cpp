@@ -73,7 +73,8 @@ class Aggregator {
              const AggregateOptions& options)
       : options_(options),
         graph_(graph),
-        disks_(mesh, topology, graph.face_chart, graph.chart_count(), graph.self_seam, options.partial_merges),
+        disks_(mesh, topology, graph.face_chart, graph.chart_count(), graph.self_seam, options.partial_merges,
+               graph.holes),
         clusters_(graph.chart_count()) {
     if (options.developable_curvature > 0) {
       defect_ = angle_defects(mesh);

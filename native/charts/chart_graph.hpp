@@ -4,6 +4,7 @@
 #pragma once
 #include <vector>
 
+#include "charts/mesh_holes.hpp"
 #include "core/mesh.hpp"
 #include "core/topology.hpp"
 
@@ -32,6 +33,10 @@ struct ChartGraph {
   std::vector<char> self_seam;   // per edge, see self_seams: boundary on both sides
   std::vector<ChartStats> charts;
   std::vector<ChartAdjacency> adjacency;
+  // The mesh's holes on this surface (mesh_holes, set by the pipeline): a
+  // chart holding one whole counts it as filled, and is flattened with it
+  // filled. Empty: no hole is counted so.
+  MeshHoles holes;
   int chart_count() const { return static_cast<int>(charts.size()); }
 };
 

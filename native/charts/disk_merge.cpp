@@ -16,6 +16,16 @@ constexpr double kMinWeldedShare = 0.25;
 // in proportion to the chart, and small charts are what is left unmerged.
 constexpr size_t kAnyArcFaces = 200;
 
+// (hole, edges) pairs sorted by hole, one pair per hole, the edges summed.
+void sum_by_hole(std::vector<std::pair<int, int>>& held) {
+  std::sort(held.begin(), held.end());
+  size_t kept = 0;
+  for (size_t i = 0; i < held.size(); ++i)
+    if (kept > 0 && held[kept - 1].first == held[i].first) held[kept - 1].second += held[i].second;
+    else held[kept++] = held[i];
+  held.resize(kept);
+}
+
 MergeCheck refused(MergeRefusal why) {
   MergeCheck out;
   out.refusal = why;
@@ -52,7 +62,7 @@ std::vector<int> loop_halves(const MeshTopology& topology, const std::vector<int
 }  // namespace
 
 DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-                           int cluster_count, std::vector<char> self_seam, bool partial_merges)
+                           int cluster_count, std::vector<char> self_seam, bool partial_merges, MeshHoles holes)
     : mesh_(mesh),
       topology_(topology),
       face_cluster_(std::move(face_cluster)),
@@ -61,14 +71,44 @@ DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::
       manifold_(cluster_count, 0),
       seam_(std::move(self_seam)),
       partial_merges_(partial_merges),
+      holes_(std::move(holes)),
+      held_(cluster_count),
       edge_stamp_(topology.edge_count(), 0),
       vertex_stamp_(mesh.vertex_count(), 0) {
   for (int f = 0; f < mesh.face_count(); ++f)
     if (face_cluster_[f] >= 0) faces_[face_cluster_[f]].push_back(f);
   for (int c = 0; c < cluster_count; ++c) {
+    held_[c] = holes_held(c);
     euler_[c] = euler_of(c);
+    for (const auto& [hole, edges] : held_[c]) euler_[c] += edges == holes_.edges[hole];
     manifold_[c] = !faces_[c].empty() && manifold_inside(c);
   }
+}
+
+std::vector<std::pair<int, int>> DiskClusters::holes_held(int c) const {
+  std::vector<std::pair<int, int>> held;
+  if (holes_.edge_hole.empty()) return held;
+  for (int f : faces_[c])
+    for (int k = 0; k < 3; ++k)
+      if (const int h = holes_.edge_hole[topology_.corner_edge[3 * f + k]]; h >= 0) held.emplace_back(h, 1);
+  sum_by_hole(held);
+  return held;
+}
+
+int DiskClusters::holes_closed(int a, int b) const {
+  int closed = 0;
+  auto i = held_[a].begin(), j = held_[b].begin();
+  while (i != held_[a].end() && j != held_[b].end()) {
+    if (i->first < j->first) {
+      ++i;
+    } else if (j->first < i->first) {
+      ++j;
+    } else {
+      closed += i->second + j->second == holes_.edges[i->first];
+      ++i, ++j;
+    }
+  }
+  return closed;
 }
 
 // chi = V - E + F over the faces of cluster c, where a vertex whose faces in
@@ -218,7 +258,7 @@ MergeCheck DiskClusters::weld_all(int a, int b, std::vector<int>* shared) {
   if (shared_edges == 0) return refused(MergeRefusal::NotDisk);
   // Inclusion-exclusion with pinches split: every shared edge joins two faces'
   // sides into one, every fan that merges with another removes a vertex.
-  const int euler = euler_[a] + euler_[b] - fans_joined + shared_edges;
+  const int euler = euler_[a] + euler_[b] - fans_joined + shared_edges + holes_closed(a, b);
   // Accepted: a disk; a chart with holes (chi < 1) absorbing an island, which
   // fills a hole and raises chi; or a disk joining a chart with holes along
   // one arc, which leaves chi as it was: it adds no hole, and it may be one of
@@ -315,6 +355,7 @@ bool DiskClusters::move_keeps_topology(int f, int to) {
   for (int k = 0; k < 3; ++k) {
     const int c = 3 * f + k, e = topology_.corner_edge[c];
     if (seam_[e] || topology_.edge_valence(e) > 2) return false;
+    if (!holes_.edge_hole.empty() && holes_.edge_hole[e] >= 0) return false;
     for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
       const int ci = topology_.edge_corners[i];
       if (ci == c) continue;
@@ -360,6 +401,11 @@ int DiskClusters::merge(int a, int b, const MergeCheck& check) {
   faces_[a].shrink_to_fit();
   euler_[b] = check.euler;
   manifold_[a] = 0;
+  if (!held_[a].empty()) {
+    held_[b].insert(held_[b].end(), held_[a].begin(), held_[a].end());
+    sum_by_hole(held_[b]);
+    held_[a].clear();
+  }
   return b;
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 #include <vector>
 
+#include "charts/mesh_holes.hpp"
 #include "core/mesh.hpp"
 #include "core/topology.hpp"
 
@@ -38,8 +39,12 @@ class DiskClusters {
   // shared edges joined at vertices) and keep the other arcs as seams inside
   // the union, as the thesis allows in 5.2 ("unless cuts are introduced").
   // false: such pairs are refused.
+  // holes (mesh_holes, or empty): a hole of the mesh that a cluster holds
+  // whole counts as filled in its chi, as no merge could fill it; the
+  // flattening cuts the chart open there. Empty: every hole counts.
   DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
-               int cluster_count, std::vector<char> self_seam, bool partial_merges = false);
+               int cluster_count, std::vector<char> self_seam, bool partial_merges = false,
+               MeshHoles holes = {});
 
   // Euler characteristic chi = V - E + F of the union of a and b, counting a
   // vertex once per fan of faces around it (pinches are split), when the shared
@@ -55,7 +60,8 @@ class DiskClusters {
   // True when face f may leave its cluster for cluster `to` with both keeping
   // their topology: f joins `to` across an edge, has exactly one neighbour
   // left in its own cluster (so that cluster stays connected), touches no
-  // seam, and chi of both is unchanged (counted at f's vertices and edges).
+  // seam and no counted hole, and chi of both is unchanged (counted at f's
+  // vertices and edges).
   bool move_keeps_topology(int f, int to);
   void move(int f, int to);
 
@@ -69,7 +75,7 @@ class DiskClusters {
   double sum_inside_union(int a, int b, const std::vector<double>& per_vertex);
 
   // Connected, manifold, orientable and chi == 1: a topological disk once
-  // pinch vertices are split.
+  // pinch vertices are split (and the counted holes it holds filled).
   bool is_disk(int c) const { return manifold_[c] && euler_[c] == 1; }
   const std::vector<int>& faces(int c) const { return faces_[c]; }
   int cluster_of(int f) const { return face_cluster_[f]; }
@@ -82,6 +88,11 @@ class DiskClusters {
   MergeCheck weld_all(int a, int b, std::vector<int>* shared);
   MergeCheck weld_longest_arc(int a, int b, const std::vector<int>& shared);
   int euler_of(int c);
+  // Holes of the mesh that c holds edges of, as (hole, edges held), by hole.
+  std::vector<std::pair<int, int>> holes_held(int c) const;
+  // Counted holes whose edges a and b hold all of between them but neither
+  // alone: the holes their union closes.
+  int holes_closed(int a, int b) const;
   int local_euler(int f, int c) const;
   bool manifold_inside(int c);
   int fan_count(int v, int a, int b) const;
@@ -99,6 +110,8 @@ class DiskClusters {
   std::vector<char> manifold_;
   std::vector<char> seam_;  // per edge: the self seams given, plus the arcs partial merges left open
   bool partial_merges_;
+  MeshHoles holes_;
+  std::vector<std::vector<std::pair<int, int>>> held_;  // per cluster: holes_held
   // Visit stamps, so each check touches only the smaller cluster's faces.
   std::vector<unsigned> edge_stamp_, vertex_stamp_;
   unsigned stamp_ = 0;

@@ -15,6 +15,7 @@
 #include "core/segment_crossing.hpp"
 #include "core/union_find.hpp"
 #include "flatten/cut_to_disk.hpp"
+#include "flatten/fill_holes.hpp"
 #include "flatten/relief_cut.hpp"
 
 namespace atlas {
@@ -55,13 +56,16 @@ bool boundary_self_intersects(const RowMatrixX3i& triangles, const RowMatrixX2d&
 }
 
 ChartProblem chart_problem(const Mesh& mesh, const ChartGraph& graph, const std::vector<int>& faces,
-                           const RowMatrixX3i& triangles, const std::vector<int>& vertices) {
+                           const RowMatrixX3i& triangles, const std::vector<int>& vertices,
+                           const RowMatrixX3d& fill_positions) {
   ChartProblem p;
   p.triangles = triangles;
   p.positions.resize(static_cast<Eigen::Index>(vertices.size()), 3);
-  for (size_t i = 0; i < vertices.size(); ++i) p.positions.row(i) = mesh.positions.row(vertices[i]);
-  p.reference_uv.resize(3 * static_cast<Eigen::Index>(faces.size()), 2);
-  p.mirrored.resize(static_cast<Eigen::Index>(faces.size()));
+  for (size_t i = 0; i < vertices.size(); ++i)
+    p.positions.row(i) = vertices[i] < mesh.vertex_count() ? mesh.positions.row(vertices[i])
+                                                           : fill_positions.row(vertices[i] - mesh.vertex_count());
+  p.reference_uv = RowMatrixX2d::Zero(3 * triangles.rows(), 2);
+  p.mirrored = Eigen::VectorXi::Zero(triangles.rows());
   for (size_t i = 0; i < faces.size(); ++i) {
     const int f = faces[i];
     for (int k = 0; k < 3; ++k) p.reference_uv.row(3 * i + k) = mesh.uv_texels(f, k).transpose();
@@ -120,18 +124,21 @@ LocalChart localize(const Mesh& mesh, const MeshTopology& topology, const ChartG
   return c;
 }
 
-// Per corner of `faces` (3 per face, in order): 1 where its edge lies
-// inside an input polygon (see cut_to_disk); empty without polygons.
-std::vector<char> uncut_corners(const MeshTopology& topology, const std::vector<int>& faces) {
-  if (topology.inside_polygon.empty()) return {};
-  std::vector<char> out(3 * faces.size());
+// Per corner of `rows` faces, `faces` first (3 per face, in order): 1 where
+// its edge lies inside an input polygon (see cut_to_disk), and on every face
+// past `faces` (those filling holes, which no cut needs to cross); empty
+// when neither is.
+std::vector<char> uncut_corners(const MeshTopology& topology, const std::vector<int>& faces, Eigen::Index rows) {
+  if (topology.inside_polygon.empty() && rows == static_cast<Eigen::Index>(faces.size())) return {};
+  std::vector<char> out(3 * rows, 1);
   for (size_t i = 0; i < faces.size(); ++i)
     for (int k = 0; k < 3; ++k) out[3 * i + k] = !topology.may_cut(topology.corner_edge[3 * faces[i] + k]);
   return out;
 }
 
-ChartProblem make_problem(const Mesh& mesh, const ChartGraph& graph, const LocalChart& c) {
-  return chart_problem(mesh, graph, c.faces, c.triangles, c.vertices);
+ChartProblem make_problem(const Mesh& mesh, const ChartGraph& graph, const LocalChart& c,
+                          const RowMatrixX3d& fill_positions) {
+  return chart_problem(mesh, graph, c.faces, c.triangles, c.vertices, fill_positions);
 }
 
 FlatChart keep_original(const Mesh& mesh, const std::vector<int>& faces) {
@@ -539,9 +546,12 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
   double cut_length = 0;
   for (int round = 0;; ++round) {
     LocalChart local = localize(mesh, topology, graph, faces, cuts);
-    if (!cut_to_disk(local.triangles, local.vertices, uncut_corners(topology, local.faces)))
+    const RowMatrixX3d fill = fill_holes(mesh, topology, graph.holes, local.faces, local.triangles, local.vertices);
+    if (!cut_to_disk(local.triangles, local.vertices, uncut_corners(topology, local.faces, local.triangles.rows())))
       return {std::nullopt, &FlattenStats::not_disk};
-    const ChartSolution solution = parameterize_chart(make_problem(mesh, graph, local), options.slim, control);
+    const ChartSolution solution =
+        parameterize_chart(make_problem(mesh, graph, local, fill), options.slim, control);
+    local.triangles.conservativeResize(static_cast<Eigen::Index>(local.faces.size()), 3);  // the fill dropped
     stats.scaffolded += solution.scaffolded;
     if (!solution.status.ok() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
     if (const auto crossing = boundary_crossing(local.triangles, solution.uv))
@@ -562,6 +572,7 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
       return {std::nullopt, &FlattenStats::density_lost, loss.culprit};
     }
     stats.density_repaired += solution.density_repaired;
+    stats.holes_filled += static_cast<int>(fill.rows());
     FlatChart chart = from_solution(local, solution);
     chart.density_lost_area = loss.lost_area;
     return {std::move(chart)};

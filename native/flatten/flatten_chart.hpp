@@ -29,9 +29,13 @@ std::optional<std::pair<int, int>> boundary_crossing(const RowMatrixX3i& triangl
 // The problem parameterize_chart solves for the mesh faces `faces` as
 // triangles (F x 3) over local vertices (`vertices`: local -> mesh vertex):
 // their 3D positions, their original UV triangles in texels and whether
-// each face's original chart is mirrored.
+// each face's original chart is mirrored. Rows of triangles past F fill
+// holes (fill_holes): their reference is left empty, so that it is their
+// 3D triangle at the chart's density (repaired_reference_triangles); a
+// vertex numbered mesh.vertex_count() + i sits at row i of fill_positions.
 ChartProblem chart_problem(const Mesh& mesh, const ChartGraph& graph, const std::vector<int>& faces,
-                           const RowMatrixX3i& triangles, const std::vector<int>& vertices);
+                           const RowMatrixX3i& triangles, const std::vector<int>& vertices,
+                           const RowMatrixX3d& fill_positions = {});
 
 // A chart as it leaves the parameterization stage.
 struct FlatChart {
@@ -53,6 +57,7 @@ struct FlattenStats {
   int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
   int relief_cuts = 0;         // not a split: slits cut into charts that lost density (relief_cut.hpp)
   int density_repaired = 0;    // not a split: charts kept with their density repair (SlimOptions::repair_rounds)
+  int holes_filled = 0;        // not a split: holes of the mesh inside kept charts, filled to flatten them (fill_holes.hpp)
 };
 
 // Every counter under the name the report gives it: a new counter is a field
@@ -66,6 +71,7 @@ inline constexpr FlattenCounter kFlattenCounters[] = {
     {"splits_overlap", &FlattenStats::overlapped},    {"splits_density", &FlattenStats::density_lost},
     {"charts_scaffolded", &FlattenStats::scaffolded}, {"overlap_halved", &FlattenStats::overlap_halved},
     {"relief_cuts", &FlattenStats::relief_cuts},     {"density_repaired", &FlattenStats::density_repaired},
+    {"holes_filled", &FlattenStats::holes_filled},
 };
 
 inline FlattenStats& operator+=(FlattenStats& sum, const FlattenStats& more) {
