@@ -367,6 +367,25 @@ TEST(Aggregate, ChartsAroundHolesOfTheMeshMergeIntoOne) {
   EXPECT_EQ(r.aggregation.stops.not_disk, 0);
 }
 
+// A cluster round a hole of the mesh that touches the hole's border at a
+// vertex from two sides (a quad of another cluster fills the corner there)
+// does not enclose it: the hole and that quad's notch are one gap of its
+// border. Once the quad joins, the hole is a loop of its own, and counts.
+TEST(DiskClusters, AHoleCountsOnceItsBorderIsALoopOfItsOwn) {
+  const int n = 6, hole = 2 * (2 * n + 2), wedge = 2 * (3 * n + 3) - 2;  // quad (3, 3), after the hole's 2 faces
+  const Mesh mesh = without_faces(atlas::testing::grid_disk(n), {hole, hole + 1});
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  std::vector<int> cluster(mesh.face_count(), 0);
+  cluster[wedge] = cluster[wedge + 1] = 1;
+  DiskClusters disks(mesh, topology, cluster, 2, std::vector<char>(topology.edge_count(), 0), false,
+                     mesh_holes(mesh, topology));
+  EXPECT_FALSE(disks.is_disk(0));
+  EXPECT_TRUE(disks.is_disk(1));
+  const MergeCheck check = disks.check_merge(0, 1);
+  ASSERT_TRUE(check);
+  EXPECT_TRUE(disks.is_disk(disks.merge(0, 1, check)));
+}
+
 TEST(FillHoles, AWholeHoleGetsACentreAndFacesWoundLikeTheChart) {
   const Mesh mesh = grid_with_two_holes();
   const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());

@@ -560,9 +560,10 @@ def test_page_side_modes_and_texel_density_target(native, scans, tetra_result):
             assert w & (w - 1) == 0 and h & (h - 1) == 0
         if square:
             assert w == h and w % 4 == 0
-    # A tight page is not rounded (on this scan a side is no multiple of 4), and takes less area.
+    # A tight page is not rounded (on this scan a side is no multiple of 4), and takes less area
+    # (not less of each side: each mode's packing may settle on another shape).
     (w, h), (pw, ph), (mw, mh) = side["tight"], side["power_of_two"], side["multiple_of_4"]
-    assert (w % 4 or h % 4) and w <= pw and h <= ph and w * h < min(pw * ph, mw * mh), side
+    assert (w % 4 or h % 4) and w * h < min(pw * ph, mw * mh), side
     # A density target of twice the input's texels per unit of length.
     textured = scan.face_page >= 0
     uv = scan.uvs[textured] * np.asarray(scan.page_sizes)[scan.face_page[textured]][:, None, :]
@@ -740,18 +741,18 @@ def test_a_per_triangle_atlas_merges_into_few_charts_with_the_guarantees(native,
 def test_a_scan_with_holes_merges_round_them_with_the_guarantees(native, scans):
     """Phone LiDAR and photogrammetry meshes have holes where nothing was
     seen. With 100 of the Meshroom scan's faces taken out, charts used to stop
-    at every second hole (99 charts, seam 15.3): a chart may hold any number of
-    the mesh's holes, filled while it is flattened."""
+    at every second hole (99 charts, seam 15.3; 65 and 3.8 now): a chart may
+    hold any number of the mesh's holes, filled while it is flattened."""
     scan = scans("meshroom")
     keep = np.ones(len(scan.triangles), bool)
     keep[np.random.default_rng(1).choice(len(scan.triangles), 100, replace=False)] = False
     before = (scan.positions, scan.triangles[keep], scan.uvs[keep], scan.face_page[keep], scan.page_sizes)
     result = native.defragment(*before)
     m = measured_with_the_guarantees(native, before, colour_pages(scan), result)
-    assert m["new"]["charts"] <= 80
-    assert m["new"]["seam_ratio"] <= 8.0
-    assert result["report"]["aggregate_stops"]["not_disk"] <= 15
-    assert result["report"]["holes_filled"] >= 50
+    assert m["new"]["charts"] <= 72
+    assert m["new"]["seam_ratio"] <= 5.0
+    assert result["report"]["aggregate_stops"]["not_disk"] <= 3
+    assert result["report"]["holes_filled"] >= 80
 
 
 def test_bytes_from_unit_floats_gives_bytes_back_in_their_shape(native):

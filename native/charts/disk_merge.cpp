@@ -16,13 +16,17 @@ constexpr double kMinWeldedShare = 0.25;
 // in proportion to the chart, and small charts are what is left unmerged.
 constexpr size_t kAnyArcFaces = 200;
 
-// (hole, edges) pairs sorted by hole, one pair per hole, the edges summed.
-void sum_by_hole(std::vector<std::pair<int, int>>& held) {
-  std::sort(held.begin(), held.end());
+// Sorted by hole, one entry per hole: the edges summed, counted if either was.
+void sum_by_hole(std::vector<HeldHole>& held) {
+  std::sort(held.begin(), held.end(), [](const HeldHole& x, const HeldHole& y) { return x.hole < y.hole; });
   size_t kept = 0;
   for (size_t i = 0; i < held.size(); ++i)
-    if (kept > 0 && held[kept - 1].first == held[i].first) held[kept - 1].second += held[i].second;
-    else held[kept++] = held[i];
+    if (kept > 0 && held[kept - 1].hole == held[i].hole) {
+      held[kept - 1].edges += held[i].edges;
+      held[kept - 1].counted = held[kept - 1].counted || held[i].counted;
+    } else {
+      held[kept++] = held[i];
+    }
   held.resize(kept);
 }
 
@@ -77,38 +81,50 @@ DiskClusters::DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::
       vertex_stamp_(mesh.vertex_count(), 0) {
   for (int f = 0; f < mesh.face_count(); ++f)
     if (face_cluster_[f] >= 0) faces_[face_cluster_[f]].push_back(f);
+  hole_vertices_.resize(holes_.edges.size());
+  for (int e = 0; e < static_cast<int>(holes_.edge_hole.size()); ++e)
+    if (const int h = holes_.edge_hole[e]; h >= 0)
+      for (int end = 0; end < 2; ++end) hole_vertices_[h].push_back(topology.edge_vertices(e, end));
+  for (std::vector<int>& vertices : hole_vertices_) {
+    std::sort(vertices.begin(), vertices.end());
+    vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+  }
   for (int c = 0; c < cluster_count; ++c) {
     held_[c] = holes_held(c);
-    euler_[c] = euler_of(c);
-    for (const auto& [hole, edges] : held_[c]) euler_[c] += edges == holes_.edges[hole];
+    euler_[c] = euler_of(c) + count_enclosed(held_[c], c, c);
     manifold_[c] = !faces_[c].empty() && manifold_inside(c);
   }
 }
 
-std::vector<std::pair<int, int>> DiskClusters::holes_held(int c) const {
-  std::vector<std::pair<int, int>> held;
+bool DiskClusters::encloses(int hole, int a, int b) const {
+  for (int v : hole_vertices_[hole])
+    if (fan_count(v, a, b) != 1) return false;
+  return true;
+}
+
+std::vector<HeldHole> DiskClusters::holes_held(int c) const {
+  std::vector<HeldHole> held;
   if (holes_.edge_hole.empty()) return held;
   for (int f : faces_[c])
     for (int k = 0; k < 3; ++k)
-      if (const int h = holes_.edge_hole[topology_.corner_edge[3 * f + k]]; h >= 0) held.emplace_back(h, 1);
+      if (const int h = holes_.edge_hole[topology_.corner_edge[3 * f + k]]; h >= 0) held.push_back({h, 1, false});
   sum_by_hole(held);
   return held;
 }
 
+int DiskClusters::count_enclosed(std::vector<HeldHole>& held, int a, int b) const {
+  int counted = 0;
+  for (HeldHole& h : held)
+    if (!h.counted && h.edges == holes_.edges[h.hole] && encloses(h.hole, a, b)) h.counted = true, ++counted;
+  return counted;
+}
+
 int DiskClusters::holes_closed(int a, int b) const {
-  int closed = 0;
-  auto i = held_[a].begin(), j = held_[b].begin();
-  while (i != held_[a].end() && j != held_[b].end()) {
-    if (i->first < j->first) {
-      ++i;
-    } else if (j->first < i->first) {
-      ++j;
-    } else {
-      closed += i->second + j->second == holes_.edges[i->first];
-      ++i, ++j;
-    }
-  }
-  return closed;
+  if (held_[a].empty() && held_[b].empty()) return 0;
+  std::vector<HeldHole> both = held_[a];
+  both.insert(both.end(), held_[b].begin(), held_[b].end());
+  sum_by_hole(both);
+  return count_enclosed(both, a, b);
 }
 
 // chi = V - E + F over the faces of cluster c, where a vertex whose faces in
@@ -355,7 +371,6 @@ bool DiskClusters::move_keeps_topology(int f, int to) {
   for (int k = 0; k < 3; ++k) {
     const int c = 3 * f + k, e = topology_.corner_edge[c];
     if (seam_[e] || topology_.edge_valence(e) > 2) return false;
-    if (!holes_.edge_hole.empty() && holes_.edge_hole[e] >= 0) return false;
     for (int i = topology_.edge_offsets[e]; i < topology_.edge_offsets[e + 1]; ++i) {
       const int ci = topology_.edge_corners[i];
       if (ci == c) continue;
@@ -401,11 +416,10 @@ int DiskClusters::merge(int a, int b, const MergeCheck& check) {
   faces_[a].shrink_to_fit();
   euler_[b] = check.euler;
   manifold_[a] = 0;
-  if (!held_[a].empty()) {
-    held_[b].insert(held_[b].end(), held_[a].begin(), held_[a].end());
-    sum_by_hole(held_[b]);
-    held_[a].clear();
-  }
+  held_[b].insert(held_[b].end(), held_[a].begin(), held_[a].end());
+  sum_by_hole(held_[b]);
+  count_enclosed(held_[b], b, b);  // as holes_closed counted them in check.euler
+  held_[a].clear();
   return b;
 }
 

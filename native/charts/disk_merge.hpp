@@ -19,6 +19,13 @@ namespace atlas {
 // markedly more charts on the shared scans (bench/README.md).
 enum class MergeRefusal { None, NonManifold, NotDisk };
 
+// A hole of the mesh that a cluster holds border edges of; counted once the
+// cluster holds them all and encloses the hole, which then adds 1 to its chi.
+struct HeldHole {
+  int hole = 0, edges = 0;
+  bool counted = false;
+};
+
 struct MergeCheck {
   MergeRefusal refusal = MergeRefusal::None;
   int euler = 0;  // of the union, when not refused
@@ -40,8 +47,9 @@ class DiskClusters {
   // the union, as the thesis allows in 5.2 ("unless cuts are introduced").
   // false: such pairs are refused.
   // holes (mesh_holes, or empty): a hole of the mesh that a cluster holds
-  // whole counts as filled in its chi, as no merge could fill it; the
-  // flattening cuts the chart open there. Empty: every hole counts.
+  // whole and encloses counts as filled in its chi, as no merge could fill
+  // it; the flattening fills it (flatten/fill_holes.hpp). Empty: such holes
+  // count as holes.
   DiskClusters(const Mesh& mesh, const MeshTopology& topology, std::vector<int> face_cluster,
                int cluster_count, std::vector<char> self_seam, bool partial_merges = false,
                MeshHoles holes = {});
@@ -60,8 +68,8 @@ class DiskClusters {
   // True when face f may leave its cluster for cluster `to` with both keeping
   // their topology: f joins `to` across an edge, has exactly one neighbour
   // left in its own cluster (so that cluster stays connected), touches no
-  // seam and no counted hole, and chi of both is unchanged (counted at f's
-  // vertices and edges).
+  // seam, and chi of both is unchanged (counted at f's vertices and edges).
+  // For clusters built without holes only (a move would change their count).
   bool move_keeps_topology(int f, int to);
   void move(int f, int to);
 
@@ -88,11 +96,19 @@ class DiskClusters {
   MergeCheck weld_all(int a, int b, std::vector<int>* shared);
   MergeCheck weld_longest_arc(int a, int b, const std::vector<int>& shared);
   int euler_of(int c);
-  // Holes of the mesh that c holds edges of, as (hole, edges held), by hole.
-  std::vector<std::pair<int, int>> holes_held(int c) const;
-  // Counted holes whose edges a and b hold all of between them but neither
-  // alone: the holes their union closes.
+  // Holes of the mesh that c holds edges of, by hole, none counted yet.
+  std::vector<HeldHole> holes_held(int c) const;
+  // Marks counted, in held (the holes of a and b together), every hole not
+  // counted yet whose edges they hold all of and which they enclose; returns
+  // how many.
+  int count_enclosed(std::vector<HeldHole>& held, int a, int b) const;
+  // The holes the union of a and b would count that neither counts alone.
   int holes_closed(int a, int b) const;
+  // Whether the faces of a and b hold one fan at every vertex of the hole's
+  // border: it is then a loop of its own. Where the border meets a seam or
+  // touches the clusters' other border at a vertex, the vertex is split and
+  // the hole is part of that border; filling it would make no disk.
+  bool encloses(int hole, int a, int b) const;
   int local_euler(int f, int c) const;
   bool manifold_inside(int c);
   int fan_count(int v, int a, int b) const;
@@ -111,7 +127,8 @@ class DiskClusters {
   std::vector<char> seam_;  // per edge: the self seams given, plus the arcs partial merges left open
   bool partial_merges_;
   MeshHoles holes_;
-  std::vector<std::vector<std::pair<int, int>>> held_;  // per cluster: holes_held
+  std::vector<std::vector<HeldHole>> held_;  // per cluster: holes_held, counted once enclosed
+  std::vector<std::vector<int>> hole_vertices_;  // per hole: the vertices of its border, ascending
   // Visit stamps, so each check touches only the smaller cluster's faces.
   std::vector<unsigned> edge_stamp_, vertex_stamp_;
   unsigned stamp_ = 0;

@@ -16,44 +16,59 @@ std::vector<int> face_pieces(const MeshTopology& topology, int face_count) {
   return pieces.dense_labels();
 }
 
+// The border loops: per edge its loop (-1 off the border), per loop its
+// piece, 3D length and whether every edge of it may be a hole's.
+struct BorderLoops {
+  std::vector<int> edge_loop, piece;
+  std::vector<double> length;
+  std::vector<char> may_be_hole;
+};
+
+BorderLoops border_loops(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& may_be_hole) {
+  const int edge_count = topology.edge_count();
+  UnionFind joined(edge_count + mesh.vertex_count());  // border edges joined through vertex v, node E + v
+  for (int e = 0; e < edge_count; ++e)
+    if (topology.edge_valence(e) == 1)
+      for (int end = 0; end < 2; ++end) joined.unite(e, edge_count + topology.edge_vertices(e, end));
+  const std::vector<int> face_piece = face_pieces(topology, mesh.face_count());
+  std::vector<int> loop_of_root(edge_count + mesh.vertex_count(), -1);
+  BorderLoops loops;
+  loops.edge_loop.assign(edge_count, -1);
+  for (int e = 0; e < edge_count; ++e) {
+    if (topology.edge_valence(e) != 1) continue;
+    int& loop = loop_of_root[joined.find(e)];
+    if (loop < 0) {
+      loop = static_cast<int>(loops.length.size());
+      loops.length.push_back(0);
+      loops.piece.push_back(face_piece[topology.edge_corners[topology.edge_offsets[e]] / 3]);
+      loops.may_be_hole.push_back(1);
+    }
+    if (!may_be_hole.empty() && !may_be_hole[e]) loops.may_be_hole[loop] = 0;
+    loops.edge_loop[e] = loop;
+    loops.length[loop] += edge_length(mesh, topology, e);
+  }
+  return loops;
+}
+
 }  // namespace
 
 MeshHoles mesh_holes(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& may_be_hole) {
-  const int edge_count = topology.edge_count();
-  // Loops: border edges joined through their vertices (vertex v is node E + v).
-  UnionFind loops(edge_count + mesh.vertex_count());
-  for (int e = 0; e < edge_count; ++e)
-    if (topology.edge_valence(e) == 1)
-      for (int end = 0; end < 2; ++end) loops.unite(e, edge_count + topology.edge_vertices(e, end));
-  const std::vector<int> piece = face_pieces(topology, mesh.face_count());
-  std::vector<int> loop_of(edge_count + mesh.vertex_count(), -1), loop_piece;
-  std::vector<double> loop_length;
-  std::vector<char> loop_may_be_hole;
+  const BorderLoops loops = border_loops(mesh, topology, may_be_hole);
+  const int loop_count = static_cast<int>(loops.length.size());
+  std::vector<int> outline(loops.piece.empty() ? 0 : *std::max_element(loops.piece.begin(), loops.piece.end()) + 1,
+                           -1);  // per piece, its longest loop
+  for (int l = 0; l < loop_count; ++l)
+    if (int& o = outline[loops.piece[l]]; o < 0 || loops.length[l] > loops.length[o]) o = l;
   MeshHoles holes;
-  holes.edge_hole.assign(edge_count, -1);
-  for (int e = 0; e < edge_count; ++e) {
-    if (topology.edge_valence(e) != 1) continue;
-    int& loop = loop_of[loops.find(e)];
-    if (loop < 0) {
-      loop = static_cast<int>(loop_length.size());
-      loop_length.push_back(0);
-      loop_piece.push_back(piece[topology.edge_corners[topology.edge_offsets[e]] / 3]);
-      loop_may_be_hole.push_back(1);
+  std::vector<int> hole_of(loop_count, -1);
+  for (int l = 0; l < loop_count; ++l)
+    if (outline[loops.piece[l]] != l && loops.may_be_hole[l]) {
+      hole_of[l] = static_cast<int>(holes.edges.size());
+      holes.edges.push_back(0);
     }
-    if (!may_be_hole.empty() && !may_be_hole[e]) loop_may_be_hole[loop] = 0;
-    holes.edge_hole[e] = loop;
-    loop_length[loop] += edge_length(mesh, topology, e);
-  }
-  // The longest loop of each piece is its outer border; the others are
-  // holes, numbered in the order of their loops.
-  std::vector<int> outer(piece.empty() ? 0 : *std::max_element(piece.begin(), piece.end()) + 1, -1);
-  for (int l = 0; l < static_cast<int>(loop_length.size()); ++l)
-    if (int& o = outer[loop_piece[l]]; o < 0 || loop_length[l] > loop_length[o]) o = l;
-  std::vector<int> hole_of(loop_length.size(), -1);
-  for (int l = 0; l < static_cast<int>(loop_length.size()); ++l)
-    if (outer[loop_piece[l]] != l && loop_may_be_hole[l]) hole_of[l] = static_cast<int>(holes.edges.size()), holes.edges.push_back(0);
-  for (int& h : holes.edge_hole)
-    if (h >= 0 && (h = hole_of[h]) >= 0) ++holes.edges[h];
+  holes.edge_hole.assign(loops.edge_loop.size(), -1);
+  for (size_t e = 0; e < loops.edge_loop.size(); ++e)
+    if (const int l = loops.edge_loop[e]; l >= 0 && hole_of[l] >= 0) ++holes.edges[holes.edge_hole[e] = hole_of[l]];
   return holes;
 }
 

@@ -1,8 +1,8 @@
 // Holes of a mesh: the loops of border edges (edges with one face) that are
 // not the outer border of their piece. Scans have many (phone LiDAR and
-// photogrammetry leave gaps where nothing was seen). A chart around a hole is
-// not a disk, yet flattens as one once cut open (flatten/cut_to_disk.hpp), so
-// the aggregation counts a hole inside a chart as filled (charts/disk_merge.hpp).
+// photogrammetry leave gaps where nothing was seen). A chart round a hole is
+// not a disk, yet flattens as one with the hole filled (flatten/fill_holes.hpp),
+// so the aggregation counts a hole inside a chart as filled (charts/disk_merge.hpp).
 #pragma once
 #include <vector>
 

@@ -32,7 +32,8 @@ std::optional<std::pair<int, int>> boundary_crossing(const RowMatrixX3i& triangl
 // each face's original chart is mirrored. Rows of triangles past F fill
 // holes (fill_holes): their reference is left empty, so that it is their
 // 3D triangle at the chart's density (repaired_reference_triangles); a
-// vertex numbered mesh.vertex_count() + i sits at row i of fill_positions.
+// vertex numbered mesh.vertex_count() + i sits at row i of fill_positions
+// (H x 3, fill_holes' centres).
 ChartProblem chart_problem(const Mesh& mesh, const ChartGraph& graph, const std::vector<int>& faces,
                            const RowMatrixX3i& triangles, const std::vector<int>& vertices,
                            const RowMatrixX3d& fill_positions = {});
@@ -57,7 +58,7 @@ struct FlattenStats {
   int scaffolded = 0;          // not a split: solves whose boundary crossed and that SCAF finished
   int relief_cuts = 0;         // not a split: slits cut into charts that lost density (relief_cut.hpp)
   int density_repaired = 0;    // not a split: charts kept with their density repair (SlimOptions::repair_rounds)
-  int holes_filled = 0;        // not a split: holes of the mesh inside kept charts, filled to flatten them (fill_holes.hpp)
+  int holes_filled = 0;        // not a split: the mesh's holes inside kept charts, filled for the solve (fill_holes)
 };
 
 // Every counter under the name the report gives it: a new counter is a field
