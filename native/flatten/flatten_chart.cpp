@@ -136,6 +136,15 @@ std::vector<char> uncut_corners(const MeshTopology& topology, const std::vector<
   return out;
 }
 
+// Per local vertex: 1 on the border of a hole fill_holes filled (the first
+// two corners of each face past c.faces; the third is the hole's centre).
+std::vector<char> filled_hole_borders(const LocalChart& c) {
+  std::vector<char> out(c.vertices.size(), 0);
+  for (Eigen::Index i = static_cast<Eigen::Index>(c.faces.size()); i < c.triangles.rows(); ++i)
+    out[c.triangles(i, 0)] = out[c.triangles(i, 1)] = 1;
+  return out;
+}
+
 ChartProblem make_problem(const Mesh& mesh, const ChartGraph& graph, const LocalChart& c,
                           const RowMatrixX3d& fill_positions) {
   return chart_problem(mesh, graph, c.faces, c.triangles, c.vertices, fill_positions);
@@ -551,6 +560,7 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
       return {std::nullopt, &FlattenStats::not_disk};
     const ChartSolution solution =
         parameterize_chart(make_problem(mesh, graph, local, fill), options.slim, control);
+    const std::vector<char> filled_borders = filled_hole_borders(local);
     local.triangles.conservativeResize(static_cast<Eigen::Index>(local.faces.size()), 3);  // the fill dropped
     stats.scaffolded += solution.scaffolded;
     if (!solution.status.ok() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
@@ -560,7 +570,8 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
     const DensityLoss loss = density_loss(mesh, graph, local, solution.uv);
     if (loss.lost_area > options.max_density_loss * loss.total_area && loss.lost_area > options.density_loss_allowance) {
       if (round < options.relief_cuts) {
-        const std::vector<int> cut = relief_cut(mesh, topology, local.faces, local.triangles, solution.uv);
+        const std::vector<int> cut =
+            relief_cut(mesh, topology, local.faces, local.triangles, solution.uv, filled_borders);
         cut_length += edges_length(mesh, topology, cut);
         if (!cut.empty() && cut_length <= max_cut_length) {
           cuts.insert(cuts.end(), cut.begin(), cut.end());
