@@ -3,13 +3,16 @@
 
 #include <array>
 #include <cmath>
+#include <numeric>
 
 #include "charts/aggregate.hpp"
 #include "charts/chart_graph.hpp"
+#include "charts/mesh_holes.hpp"
 #include "core/bucket_grid.hpp"
 #include "core/corners.hpp"
 #include "core/geometry.hpp"
 #include "flatten/cut_to_disk.hpp"
+#include "flatten/fill_holes.hpp"
 #include "flatten/flatten_chart.hpp"
 #include "flatten/relief_cut.hpp"
 #include "core/union_find.hpp"
@@ -456,5 +459,48 @@ TEST(ReliefCut, AvoidsTheVerticesItIsToldTo) {
     if (avoiding) EXPECT_EQ(touching, 0);
     if (avoiding) EXPECT_EQ(on_the_free_side, 1);  // the path's root
     if (!avoiding) EXPECT_GT(touching, 0);  // the shortest path starts on the left, else the test shows nothing
+  }
+}
+
+// A 12 x 12 grid with a hole of the mesh (three quads at x = 1 / n) between
+// the side x = 0 and an island (quad (3, 6), faces left out of the chart):
+// the hole filled, the cut that opens the island's hole into the border
+// goes round the hole's border when told to avoid it. Every path of three
+// edges from x = 0 to the island passes that border, so left free the
+// shortest cut runs through it.
+TEST(CutToDisk, GoesRoundTheVerticesToAvoid) {
+  const int n = 12;
+  const Mesh grid = atlas::testing::grid_disk(n);
+  std::vector<int> kept, faces;  // kept: the mesh; faces: the chart (rows of the mesh)
+  for (int f = 0; f < grid.face_count(); ++f) {
+    const int i = f / 2 / n, j = f / 2 % n;
+    if (i == 1 && j >= 5 && j <= 7) continue;
+    if (!(i == 3 && j == 6)) faces.push_back(static_cast<int>(kept.size()));
+    kept.push_back(f);
+  }
+  Mesh mesh = grid;
+  mesh.triangles.resize(static_cast<Eigen::Index>(kept.size()), 3);
+  for (size_t r = 0; r < kept.size(); ++r) mesh.triangles.row(r) = grid.triangles.row(kept[r]);
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  const MeshHoles holes = mesh_holes(mesh, topology);
+  ASSERT_EQ(holes.edges, (std::vector<int>{8}));
+  std::vector<char> border(mesh.vertex_count(), 0);
+  for (int e = 0; e < topology.edge_count(); ++e)
+    if (holes.edge_hole[e] >= 0) border[topology.edge_vertices(e, 0)] = border[topology.edge_vertices(e, 1)] = 1;
+  for (const bool avoiding : {false, true}) {
+    RowMatrixX3i triangles(static_cast<Eigen::Index>(faces.size()), 3);
+    for (size_t r = 0; r < faces.size(); ++r) triangles.row(r) = mesh.triangles.row(faces[r]);
+    std::vector<int> source(mesh.vertex_count());
+    std::iota(source.begin(), source.end(), 0);
+    ASSERT_EQ(fill_holes(mesh, topology, holes, faces, triangles, source).rows(), 1);
+    std::vector<char> uncut(3 * triangles.rows(), 0);
+    std::fill(uncut.begin() + 3 * static_cast<std::ptrdiff_t>(faces.size()), uncut.end(), 1);
+    ASSERT_TRUE(cut_to_disk(triangles, source, uncut, avoiding ? border : std::vector<char>()));
+    std::vector<int> copies(mesh.vertex_count() + 1, 0);
+    for (int s : source) ++copies[s];
+    int border_copies = 0;
+    for (int v = 0; v < mesh.vertex_count(); ++v) border_copies += border[v] ? copies[v] - 1 : 0;
+    if (avoiding) EXPECT_EQ(border_copies, 0);
+    if (!avoiding) EXPECT_GT(border_copies, 0);  // else the test shows nothing
   }
 }

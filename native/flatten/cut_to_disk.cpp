@@ -35,9 +35,11 @@ int label_boundary_loops(const RowMatrixX3i& t, int vertex_count, std::vector<in
 }
 
 // Shortest path (in edges) from loop 0 to any other loop through interior
-// vertices, along no edge whose corner is set in `uncut` (empty: any edge).
+// vertices, along no edge whose corner is set in `uncut` (empty: any edge)
+// and through no vertex that `avoided` names.
+template <class Avoided>
 std::vector<int> path_between_loops(const RowMatrixX3i& t, const std::vector<int>& loop_of,
-                                    const std::vector<char>& uncut) {
+                                    const std::vector<char>& uncut, Avoided avoided) {
   const int n = static_cast<int>(loop_of.size());
   std::vector<std::vector<int>> adjacent(n);
   for (Eigen::Index f = 0; f < t.rows(); ++f)
@@ -53,7 +55,7 @@ std::vector<int> path_between_loops(const RowMatrixX3i& t, const std::vector<int
     const int v = bfs.front();
     bfs.pop();
     for (int w : adjacent[v]) {
-      if (from[w] != -2) continue;
+      if (from[w] != -2 || avoided(w)) continue;
       from[w] = v;
       if (loop_of[w] > 0) {
         std::vector<int> path;
@@ -100,7 +102,10 @@ int slit_corner(const RowMatrixX3i& t, const std::vector<char>& uncut) {
 
 }  // namespace
 
-bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source, const std::vector<char>& uncut) {
+bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source, const std::vector<char>& uncut,
+                 const std::vector<char>& avoid) {
+  auto avoided = [&](int v) { return vertex_source[v] < static_cast<int>(avoid.size()) && avoid[vertex_source[v]]; };
+  auto anywhere = [](int) { return false; };
   std::vector<int> loop_of;
   for (;;) {
     const int loops = label_boundary_loops(triangles, static_cast<int>(vertex_source.size()), loop_of);
@@ -116,8 +121,9 @@ bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source, const
       continue;
     }
     if (loops == 1) break;
-    std::vector<int> path = path_between_loops(triangles, loop_of, uncut);
-    if (path.empty() && !uncut.empty()) path = path_between_loops(triangles, loop_of, {});
+    std::vector<int> path = path_between_loops(triangles, loop_of, uncut, avoided);
+    if (path.empty() && !avoid.empty()) path = path_between_loops(triangles, loop_of, uncut, anywhere);
+    if (path.empty() && !uncut.empty()) path = path_between_loops(triangles, loop_of, {}, anywhere);
     if (path.empty()) return false;
     // Named in the current numbering; once split, these edges are boundary.
     std::vector<std::int64_t> cut;

@@ -20,6 +20,10 @@ namespace atlas {
 // uncut (3F, or empty): 1 at a corner whose edge lies inside a polygon of the
 // input (MeshTopology::inside_polygon). Cuts go around such edges; only when
 // no such path joins the first loop to another is any edge taken.
-bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source, const std::vector<char>& uncut = {});
+// avoid (indexed by vertex_source, or empty; sources past its end are not
+// avoided): vertices cuts go around first, as the border of a hole that
+// fill_holes filled, which a cut through it would open again.
+bool cut_to_disk(RowMatrixX3i& triangles, std::vector<int>& vertex_source, const std::vector<char>& uncut = {},
+                 const std::vector<char>& avoid = {});
 
 }  // namespace atlas

@@ -136,12 +136,15 @@ std::vector<char> uncut_corners(const MeshTopology& topology, const std::vector<
   return out;
 }
 
-// Per local vertex: 1 on the border of a hole fill_holes filled (the first
-// two corners of each face past c.faces; the third is the hole's centre).
-std::vector<char> filled_hole_borders(const LocalChart& c) {
-  std::vector<char> out(c.vertices.size(), 0);
+// Per local vertex (by_source: per source in c.vertices instead): 1 on the
+// border of a hole fill_holes filled (the first two corners of each face
+// past c.faces; the third is the hole's centre).
+std::vector<char> filled_hole_borders(const LocalChart& c, bool by_source = false) {
+  auto id = [&](int v) { return by_source ? c.vertices[v] : v; };
+  std::vector<char> out(by_source ? *std::max_element(c.vertices.begin(), c.vertices.end()) + 1 : c.vertices.size(),
+                        0);
   for (Eigen::Index i = static_cast<Eigen::Index>(c.faces.size()); i < c.triangles.rows(); ++i)
-    out[c.triangles(i, 0)] = out[c.triangles(i, 1)] = 1;
+    out[id(c.triangles(i, 0))] = out[id(c.triangles(i, 1))] = 1;
   return out;
 }
 
@@ -556,7 +559,8 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
   for (int round = 0;; ++round) {
     LocalChart local = localize(mesh, topology, graph, faces, cuts);
     const RowMatrixX3d fill = fill_holes(mesh, topology, graph.holes, local.faces, local.triangles, local.vertices);
-    if (!cut_to_disk(local.triangles, local.vertices, uncut_corners(topology, local.faces, local.triangles.rows())))
+    if (!cut_to_disk(local.triangles, local.vertices, uncut_corners(topology, local.faces, local.triangles.rows()),
+                     fill.rows() ? filled_hole_borders(local, true) : std::vector<char>()))
       return {std::nullopt, &FlattenStats::not_disk};
     const ChartSolution solution =
         parameterize_chart(make_problem(mesh, graph, local, fill), options.slim, control);
