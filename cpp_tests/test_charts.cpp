@@ -353,6 +353,27 @@ TEST(MeshHoles, EveryBorderLoopButThePiecesLongestIsAHole) {
   EXPECT_EQ(mesh_holes(mesh, topology, may_be_hole).edges, (std::vector<int>{4}));
 }
 
+// A vertex the weld missed (two copies at one point, the faces left of it
+// on one, those right of it on the other) leaves a crack of four border
+// edges and no area: no hole, which filled would force the crack open.
+TEST(MeshHoles, ACrackIsNoHole) {
+  const int n = 6, middle = 3 * (n + 1) + 3;
+  Mesh mesh = atlas::testing::grid_disk(n);
+  mesh.positions.conservativeResize(mesh.vertex_count() + 1, 3);
+  mesh.positions.row(mesh.vertex_count() - 1) = mesh.positions.row(middle);
+  for (int f = 0; f < mesh.face_count(); ++f) {
+    double x = 0;
+    for (int k = 0; k < 3; ++k) x += mesh.positions(mesh.triangles(f, k), 0) / 3;
+    for (int k = 0; k < 3; ++k)
+      if (mesh.triangles(f, k) == middle && x < 0.5) mesh.triangles(f, k) = mesh.vertex_count() - 1;
+  }
+  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
+  int border = 0;
+  for (int e = 0; e < topology.edge_count(); ++e) border += topology.edge_valence(e) == 1;
+  ASSERT_EQ(border, 4 * n + 4);
+  EXPECT_TRUE(mesh_holes(mesh, topology).edges.empty());
+}
+
 TEST(Aggregate, ChartsAroundHolesOfTheMeshMergeIntoOne) {
   ChartRun r{grid_with_two_holes(), {}, {}, {}};
   r.topology = build_topology(r.mesh.triangles, r.mesh.vertex_count());

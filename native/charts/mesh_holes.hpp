@@ -18,7 +18,8 @@ struct MeshHoles {
 
 // The border edges joined at shared vertices form loops (loops touching at a
 // vertex count as one); in each connected piece of the mesh the loop of
-// greatest 3D length is its outer border, and every other loop is a hole.
+// greatest 3D length is its outer border, and every other loop is a hole,
+// unless it is a crack (see kMinHoleRoundness in mesh_holes.cpp).
 // may_be_hole (E, or empty: every edge may): a loop with an edge not marked is
 // no hole.
 MeshHoles mesh_holes(const Mesh& mesh, const MeshTopology& topology, const std::vector<char>& may_be_hole = {});
