@@ -14,7 +14,6 @@
 #include "flatten/cut_to_disk.hpp"
 #include "flatten/fill_holes.hpp"
 #include "flatten/flatten_chart.hpp"
-#include "flatten/relief_cut.hpp"
 #include "core/union_find.hpp"
 #include "test_meshes.hpp"
 
@@ -425,41 +424,6 @@ TEST(BucketGrid, AQueryBoxFarLargerThanTheGridVisitsEveryItem) {
     return false;
   });
   EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), 100);
-}
-
-// The 8 x 8 grid flattened with its middle squeezed to a tenth of its area:
-// the relief cut runs from the boundary to the middle, never starting at or
-// passing through a vertex it must avoid (the border of a filled hole).
-TEST(ReliefCut, AvoidsTheVerticesItIsToldTo) {
-  const int n = 8;
-  const Mesh mesh = atlas::testing::grid_disk(n);
-  const MeshTopology topology = build_topology(mesh.triangles, mesh.vertex_count());
-  std::vector<int> faces(mesh.face_count());
-  for (int f = 0; f < mesh.face_count(); ++f) faces[f] = f;
-  RowMatrixX2d uv(mesh.vertex_count(), 2);
-  const Eigen::RowVector2d middle(0.5, 0.5);
-  for (int v = 0; v < mesh.vertex_count(); ++v) {
-    const Eigen::RowVector2d p = mesh.positions.row(v).head<2>();
-    uv.row(v) = 256 * ((p - middle).norm() <= 0.25 ? middle + 0.3 * (p - middle) : p);
-  }
-  // Every boundary vertex avoided but those of the side x = 1 (i = n).
-  std::vector<char> avoid(mesh.vertex_count(), 0);
-  for (int i = 0; i <= n; ++i)
-    for (int j = 0; j <= n; ++j) avoid[i * (n + 1) + j] = i == 0 || j == 0 || j == n;
-  for (const bool avoiding : {false, true}) {
-    const std::vector<int> cut =
-        relief_cut(mesh, topology, faces, mesh.triangles, uv, avoiding ? avoid : std::vector<char>());
-    ASSERT_FALSE(cut.empty());
-    int touching = 0, on_the_free_side = 0;
-    for (int e : cut)
-      for (int end = 0; end < 2; ++end) {
-        const int v = topology.edge_vertices(e, end);
-        touching += avoid[v], on_the_free_side += v / (n + 1) == n;
-      }
-    if (avoiding) EXPECT_EQ(touching, 0);
-    if (avoiding) EXPECT_EQ(on_the_free_side, 1);  // the path's root
-    if (!avoiding) EXPECT_GT(touching, 0);  // the shortest path starts on the left, else the test shows nothing
-  }
 }
 
 // A 12 x 12 grid with a hole of the mesh (three quads at x = 1 / n) between

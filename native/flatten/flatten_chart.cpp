@@ -136,15 +136,13 @@ std::vector<char> uncut_corners(const MeshTopology& topology, const std::vector<
   return out;
 }
 
-// Per local vertex (by_source: per source in c.vertices instead): 1 on the
-// border of a hole fill_holes filled (the first two corners of each face
-// past c.faces; the third is the hole's centre).
-std::vector<char> filled_hole_borders(const LocalChart& c, bool by_source = false) {
-  auto id = [&](int v) { return by_source ? c.vertices[v] : v; };
-  std::vector<char> out(by_source ? *std::max_element(c.vertices.begin(), c.vertices.end()) + 1 : c.vertices.size(),
-                        0);
+// Per source vertex (indexed by c.vertices' values): 1 on the border of a
+// hole fill_holes filled (the first two corners of each face past c.faces;
+// the third is the hole's centre).
+std::vector<char> filled_hole_borders(const LocalChart& c) {
+  std::vector<char> out(*std::max_element(c.vertices.begin(), c.vertices.end()) + 1, 0);
   for (Eigen::Index i = static_cast<Eigen::Index>(c.faces.size()); i < c.triangles.rows(); ++i)
-    out[id(c.triangles(i, 0))] = out[id(c.triangles(i, 1))] = 1;
+    out[c.vertices[c.triangles(i, 0)]] = out[c.vertices[c.triangles(i, 1)]] = 1;
   return out;
 }
 
@@ -560,11 +558,10 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
     LocalChart local = localize(mesh, topology, graph, faces, cuts);
     const RowMatrixX3d fill = fill_holes(mesh, topology, graph.holes, local.faces, local.triangles, local.vertices);
     if (!cut_to_disk(local.triangles, local.vertices, uncut_corners(topology, local.faces, local.triangles.rows()),
-                     fill.rows() ? filled_hole_borders(local, true) : std::vector<char>()))
+                     fill.rows() ? filled_hole_borders(local) : std::vector<char>()))
       return {std::nullopt, &FlattenStats::not_disk};
     const ChartSolution solution =
         parameterize_chart(make_problem(mesh, graph, local, fill), options.slim, control);
-    const std::vector<char> filled_borders = filled_hole_borders(local);
     local.triangles.conservativeResize(static_cast<Eigen::Index>(local.faces.size()), 3);  // the fill dropped
     stats.scaffolded += solution.scaffolded;
     if (!solution.status.ok() || solution.flipped > 0) return {std::nullopt, &FlattenStats::solver_failed};
@@ -574,8 +571,7 @@ Attempt flatten_faces(const Mesh& mesh, const MeshTopology& topology, const Char
     const DensityLoss loss = density_loss(mesh, graph, local, solution.uv);
     if (loss.lost_area > options.max_density_loss * loss.total_area && loss.lost_area > options.density_loss_allowance) {
       if (round < options.relief_cuts) {
-        const std::vector<int> cut =
-            relief_cut(mesh, topology, local.faces, local.triangles, solution.uv, filled_borders);
+        const std::vector<int> cut = relief_cut(mesh, topology, local.faces, local.triangles, solution.uv);
         cut_length += edges_length(mesh, topology, cut);
         if (!cut.empty() && cut_length <= max_cut_length) {
           cuts.insert(cuts.end(), cut.begin(), cut.end());

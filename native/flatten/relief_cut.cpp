@@ -66,7 +66,7 @@ std::vector<int> squeezed_targets(const RowMatrixX3i& triangles, const Squeeze& 
 }  // namespace
 
 std::vector<int> relief_cut(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& faces,
-                            const RowMatrixX3i& triangles, const RowMatrixX2d& uv, const std::vector<char>& avoid) {
+                            const RowMatrixX3i& triangles, const RowMatrixX2d& uv) {
   const int n = static_cast<int>(uv.rows());
   std::vector<std::vector<HalfEdge>> out(n);
   const auto keyed = corners_by_edge(static_cast<int>(3 * triangles.rows()),
@@ -93,15 +93,14 @@ std::vector<int> relief_cut(const Mesh& mesh, const MeshTopology& topology, cons
   std::vector<int> via(n, -1), via_edge(n, -1);
   using Entry = std::pair<double, int>;
   std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue;
-  auto avoided = [&](int v) { return !avoid.empty() && avoid[v]; };
   for (int v = 0; v < n; ++v)
-    if (on_boundary[v] && !avoided(v)) distance[v] = 0, queue.push({0, v});
+    if (on_boundary[v]) distance[v] = 0, queue.push({0, v});
   while (!queue.empty()) {
     const auto [d, v] = queue.top();
     queue.pop();
     if (d > distance[v]) continue;
     for (const HalfEdge& h : out[v])
-      if (!on_boundary[h.to] && !avoided(h.to) && d + h.length < distance[h.to]) {
+      if (!on_boundary[h.to] && d + h.length < distance[h.to]) {
         distance[h.to] = d + h.length, via[h.to] = v, via_edge[h.to] = h.mesh_edge;
         queue.push({distance[h.to], h.to});
       }

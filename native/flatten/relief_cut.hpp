@@ -19,12 +19,8 @@ namespace atlas {
 // their texel area, starting at the group's interior vertex of lowest
 //   score(v) = sum_f A3D(f) log(A_uv(f) / A_ref(f)) / sum_f A3D(f) over faces f at v;
 // nothing when no such group has an interior vertex. No path runs inside an
-// input polygon (MeshTopology::inside_polygon), and none starts at or passes
-// through a vertex marked in `avoid` (V, or empty): the border of a hole the
-// flattening fills, which a cut reaching it would open into the chart's
-// border, so that the hole could no longer be filled.
+// input polygon (MeshTopology::inside_polygon).
 std::vector<int> relief_cut(const Mesh& mesh, const MeshTopology& topology, const std::vector<int>& faces,
-                            const RowMatrixX3i& triangles, const RowMatrixX2d& uv,
-                            const std::vector<char>& avoid = {});
+                            const RowMatrixX3i& triangles, const RowMatrixX2d& uv);
 
 }  // namespace atlas
