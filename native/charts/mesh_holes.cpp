@@ -18,10 +18,10 @@ std::vector<int> face_pieces(const MeshTopology& topology, int face_count) {
 }
 
 // The border loops: per edge its loop (-1 off the border), per loop its
-// piece, 3D length, the sum of its edges' end points and whether every edge
-// of it may be a hole's.
+// piece, edge count, 3D length, the sum of its edges' end points and whether
+// every edge of it may be a hole's.
 struct BorderLoops {
-  std::vector<int> edge_loop, piece;
+  std::vector<int> edge_loop, piece, edges;
   std::vector<double> length;
   std::vector<Eigen::RowVector3d> ends;
   std::vector<char> may_be_hole;
@@ -35,13 +35,11 @@ constexpr double kMinHoleRoundness = 0.05;
 
 // The 3D area of the fan joining each loop's edges to the mean of their ends.
 std::vector<double> fan_areas(const Mesh& mesh, const MeshTopology& topology, const BorderLoops& loops) {
-  std::vector<double> area(loops.length.size(), 0.0), ends(loops.length.size(), 0.0);
-  for (int l : loops.edge_loop)
-    if (l >= 0) ends[l] += 2;
+  std::vector<double> area(loops.length.size(), 0.0);
   for (size_t e = 0; e < loops.edge_loop.size(); ++e) {
     const int l = loops.edge_loop[e];
     if (l < 0) continue;
-    const Eigen::RowVector3d centre = loops.ends[l] / ends[l];
+    const Eigen::RowVector3d centre = loops.ends[l] / (2.0 * loops.edges[l]);
     const Eigen::RowVector3d a = mesh.positions.row(topology.edge_vertices(static_cast<int>(e), 0)) - centre;
     const Eigen::RowVector3d b = mesh.positions.row(topology.edge_vertices(static_cast<int>(e), 1)) - centre;
     area[l] += 0.5 * a.cross(b).norm();
@@ -65,12 +63,14 @@ BorderLoops border_loops(const Mesh& mesh, const MeshTopology& topology, const s
     if (loop < 0) {
       loop = static_cast<int>(loops.length.size());
       loops.length.push_back(0);
+      loops.edges.push_back(0);
       loops.ends.push_back(Eigen::RowVector3d::Zero());
       loops.piece.push_back(face_piece[topology.edge_corners[topology.edge_offsets[e]] / 3]);
       loops.may_be_hole.push_back(1);
     }
     if (!may_be_hole.empty() && !may_be_hole[e]) loops.may_be_hole[loop] = 0;
     loops.edge_loop[e] = loop;
+    ++loops.edges[loop];
     loops.length[loop] += edge_length(mesh, topology, e);
     for (int end = 0; end < 2; ++end) loops.ends[loop] += mesh.positions.row(topology.edge_vertices(e, end));
   }
@@ -93,11 +93,11 @@ MeshHoles mesh_holes(const Mesh& mesh, const MeshTopology& topology, const std::
     if (outline[loops.piece[l]] != l && loops.may_be_hole[l] &&
         area[l] >= kMinHoleRoundness * loops.length[l] * loops.length[l] / (4 * 3.14159265358979323846)) {
       hole_of[l] = static_cast<int>(holes.edges.size());
-      holes.edges.push_back(0);
+      holes.edges.push_back(loops.edges[l]);
     }
   holes.edge_hole.assign(loops.edge_loop.size(), -1);
   for (size_t e = 0; e < loops.edge_loop.size(); ++e)
-    if (const int l = loops.edge_loop[e]; l >= 0 && hole_of[l] >= 0) ++holes.edges[holes.edge_hole[e] = hole_of[l]];
+    if (const int l = loops.edge_loop[e]; l >= 0) holes.edge_hole[e] = hole_of[l];
   return holes;
 }
 

@@ -34,8 +34,8 @@ RowMatrixX3d fill_holes(const Mesh& mesh, const MeshTopology& topology, const Me
     for (int k = 0; k < 3; ++k)
       if (const int h = holes.edge_hole[topology.corner_edge[3 * faces[i] + k]]; h >= 0)
         border[h].emplace_back(triangles(i, k), triangles(i, (k + 1) % 3));
-  std::vector<std::pair<int, int>> fill;  // (from, to) of each border edge filled, and the centre it joins
-  std::vector<int> fill_centre;
+  // The chart's face runs from -> to along the border, so the filling face runs to -> from.
+  std::vector<Eigen::RowVector3i> fill;
   RowMatrixX3d centres(static_cast<Eigen::Index>(border.size()), 3);
   Eigen::Index whole = 0;
   for (const auto& [h, edges] : border) {
@@ -45,14 +45,12 @@ RowMatrixX3d fill_holes(const Mesh& mesh, const MeshTopology& topology, const Me
     centres.row(whole) = sum / static_cast<double>(edges.size());
     const int centre = static_cast<int>(vertex_source.size());
     vertex_source.push_back(mesh.vertex_count() + static_cast<int>(whole++));
-    for (const auto& edge : edges) fill.push_back(edge), fill_centre.push_back(centre);
+    for (const auto& [from, to] : edges) fill.emplace_back(to, from, centre);
   }
   centres.conservativeResize(whole, 3);
   const Eigen::Index first = triangles.rows();
   triangles.conservativeResize(first + static_cast<Eigen::Index>(fill.size()), 3);
-  // The chart's face runs from -> to along the border, so the filling face runs to -> from.
-  for (size_t i = 0; i < fill.size(); ++i)
-    triangles.row(first + static_cast<Eigen::Index>(i)) << fill[i].second, fill[i].first, fill_centre[i];
+  for (size_t i = 0; i < fill.size(); ++i) triangles.row(first + static_cast<Eigen::Index>(i)) = fill[i];
   return centres;
 }
 
