@@ -172,9 +172,10 @@ def _material_libraries(obj_path: Path, mtllibs: list[str]) -> tuple[list[Path],
     `#` on are a comment. A statement none of whose readings is there is
     missing as a whole; one that names files some of which are there misses
     the other .mtl names."""
+    from atlas_defrag import mtl_text
     found, missing = [], []
     for lib in mtllibs:
-        whole = obj_path.parent / _unquoted(lib).replace("\\", "/")
+        whole = obj_path.parent / mtl_text.unquoted(lib).replace("\\", "/")
         if whole.is_file():
             found.append(whole)
             continue
@@ -187,12 +188,6 @@ def _material_libraries(obj_path: Path, mtllibs: list[str]) -> tuple[list[Path],
     return found, missing
 
 
-def _unquoted(name: str) -> str:
-    """A file name without the double quotes some writers put around it (Blender reads both)."""
-    name = name.strip()
-    return name[1:-1] if len(name) >= 2 and name[0] == name[-1] == '"' else name
-
-
 def _texture_path(reference: str, folders: list[Path]) -> Path:
     """The file a map_Kd statement names: its arguments after the options,
     with a trailing comment or only the last word as fallbacks (older writers
@@ -200,7 +195,7 @@ def _texture_path(reference: str, folders: list[Path]) -> Path:
     from another machine (C:\\...) by its file name there."""
     from atlas_defrag import mtl_text
 
-    whole = _unquoted(mtl_text.map_file(reference)).replace("\\", "/")
+    whole = mtl_text.unquoted(mtl_text.map_file(reference)).replace("\\", "/")
     names = [whole, whole.split(" #")[0].strip(), whole.split()[-1] if whole.split() else ""]
     names += [n.rsplit("/", 1)[-1] for n in names]
     for name in filter(None, names):

@@ -14,6 +14,14 @@ _MAP_OPTION_WORDS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1
 MAP_STATEMENTS = ("map_", "bump", "disp", "norm", "refl")
 
 
+def unquoted(name: str) -> str:
+    """A file name without the surrounding blanks and the double quotes some
+    writers put round it for its spaces (in an MTL, and in a PLY's
+    TextureFile comment; Blender reads both)."""
+    name = name.strip()
+    return name[1:-1] if len(name) >= 2 and name[0] == name[-1] == '"' else name
+
+
 def map_file(arguments: str) -> str:
     """The file a map statement names: its arguments after the options (a
     file name may hold spaces)."""

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .mtl_text import unquoted
+
 _TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
           "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
           "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
@@ -87,11 +89,6 @@ def _utf8(name: str) -> str:
     return name.encode("latin-1").decode("utf-8", "surrogateescape")
 
 
-def _unquoted(name: str) -> str:
-    """A name some writers put in double quotes (for its spaces), without them."""
-    return name[1:-1] if len(name) > 1 and name[0] == name[-1] == '"' else name
-
-
 def readable(name: str) -> str:
     """A header file name for messages: its bytes that are not UTF-8 read as Latin-1, which
     (unlike the surrogates _utf8 keeps) Blender's reports and every terminal can show."""
@@ -127,7 +124,7 @@ def parse_header(data: bytes):
         if words[0] == "format" and len(words) > 1:
             fmt = words[1]
         elif words[0] == "comment" and len(words) > 2 and words[1].lower() == "texturefile":
-            textures.append(_utf8(_unquoted(line.split(None, 2)[2].strip())))
+            textures.append(_utf8(unquoted(line.split(None, 2)[2])))
         elif words[0] == "element":
             elements.append(_element(words, line))
         elif words[0] == "property":
