@@ -89,6 +89,27 @@ def status_text_set(context, text) -> None:
             pass
 
 
+def uv_coordinates(layer) -> np.ndarray:
+    """(corners * 2,) float32 coordinates of a UV map. 3.5+ keeps them in a
+    float2 attribute, which layer.uv reads in one copy; its layer.data reads
+    corner by corner."""
+    out = np.empty(len(layer.data) * 2, dtype=np.float32)
+    if hasattr(layer, "uv"):
+        layer.uv.foreach_get("vector", out)
+    else:
+        layer.data.foreach_get("uv", out)
+    return out
+
+
+def set_uv_coordinates(layer, values: np.ndarray) -> None:
+    """Sets a UV map's coordinates from (corners, 2) or (corners * 2,) values."""
+    flat = np.ascontiguousarray(values, dtype=np.float32).reshape(-1)
+    if hasattr(layer, "uv"):
+        layer.uv.foreach_set("vector", flat)
+    else:
+        layer.data.foreach_set("uv", flat)
+
+
 # Per-corner flags of a UV map: 4.x keeps them in attributes named after the
 # map (created on first write, renamed with it), 3.x in the map's loop data.
 _UV_FLAGS_4 = (("pin", ".pn."), ("vertex_selection", ".vs."), ("edge_selection", ".es."))

@@ -552,14 +552,20 @@ def split(result: JobResult, faces: slice) -> JobResult:
 
 
 def loop_uvs(tri_loops: np.ndarray, uvs: np.ndarray, n_loops: int,
-             fallback: Optional[np.ndarray] = None) -> Tuple[np.ndarray, int]:
+             fallback: Optional[Callable[[], np.ndarray]] = None) -> Tuple[np.ndarray, int]:
     """Per-loop UVs (L, 2) from per-corner UVs; also the number of loops whose
-    triangles disagree (a polygon split between charts keeps one of them)."""
-    out = np.zeros((n_loops, 2), dtype=np.float64) if fallback is None else \
-        np.array(fallback, dtype=np.float64).reshape(n_loops, 2)
+    triangles disagree (a polygon split between charts keeps one of them).
+    fallback gives the (L * 2,) UVs of loops no triangle names; it is called
+    only when there are such loops (without it they get 0)."""
     flat_loops = tri_loops.reshape(-1)
     flat_uv = uvs.reshape(-1, 2)
+    named = np.bincount(flat_loops, minlength=n_loops)
+    out = np.empty((n_loops, 2), dtype=np.float64)
+    if not named.all():
+        out[:] = 0.0 if fallback is None else np.asarray(fallback(), dtype=np.float64).reshape(n_loops, 2)
     out[flat_loops] = flat_uv  # last write wins for shared loops
+    if named.max(initial=0) <= 1:  # triangles only: no loop is shared
+        return out, 0
     conflicts = np.abs(out[flat_loops] - flat_uv).max(axis=1) > 1e-6
     return out, int(len(np.unique(flat_loops[conflicts])))
 

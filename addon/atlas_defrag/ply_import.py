@@ -15,7 +15,7 @@ import os
 import bpy
 import numpy as np
 
-from . import ply_io
+from . import compat, ply_io
 
 
 def _mesh(name: str, mesh: ply_io.PlyMesh):
@@ -32,7 +32,7 @@ def _mesh(name: str, mesh: ply_io.PlyMesh):
     me.polygons.foreach_set("loop_start", np.arange(0, 3 * count, 3, dtype=np.int32))
     me.loops.foreach_set("vertex_index", mesh.triangles.astype(np.int32).ravel())
     if mesh.uvs is not None:
-        me.uv_layers.new(name="UVMap").data.foreach_set("uv", mesh.uvs.astype(np.float32).ravel())
+        compat.set_uv_coordinates(me.uv_layers.new(name="UVMap"), mesh.uvs)
     if mesh.colours is not None:
         colours = me.color_attributes.new(name="Col", type="BYTE_COLOR", domain="POINT")
         colours.data.foreach_set("color_srgb", mesh.colours.ravel())

@@ -540,8 +540,7 @@ def _read_geometry(obj, me, layer) -> _Geometry:
         tri[attr] = np.empty(n_tris, dtype=np.int32)
         me.loop_triangles.foreach_get(attr, tri[attr])
     n_loops = len(me.loops)
-    loop_uv = np.empty(n_loops * 2, dtype=np.float32)
-    layer.data.foreach_get("uv", loop_uv)
+    loop_uv = compat.uv_coordinates(layer)
     tri_loops = tri["loops"].reshape(n_tris, 3)
     return _Geometry(positions=_scene_sized(obj, positions.reshape(-1, 3).astype(np.float64)),
                      triangles=tri["vertices"].reshape(n_tris, 3), tri_loops=tri_loops,

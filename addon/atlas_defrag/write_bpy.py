@@ -483,9 +483,8 @@ def _write_uv_map(target: _Target, first: bool, active_name: Optional[str]) -> s
     """The new UV map, made active and render-active (active_name: the map
     active before, which an undo makes active again); returns its name."""
     me, read = target.obj.data, target.read
-    old_uv = me.uv_layers[read.uv_map]
-    fallback = _uv_array(old_uv)
-    per_loop, conflicts = loop_uvs(read.tri_loops, target.result.uvs, read.n_loops, fallback)
+    per_loop, conflicts = loop_uvs(read.tri_loops, target.result.uvs, read.n_loops,
+                                   lambda: compat.uv_coordinates(me.uv_layers[read.uv_map]))
     if conflicts:
         target.warnings.append(f"{conflicts} corners of quads or n-gons were split between charts: each keeps "
                                "one chart's UV, which distorts the texture on those polygons (triangulate the "
@@ -512,7 +511,7 @@ def _write_uv_map(target: _Target, first: bool, active_name: Optional[str]) -> s
     if first and len(me.uv_layers) > 1:
         _move_to_front(me, new_uv, target.journal)
     layer = me.uv_layers[new_uv]  # adding a layer may move the others
-    layer.data.foreach_set("uv", per_loop.astype(np.float32).reshape(-1))
+    compat.set_uv_coordinates(layer, per_loop)
     me.uv_layers.active = layer
     layer.active_render = True
     return new_uv
@@ -525,36 +524,37 @@ def _node_sized(base: str, suffix: str) -> str:
     return base + suffix
 
 
-def _uv_array(layer) -> np.ndarray:
-    """(loops * 2,) float32 coordinates of a UV layer."""
-    arr = np.empty(len(layer.data) * 2, dtype=np.float32)
-    layer.data.foreach_get("uv", arr)
-    return arr
-
-
 def _move_to_front(me, name: str, journal: _Journal) -> None:
     """Swaps UV map name (the last one) with the first by name, data, pins
     and UV selection: Blender cannot reorder UV maps, and nodes refer to
     maps by name. Maps are looked up by name after each rename: 4.x may
     move what an older reference points at."""
     first_name = me.uv_layers[0].name
-    first_data = _uv_array(me.uv_layers[0])
+    first_data = compat.uv_coordinates(me.uv_layers[0])
     first_flags, new_flags = compat.uv_flags(me, first_name), compat.uv_flags(me, name)
     # Short and unused: Blender would cut a long name or rename a taken one.
     parking = next(p for p in (f"swap.{k}" for k in range(len(me.uv_layers) + 1)) if p not in me.uv_layers)
     _rename_in_turn(me, [(first_name, parking), (name, first_name), (parking, name)])
-    me.uv_layers[first_name].data.foreach_set("uv", first_data)
-    compat.set_uv_flags(me, first_name, first_flags)
-    compat.set_uv_flags(me, name, new_flags)
+    compat.set_uv_coordinates(me.uv_layers[first_name], first_data)
+    _swap_uv_flags(me, first_name, name, first_flags, new_flags)
     mesh_name = me.name
 
     def undo():
         m = bpy.data.meshes[mesh_name]
-        m.uv_layers[name].data.foreach_set("uv", _uv_array(m.uv_layers[first_name]))
+        compat.set_uv_coordinates(m.uv_layers[name], compat.uv_coordinates(m.uv_layers[first_name]))
         _rename_in_turn(m, [(name, parking), (first_name, name), (parking, first_name)])
-        compat.set_uv_flags(m, first_name, first_flags)
-        compat.set_uv_flags(m, name, new_flags)
+        _swap_uv_flags(m, first_name, name, first_flags, new_flags)
     journal.add(undo)
+
+
+def _swap_uv_flags(me, first_name: str, name: str, first_flags: dict, new_flags: dict) -> None:
+    """Gives map first_name first_flags and map name new_flags, after a
+    rename swapped the two maps' names: each map still holds the other's
+    flags, and only the flags that differ are written (3.x writes flags
+    corner by corner)."""
+    differ = [flag for flag in first_flags if not np.array_equal(first_flags[flag], new_flags[flag])]
+    compat.set_uv_flags(me, first_name, {flag: first_flags[flag] for flag in differ})
+    compat.set_uv_flags(me, name, {flag: new_flags[flag] for flag in differ})
 
 
 def _rename_in_turn(me, renames) -> None:
