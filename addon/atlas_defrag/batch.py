@@ -696,10 +696,13 @@ def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict, cancel=N
     for o in meshes:
         if o.data.name in done_meshes:
             continue
+        # The source map is removed after the run: when it is the mesh's only
+        # map, the new one ends up first without being moved there.
+        only_map_goes = not args.keep_source_uv and len(o.data.uv_layers) == 1
         try:
             r = pkg.defragment(
                 o, cancel=cancel, wait_in_main_thread=True, uv_map=args.uv_map, storage="SAVE", image_dir=image_dir,
-                duplicate_materials=api.uses_any(o, shared),
+                duplicate_materials=api.uses_any(o, shared), new_map_first=not only_map_goes,
                 **options)
         except pkg.DefragCancelled:
             raise
