@@ -828,6 +828,32 @@ def test_a_move_into_place_that_fails_puts_back_the_files_already_replaced(tmp_p
     assert {p.name: (p.stat().st_ino, p.read_bytes()) for p in out.iterdir()} == earlier
 
 
+def test_a_run_killed_while_moving_its_files_in_is_named_by_the_next(tmp_path, tool_env):
+    """Killed (SIGKILL: no clean-up) after the MTL replaced an earlier run's:
+    the earlier MTL waits in the scratch folder, and the next run says where."""
+    source = _two_material_obj(tmp_path / "in", "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
+    out = tmp_path / "out"
+    assert subprocess.run([sys.executable, str(CLI), str(source), str(out)], capture_output=True,
+                          timeout=300, env=tool_env).returncode == 0
+    earlier_mtl = (out / "m_defrag.mtl").read_bytes()
+    code = ("import os, signal, sys, defrag_scan\nreal = os.replace\n"
+            "def replace(src, dst):\n"
+            "    if str(dst).endswith('_page0_base_color.png') and '.replaced' not in str(dst):\n"
+            "        os.kill(os.getpid(), signal.SIGKILL)\n"
+            "    real(src, dst)\nos.replace = replace\nsys.exit(defrag_scan.main(sys.argv[1:]))\n")
+    env = dict(tool_env, PYTHONPATH=os.pathsep.join([str(CLI.parent), tool_env["PYTHONPATH"]]))
+    killed = subprocess.run([sys.executable, "-c", code, str(source), str(out)], capture_output=True, text=True,
+                            timeout=300, env=env)
+    assert killed.returncode == -9, killed.stderr
+    kept = list(out.glob(".defrag_scan_*/.replaced/m_defrag.mtl"))
+    assert len(kept) == 1 and kept[0].read_bytes() == earlier_mtl
+    again = subprocess.run([sys.executable, str(CLI), str(source), str(out)], capture_output=True, text=True,
+                           timeout=300, env=tool_env)
+    assert again.returncode == 0, again.stderr
+    assert f"{kept[0].parent} holds files of an earlier output" in again.stderr, again.stderr
+    assert "m_defrag.mtl" in again.stderr and kept[0].read_bytes() == earlier_mtl
+
+
 def test_the_native_obj_writer_fails_as_python_writes_do(native, tmp_path):
     """A file the writer cannot write is an OSError with its errno (a full disk here)."""
     args = (np.zeros((3, 3)), np.array([[0, 1, 2]]), np.zeros((1, 3, 2)), np.zeros(1, np.int64), ["a"])

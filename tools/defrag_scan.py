@@ -257,7 +257,7 @@ def write_checked(args, scan, laid, rows, inp, result, old):
         measured = pool.submit(quality, laid, inp, result, old.result()) if args.metrics else None
         try:
             args.output.mkdir(parents=True, exist_ok=True)
-            scratch = Path(tempfile.mkdtemp(prefix=".defrag_scan_", dir=args.output))
+            scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=args.output))
         except OSError as exc:
             raise Failed(f"writing into {args.output} failed: {exc}") from exc
         try:
@@ -270,11 +270,31 @@ def write_checked(args, scan, laid, rows, inp, result, old):
         return (measured.result() if measured else (None, None)), unnamed
 
 
+SCRATCH_PREFIX = ".defrag_scan_"
+SET_ASIDE = ".replaced"
+
+
+def interrupted_runs(folder: Path) -> list[str]:
+    """Warnings naming the scratch folders in which a run killed while
+    moving its files in (see swap_in) left the files it had replaced: they
+    stay there for the user, and the outputs beside them may mix both runs."""
+    warnings = []
+    for kept in sorted(folder.glob(f"{SCRATCH_PREFIX}*/{SET_ASIDE}")):
+        try:
+            names = sorted(p.name for p in kept.iterdir())
+        except OSError:
+            continue
+        if names:
+            warnings.append(f"{kept} holds files of an earlier output that an interrupted run replaced "
+                            f"({', '.join(names)}): left as they are; the files in {folder} may mix both runs")
+    return warnings
+
+
 def swap_in(scratch: Path, outputs: list[Path]) -> None:
     """Moves the files of these names from scratch over outputs, in order.
     The files they replace wait in scratch until all are in; when a move
     fails (or is interrupted), every output is put back as it was."""
-    kept = scratch / ".replaced"
+    kept = scratch / SET_ASIDE
     kept.mkdir()
     done = []  # (output, whether an earlier file was kept), as far as the moves went
     try:
@@ -301,6 +321,7 @@ def main(argv=None) -> int:
         t_load = time.perf_counter() - t0
         laid, rows = scan.first_instances()  # a mesh several nodes draw is laid out once
         inp, result, old = run_job(args, laid)
+        interrupted = interrupted_runs(args.output)  # before this run's own scratch folder
         (m, fidelity), unnamed = write_checked(args, scan, laid, rows, inp, result, old)
     except Failed as exc:
         print(f"defrag_scan: error: {exc}", file=sys.stderr)
@@ -310,7 +331,7 @@ def main(argv=None) -> int:
         f" ({repeated} of them in further instances of a mesh, laid out once with its first)" if repeated else ""))
     print_report(result, m, fidelity, t_load)
     print(f"  written to    {args.output}")
-    for warning in result.report.get("warnings", []):
+    for warning in result.report.get("warnings", []) + interrupted:
         print(f"defrag_scan: warning: {warning}", file=sys.stderr)
     if unnamed:
         print(f"defrag_scan: warning: {', '.join(unnamed)} written, but the MTL does not name "
