@@ -115,19 +115,23 @@ def _save_exr(img, path: str, tag: str) -> None:
     _point_at(img, path)
 
 
-def _sixteen_bit_colour(out: OutputImage, sources: dict) -> bool:
+def _sixteen_bit_colour(out: OutputImage, sources: dict, in_unit_range: Dict[str, bool]) -> bool:
     """Whether a float output is an sRGB colour map that a 16-bit PNG holds:
     its source's values all in [0, 1], as a 16-bit PNG's or TIFF's are (up to
     the round-off of Blender's turning them linear), and its alpha, if any,
     straight (other modes keep OpenEXR, whose values Blender reads back
-    as they were written)."""
+    as they were written). in_unit_range: that test per source, filled as
+    sources are met (the pages of one source share it)."""
     source = sources.get(out.source)
     if not out.is_float or out.colorspace != "sRGB" or source is None:
         return False
     if out.pixels.shape[2] in (2, 4) and out.alpha_mode != "STRAIGHT":
         return False
-    pixels = source.pixels
-    return not pixels.size or (float(pixels.min()) >= -1e-4 and float(pixels.max()) <= 1 + 1e-4)
+    if out.source not in in_unit_range:
+        pixels = source.pixels
+        in_unit_range[out.source] = not pixels.size or (float(pixels.min()) >= -1e-4 and
+                                                        float(pixels.max()) <= 1 + 1e-4)
+    return in_unit_range[out.source]
 
 
 def _sixteen_bit_srgb(pixels: np.ndarray) -> np.ndarray:
@@ -421,6 +425,7 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
     page_role_image: Dict[Tuple[int, str], object] = {}
     created_images: List[str] = []
     png_files_due = []  # (out, name, path)
+    in_unit_range: Dict[str, bool] = {}
 
     def created(out, img):
         img_name = img.name
@@ -434,7 +439,8 @@ def _write_images(target: _Target, storage: str, image_dir: Optional[str]):
         k = pages.index(out.page) if out.page in pages else 0
         stem = image_stem(out.source)
         name = f"{stem}{SUFFIX}" if k == 0 else f"{stem}{SUFFIX}_{k + 1}"
-        samples = _sixteen_bit_srgb(out.pixels) if _sixteen_bit_colour(out, target.read.job.images) else None
+        sixteen_bit = _sixteen_bit_colour(out, target.read.job.images, in_unit_range)
+        samples = _sixteen_bit_srgb(out.pixels) if sixteen_bit else None
         ext = ".exr" if out.is_float and samples is None else ".png"
         path = _unique_path(image_dir, _safe_file_stem(name), ext, taken)
         journal.add(lambda p=path: _remove_file(p))  # a file is written only once its path is journalled
