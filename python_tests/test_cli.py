@@ -806,24 +806,33 @@ def test_a_failed_write_leaves_the_earlier_runs_files_as_they_were(tmp_path, too
     assert list((tmp_path / "fresh").iterdir()) == []
 
 
-def test_a_move_into_place_that_fails_puts_back_the_files_already_replaced(tmp_path, tool_env):
-    """The image's move fails after the MTL was moved over an earlier run's:
-    it is put back (the very file, not a copy), and nothing of the new run
-    is left."""
+def _run_twice_the_image_move_hit(tmp_path, tool_env, hit: str):
+    """(source, OUT_DIR, the second run): a two-material OBJ written into
+    OUT_DIR, then again with `hit` (lines of Python, indented 8) run in place
+    of the first move of the page-0 image into OUT_DIR, the MTL moved already."""
     source = _two_material_obj(tmp_path / "in", "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
     out = tmp_path / "out"
     assert subprocess.run([sys.executable, str(CLI), str(source), str(out)], capture_output=True,
                           timeout=300, env=tool_env).returncode == 0
-    earlier = {p.name: (p.stat().st_ino, p.read_bytes()) for p in out.iterdir()}
-    assert "m_defrag.mtl" in earlier and "m_defrag_page0_base_color.png" in earlier, earlier.keys()
-    code = ("import os, sys, defrag_scan\nreal, failed = os.replace, []\n"
+    code = ("import os, signal, sys, defrag_scan\nreal, failed = os.replace, []\n"
             "def replace(src, dst):\n"
             "    if str(dst).endswith('_page0_base_color.png') and '.replaced' not in str(dst) and not failed:\n"
-            "        failed.append(dst)\n        raise OSError(28, 'No space left on device')\n"
+            f"        failed.append(dst)\n{hit}\n"
             "    real(src, dst)\nos.replace = replace\nsys.exit(defrag_scan.main(sys.argv[1:]))\n")
     env = dict(tool_env, PYTHONPATH=os.pathsep.join([str(CLI.parent), tool_env["PYTHONPATH"]]))
-    run = subprocess.run([sys.executable, "-c", code, str(source), str(out)], capture_output=True, text=True,
-                         timeout=300, env=env)
+    return source, out, lambda: subprocess.run([sys.executable, "-c", code, str(source), str(out)],
+                                               capture_output=True, text=True, timeout=300, env=env)
+
+
+def test_a_move_into_place_that_fails_puts_back_the_files_already_replaced(tmp_path, tool_env):
+    """The image's move fails after the MTL was moved over an earlier run's:
+    it is put back (the very file, not a copy), and nothing of the new run
+    is left."""
+    _, out, second = _run_twice_the_image_move_hit(
+        tmp_path, tool_env, "        raise OSError(28, 'No space left on device')")
+    earlier = {p.name: (p.stat().st_ino, p.read_bytes()) for p in out.iterdir()}
+    assert "m_defrag.mtl" in earlier and "m_defrag_page0_base_color.png" in earlier, earlier.keys()
+    run = second()
     assert run.returncode == 1 and "No space left" in run.stderr, run.stderr
     assert {p.name: (p.stat().st_ino, p.read_bytes()) for p in out.iterdir()} == earlier
 
@@ -831,19 +840,10 @@ def test_a_move_into_place_that_fails_puts_back_the_files_already_replaced(tmp_p
 def test_a_run_killed_while_moving_its_files_in_is_named_by_the_next(tmp_path, tool_env):
     """Killed (SIGKILL: no clean-up) after the MTL replaced an earlier run's:
     the earlier MTL waits in the scratch folder, and the next run says where."""
-    source = _two_material_obj(tmp_path / "in", "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
-    out = tmp_path / "out"
-    assert subprocess.run([sys.executable, str(CLI), str(source), str(out)], capture_output=True,
-                          timeout=300, env=tool_env).returncode == 0
+    source, out, second = _run_twice_the_image_move_hit(
+        tmp_path, tool_env, "        os.kill(os.getpid(), signal.SIGKILL)")
     earlier_mtl = (out / "m_defrag.mtl").read_bytes()
-    code = ("import os, signal, sys, defrag_scan\nreal = os.replace\n"
-            "def replace(src, dst):\n"
-            "    if str(dst).endswith('_page0_base_color.png') and '.replaced' not in str(dst):\n"
-            "        os.kill(os.getpid(), signal.SIGKILL)\n"
-            "    real(src, dst)\nos.replace = replace\nsys.exit(defrag_scan.main(sys.argv[1:]))\n")
-    env = dict(tool_env, PYTHONPATH=os.pathsep.join([str(CLI.parent), tool_env["PYTHONPATH"]]))
-    killed = subprocess.run([sys.executable, "-c", code, str(source), str(out)], capture_output=True, text=True,
-                            timeout=300, env=env)
+    killed = second()
     assert killed.returncode == -9, killed.stderr
     kept = list(out.glob(".defrag_scan_*/.replaced/m_defrag.mtl"))
     assert len(kept) == 1 and kept[0].read_bytes() == earlier_mtl
