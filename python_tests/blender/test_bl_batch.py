@@ -61,6 +61,7 @@ def test_batch34_obj_to_obj(tmp_path):
     assert report["status"] == "ok"
     obj = report["objects"][0]
     assert obj["charts_after"] < obj["charts_before"]
+    assert obj["new_map_first"], "the source map, the mesh's only one, is gone: the new one is first"
     # Only the model's files, no scratch folder left behind.
     assert sorted(p.name for p in out.parent.iterdir() if p.name.startswith(".")) == []
     # The output loads back: one UV map, the new texture on the material.
