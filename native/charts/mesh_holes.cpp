@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 
+#include "core/geometry.hpp"
 #include "core/union_find.hpp"
 
 namespace atlas {
@@ -91,7 +92,7 @@ MeshHoles mesh_holes(const Mesh& mesh, const MeshTopology& topology, const std::
   std::vector<int> hole_of(loop_count, -1);
   for (int l = 0; l < loop_count; ++l)
     if (outline[loops.piece[l]] != l && loops.may_be_hole[l] &&
-        area[l] >= kMinHoleRoundness * loops.length[l] * loops.length[l] / (4 * 3.14159265358979323846)) {
+        area[l] >= kMinHoleRoundness * loops.length[l] * loops.length[l] / (4 * kPi)) {
       hole_of[l] = static_cast<int>(holes.edges.size());
       holes.edges.push_back(loops.edges[l]);
     }
