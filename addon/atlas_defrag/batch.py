@@ -712,7 +712,7 @@ def _defragment_meshes(pkg, args, meshes, image_dir: str, report: dict, cancel=N
         done_meshes.add(o.data.name)
         if not args.keep_source_uv:
             _drop_source_uv(o, r["source_uv_map"], r)
-            r["new_map_first"] = r["new_map_first"] or only_map_goes  # the new map is now the only one
+            r["new_map_first"] = o.data.uv_layers[0].name == r["uv_map"]  # as the mesh is left
         report["objects"].append(pkg.api.plain(r))
     if not report["objects"]:
         raise BatchError("nothing to defragment: " + _listed(errors or ["no mesh"]))
