@@ -420,3 +420,23 @@ TEST(CompareColors, SameResultOnAnyThreadCount) {
   const ColorFidelity other_seed = compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 12);
   EXPECT_NE(other_seed.psnr_db, one.psnr_db);
 }
+
+// Without the clean / border split every point still counts: the same PSNR, no split figures.
+TEST(CompareColors, WithoutBordersTheSamePsnr) {
+  const Mesh mesh = atlas::testing::grid_disk(12, 0.8, 64);
+  const std::vector<std::uint8_t> a = pattern_image<std::uint8_t>(64, 64, 3, 1.0);
+  const std::vector<std::uint8_t> b = pattern_image<std::uint8_t>(64, 64, 3, 0.9);
+  const RowMatrixX2d moved = (mesh.corner_uv.array() * 0.9 + 0.03).matrix();
+  const std::vector<ImageView<std::uint8_t>> old_images = {view_of(a, 64, 64, 3)};
+  const std::vector<ImageView<std::uint8_t>> new_images = {view_of(b, 64, 64, 3)};
+  const UvLayout new_atlas{&moved, &mesh.face_page, &mesh.pages};
+  const ColorFidelity split = compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 11);
+  const ColorFidelity whole =
+      compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 11, /*borders=*/false);
+  EXPECT_GT(split.clean_samples, 0);
+  EXPECT_LT(split.clean_samples, split.samples);
+  EXPECT_NEAR(whole.psnr_db, split.psnr_db, 1e-9);
+  EXPECT_EQ(whole.share_off_32, split.share_off_32);
+  EXPECT_EQ(whole.clean_samples, 0);
+  EXPECT_TRUE(std::isnan(whole.psnr_clean_db) && std::isnan(whole.psnr_border_db));
+}

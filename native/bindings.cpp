@@ -774,17 +774,18 @@ std::vector<PageSize> image_sizes(const py::list& images, const char* name) {
 
 template <class T>
 ColorFidelity compare_typed(const Mesh& mesh, const py::list& old_images, const UvLayout& new_atlas,
-                            const py::list& new_images, int samples, unsigned seed) {
+                            const py::list& new_images, int samples, unsigned seed, bool borders) {
   std::vector<py::array> keep;
   const auto old_views = image_views<T>(old_images, "old_images", keep);
   const auto new_views = image_views<T>(new_images, "new_images", keep);
   py::gil_scoped_release release;
-  return compare_colors<T>(mesh, layout_of(mesh), old_views, new_atlas, new_views, samples, seed);
+  return compare_colors<T>(mesh, layout_of(mesh), old_views, new_atlas, new_views, samples, seed, borders);
 }
 
 py::dict compare_colors_py(const py::object& positions, const py::object& triangles, const py::object& old_uvs,
                            const py::object& old_face_page, const py::list& old_images, const py::object& new_uvs,
-                           const py::object& new_face_page, const py::list& new_images, int samples, unsigned seed) {
+                           const py::object& new_face_page, const py::list& new_images, int samples, unsigned seed,
+                           bool borders) {
   constexpr int kMaxSamples = 100'000'000;  // about a minute; far more than any figure needs
   if (samples > kMaxSamples) throw py::value_error("samples must be at most 100,000,000");
   const std::vector<PageSize> old_pages = image_sizes(old_images, "old_images");
@@ -794,8 +795,8 @@ py::dict compare_colors_py(const py::object& positions, const py::object& triang
   const UvLayout new_atlas = new_l.view();
   const bool bytes = is_uint8_images(old_images, "old_images");
   if (bytes != is_uint8_images(new_images, "new_images")) throw py::value_error("old and new images must share a dtype");
-  const ColorFidelity c = bytes ? compare_typed<std::uint8_t>(mesh, old_images, new_atlas, new_images, samples, seed)
-                                : compare_typed<float>(mesh, old_images, new_atlas, new_images, samples, seed);
+  const ColorFidelity c = bytes ? compare_typed<std::uint8_t>(mesh, old_images, new_atlas, new_images, samples, seed, borders)
+                                : compare_typed<float>(mesh, old_images, new_atlas, new_images, samples, seed, borders);
   py::dict d;
   d["psnr_db"] = c.psnr_db;
   d["share_off_32"] = c.share_off_32;
@@ -961,7 +962,9 @@ with_old=False leaves out "old" (measure_atlas gives it on its own).)");
   m.def("compare_colors", &compare_colors_py, py::arg("positions"), py::arg("triangles"), py::arg("old_uvs"),
         py::arg("old_face_page"), py::arg("old_images"), py::arg("new_uvs"), py::arg("new_face_page"),
         py::arg("new_images"), py::kw_only(), py::arg("samples") = 400000, py::arg("seed") = 1,
+        py::arg("borders") = true,
         R"(PSNR and share of points off by more than 32/255, on points drawn uniformly by
 surface area; also PSNR on clean points (all four bilinear texels of the old atlas
-inside the point's own old chart: clean_share of them) and on the border rest.)");
+inside the point's own old chart: clean_share of them) and on the border rest, or
+NaN for both with borders=False, which saves rastering the old atlas.)");
 }

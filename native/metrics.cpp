@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <cstdint>
 #include <cstring>
 #include <sstream>
@@ -479,8 +480,9 @@ void add_sample(const ColorPair<T>& pair, int f, double w0, double w1, double w2
   const Eigen::Vector2d old_at = texel_at(pair.old_atlas, old_image, f, w0, w1, w2);
   sample_texture(old_image, old_at, Footprint{}, old_px);
   sample_texture(new_image, texel_at(pair.new_atlas, new_image, f, w0, w1, w2), Footprint{}, new_px);
-  const int kind =
-      bilinear_texels_in_chart(pair.owner[old_page], pair.old_sizes[old_page], old_at, pair.face_chart[f]) ? 0 : 1;
+  const bool clean = pair.owner.empty() ||
+                     bilinear_texels_in_chart(pair.owner[old_page], pair.old_sizes[old_page], old_at, pair.face_chart[f]);
+  const int kind = clean ? 0 : 1;
   const int channels = std::min({3, old_image.channels, new_image.channels});
   bool is_off = false;
   for (int c = 0; c < channels; ++c) {
@@ -539,7 +541,7 @@ ColorFidelity fidelity_of(const std::vector<ColorSums>& chunk_sums, int samples)
 template <class T>
 ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const std::vector<ImageView<T>>& old_images,
                              const UvLayout& new_atlas, const std::vector<ImageView<T>>& new_images, int samples,
-                             unsigned seed) {
+                             unsigned seed, bool borders) {
   require_layout(old_atlas, mesh.face_count(), "compare_colors (old)", Untextured::allowed);
   require_layout(new_atlas, mesh.face_count(), "compare_colors (new)", Untextured::allowed);
   require_images(old_images, old_atlas, "old");
@@ -549,9 +551,12 @@ ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const 
 
   std::vector<PageSize> old_sizes;
   for (const ImageView<T>& image : old_images) old_sizes.push_back({image.width, image.height});
-  const std::vector<int> face_chart =
-      build_chart_graph(mesh, build_topology(mesh.triangles, mesh.vertex_count()), {}).face_chart;
-  const std::vector<std::vector<int>> owner = texel_charts(old_atlas, old_sizes, face_chart);
+  std::vector<int> face_chart;
+  std::vector<std::vector<int>> owner;  // empty: every sample counts as clean
+  if (borders) {
+    face_chart = build_chart_graph(mesh, build_topology(mesh.triangles, mesh.vertex_count()), {}).face_chart;
+    owner = texel_charts(old_atlas, old_sizes, face_chart);
+  }
   const ColorPair<T> pair{old_atlas, old_images, new_atlas, new_images, face_chart, owner, old_sizes};
 
   constexpr int kChunk = 4096;  // per-chunk partial sums keep the total independent of thread count
@@ -563,13 +568,19 @@ ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const 
     const int begin = chunk * kChunk, end = samples - begin < kChunk ? samples : begin + kChunk;
     chunk_sums[chunk] = sample_run(pair, area, samples, stream, begin, end);
   }
-  return fidelity_of(chunk_sums, samples);
+  ColorFidelity result = fidelity_of(chunk_sums, samples);
+  if (!borders) {
+    result.clean_samples = 0;
+    result.psnr_clean_db = result.psnr_border_db = std::numeric_limits<double>::quiet_NaN();
+  }
+  return result;
 }
 
 template ColorFidelity compare_colors<std::uint8_t>(const Mesh&, const UvLayout&,
                                                     const std::vector<ImageView<std::uint8_t>>&, const UvLayout&,
-                                                    const std::vector<ImageView<std::uint8_t>>&, int, unsigned);
+                                                    const std::vector<ImageView<std::uint8_t>>&, int, unsigned, bool);
 template ColorFidelity compare_colors<float>(const Mesh&, const UvLayout&, const std::vector<ImageView<float>>&,
-                                             const UvLayout&, const std::vector<ImageView<float>>&, int, unsigned);
+                                             const UvLayout&, const std::vector<ImageView<float>>&, int, unsigned,
+                                             bool);
 
 }  // namespace atlas

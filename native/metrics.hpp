@@ -66,11 +66,13 @@ struct ColorFidelity {
 // wrapping at the points' UVs. uint8 values are divided by 255, floats used as
 // they are; a non-finite difference counts as 1. The clean / border split takes
 // the old charts from the mesh's own UVs (old_atlas is layout_of(mesh) in every
-// caller). Throws InputError when a used
+// caller). borders false skips that split, whose raster of the old atlas
+// costs more than the samples: the clean and border PSNR are then NaN and
+// clean_samples 0. Throws InputError when a used
 // page has no image or an image view is inconsistent.
 template <class T>
 ColorFidelity compare_colors(const Mesh& mesh, const UvLayout& old_atlas, const std::vector<ImageView<T>>& old_images,
                              const UvLayout& new_atlas, const std::vector<ImageView<T>>& new_images, int samples,
-                             unsigned seed);
+                             unsigned seed, bool borders = true);
 
 }  // namespace atlas
