@@ -126,7 +126,7 @@ class Options:
 
     def native(self) -> dict:
         """The keyword options of _native.defragment (the same names)."""
-        return {o.name: getattr(self, o.name) for o in schema.SCHEMA if not o.bake}
+        return {o.name: getattr(self, o.name) for o in schema.SCHEMA if not (o.bake or o.job)}
 
     def bake(self) -> dict:
         """The keyword options of _native.bake_maps (the same names)."""
@@ -307,29 +307,21 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     check_input(job)
     calls = _NativeCalls(native, progress, cancel)
     t_start = time.perf_counter()
-    # Share of the progress bar: layout first, then every bake call alike.
     bake_calls = _bake_batches(job)
-    layout_share = 0.5 if bake_calls else 1.0
-    bake_share = (1.0 - layout_share) / max(1, len(bake_calls))
-
-    layout = _new_layout(job, options, calls, calls.share(0.0, layout_share, LAYOUT_STAGES))
+    first = _attempt(job, options, calls, bake_calls, 0.0, _FIRST_SHARE)
+    t_first = time.perf_counter()
+    kept, guard = _keep_detail(job, options, calls, bake_calls, first)
+    layout, images, texels = kept.layout, kept.images, kept.texels
     page_group = _new_page_groups(layout)
-    t_layout = time.perf_counter()
-    images: List[OutputImage] = []
-    texels = {"covered_texels": 0, "copied_texels": 0}
-    for i, (g, roles) in enumerate(bake_calls):
-        baked, stats = _bake_group_roles(layout, g, roles, options, calls,
-                                         calls.share(layout_share + i * bake_share, bake_share))
-        images.extend(baked)
-        for key in texels:
-            texels[key] += stats[key]
     t_end = time.perf_counter()
 
     report = layout.report
     seconds = dict(report.get("seconds", {}) or {})
-    seconds.setdefault("layout", t_layout - t_start)
-    seconds["bake"] = t_end - t_layout
+    seconds.setdefault("layout", kept.layout_seconds)
+    seconds["bake"] = kept.bake_seconds
+    seconds["detail"] = t_end - t_first
     seconds["total"] = t_end - t_start
+    report.update(guard)
     report.update(seconds=seconds, pages_before=int(len(job.pages)),
                   pages_after=int(len(layout.page_sizes)), images_written=len(images),
                   padding=int(layout.page_padding.min(initial=options.padding)),
@@ -339,6 +331,100 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
         progress("done", 1.0)
     return JobResult(uvs=layout.uvs, face_page=layout.face_page, page_sizes=layout.page_sizes,
                      page_group=page_group, images=images, report=report)
+
+
+@dataclass
+class _Attempt:
+    """A layout and the images baked onto it."""
+
+    layout: _Layout
+    images: List[OutputImage]
+    texels: dict  # covered_texels, copied_texels
+    layout_seconds: float
+    bake_seconds: float
+
+
+def _attempt(job: JobInput, options: Options, calls: _NativeCalls, bake_calls, offset: float,
+             share: float) -> _Attempt:
+    """The layout, then every bake call, reported on [offset, offset + share]
+    of the progress bar: layout first, then every bake call alike."""
+    t0 = time.perf_counter()
+    layout_share = share * (0.5 if bake_calls else 1.0)
+    bake_share = (share - layout_share) / max(1, len(bake_calls))
+    layout = _new_layout(job, options, calls, calls.share(offset, layout_share, LAYOUT_STAGES))
+    t1 = time.perf_counter()
+    images: List[OutputImage] = []
+    texels = {"covered_texels": 0, "copied_texels": 0}
+    for i, (g, roles) in enumerate(bake_calls):
+        baked, stats = _bake_group_roles(layout, g, roles, options, calls,
+                                         calls.share(offset + layout_share + i * bake_share, bake_share))
+        images.extend(baked)
+        for key in texels:
+            texels[key] += stats[key]
+    return _Attempt(layout, images, texels, t1 - t0, time.perf_counter() - t1)
+
+
+# Texel densities (times the one asked for) the colour guard tries in turn,
+# and the least PSNR (dB) a step must add to be worth its texels.
+_DETAIL_STEPS = (1.25, 1.5, 2.0)
+_DETAIL_GAIN = 0.5
+# The progress bar's share of the first layout and bake; each of the colour
+# guard's steps has a part of the rest, so the bar never goes back.
+_FIRST_SHARE = 0.95
+
+
+def _keep_detail(job: JobInput, options: Options, calls: _NativeCalls, bake_calls, first: _Attempt):
+    """The colour guard (min_colour_psnr): while the new base colour's PSNR
+    stays under it, the job again at the next of _DETAIL_STEPS, as long as
+    the pages stay within the source's texels at the density asked for and
+    each step adds _DETAIL_GAIN. Resampling at the source's density blurs
+    texels that carry full detail; more texels keep it. Returns the attempt
+    kept and the report's colour_psnr (None: not measured) and detail_scale."""
+    report = first.layout.report
+    if options.min_colour_psnr <= 0 or options.fixed_page_size or options.texels_per_unit or report.get("shrunk"):
+        return first, {"colour_psnr": None, "detail_scale": 1.0}
+    psnr = _colour_psnr(job, first, calls.native)
+    seen = {"colour_psnr": psnr, "detail_scale": 1.0}
+    if psnr is None or psnr >= options.min_colour_psnr:
+        return first, seen
+    budget = report.get("texels_before", 0) * options.density_scale ** 2
+    highest = schema.BY_NAME["density_scale"].high
+    kept = first
+    step_share = (1.0 - _FIRST_SHARE) / len(_DETAIL_STEPS)
+    for k, step in enumerate(_DETAIL_STEPS):
+        if report.get("texels_after", 0) * step ** 2 > budget or options.density_scale * step > highest:
+            break
+        raised = Options(**dict(options.values(), density_scale=options.density_scale * step))
+        attempt = _attempt(job, raised, calls, bake_calls, _FIRST_SHARE + k * step_share, step_share)
+        new_report = attempt.layout.report
+        new_psnr = _colour_psnr(job, attempt, calls.native)
+        grew = new_report.get("shrunk") or new_report.get("texels_after", 0) > budget
+        if grew or new_psnr is None or new_psnr < psnr + _DETAIL_GAIN:
+            break
+        kept, psnr, seen = attempt, new_psnr, {"colour_psnr": new_psnr, "detail_scale": step}
+        if psnr >= options.min_colour_psnr:
+            break
+    return kept, seen
+
+
+def _colour_psnr(job: JobInput, attempt: _Attempt, native) -> Optional[float]:
+    """PSNR of the new base colour against the old over the surface
+    (compare_colors, every point), or None when some page has no base colour
+    or the images differ in dtype."""
+    if not job.pages or any("base_color" not in page.roles() for page in job.pages):
+        return None
+    old = [job.images[page.map_for("base_color").image].pixels for page in job.pages]
+    by_page = {im.page: im.pixels for im in attempt.images if im.role == "base_color"}
+    new = [by_page.get(q) for q in range(len(attempt.layout.page_sizes))]
+    if any(a is None for a in new) or len({a.dtype for a in old + new}) != 1:
+        return None
+    mesh = job.mesh
+    fidelity = native.compare_colors(
+        np.ascontiguousarray(mesh.positions, dtype=np.float64), np.ascontiguousarray(mesh.triangles, dtype=np.int32),
+        np.ascontiguousarray(mesh.uvs, dtype=np.float64), np.ascontiguousarray(mesh.face_page, dtype=np.int32),
+        [np.ascontiguousarray(a) for a in old], attempt.layout.uvs, attempt.layout.face_page,
+        [np.ascontiguousarray(a) for a in new], borders=False)
+    return float(fidelity["psnr_db"]) if fidelity["samples"] else None
 
 
 # New pages past this many times the input's texels (at the density asked
@@ -582,4 +668,6 @@ def summary(report: dict) -> str:
             + (f"{num('packing_cuts')} cuts for packing to stay within the source's texels, "
                if report.get("cut_to_fit") else "")
             + (f"charts scaled to {num('scale', '{:.3g}')} of their texel density, " if report.get("shrunk") else "")
+            + (f"texel density raised {num('detail_scale', '{:.3g}')}x to keep the colour's detail (PSNR "
+               f"{num('colour_psnr', '{:.1f}')} dB), " if report.get("detail_scale", 1.0) > 1.0 else "")
             + f"time {'?' if secs is None else f'{secs:.1f}'} s")

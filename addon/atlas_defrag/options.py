@@ -40,6 +40,7 @@ class Option(NamedTuple):
     manual_default: object = None  # the dialog's value when Automatic is off
     unit: str = ""  # 'texels' or ''
     bake: bool = False  # an option of _native.bake_maps, not of _native.defragment
+    job: bool = False  # an option of job.run itself, passed to neither
 
 
 SCHEMA: Tuple[Option, ...] = (
@@ -105,6 +106,11 @@ SCHEMA: Tuple[Option, ...] = (
            "matches the old one read the same way: a little sharper, for a bake two to three times as long "
            "(off: each texel samples the old texture at its centre). Normal maps are sampled either way",
            bake=True),
+    Option("min_colour_psnr", float, 40.0, "Least Colour PSNR",
+           "When the new base colour matches the old one less closely than this (PSNR in dB over the surface), "
+           "as on sharp textures, the job runs again at 1.25, 1.5 or 2 times the texel density, as long as the "
+           "pages stay within the source's texels (0: never; not with a fixed page size or Texels per Unit)",
+           low=0.0, high=99.0, job=True),
 )
 
 BY_NAME = {o.name: o for o in SCHEMA}

@@ -1,0 +1,82 @@
+"""The colour guard (option min_colour_psnr): where resampling at the
+source's texel density blurs a texture whose texels carry full detail, the
+job runs again with more texels, never more than the source holds."""
+import dataclasses
+from types import SimpleNamespace
+
+import numpy as np
+
+from atlas_defrag import job
+
+
+def _job_input(scans, halve: bool) -> job.JobInput:
+    """The tetra scan as the job takes it; halve: its texture box-filtered to
+    half its side, so that every texel carries detail."""
+    import defrag_scan
+
+    inp = defrag_scan.job_input(scans("tetra"))
+    if halve:
+        for name, image in list(inp.images.items()):
+            h, w, c = image.pixels.shape
+            pixels = image.pixels[: h // 2 * 2, : w // 2 * 2].reshape(h // 2, 2, w // 2, 2, c).mean(axis=(1, 3))
+            inp.images[name] = dataclasses.replace(image, pixels=np.rint(pixels).astype(image.pixels.dtype))
+    return inp
+
+
+def _psnr(native, inp: job.JobInput, result: job.JobResult) -> float:
+    """The base colour's PSNR over the surface, measured apart from the job."""
+    import defrag_scan
+
+    old, new = defrag_scan.colours(inp, result)
+    mesh = inp.mesh
+    return native.compare_colors(mesh.positions, mesh.triangles, mesh.uvs, mesh.face_page, old, result.uvs,
+                                 result.face_page, new)["psnr_db"]
+
+
+def test_a_sharp_texture_gets_more_texels_within_the_sources(native, scans):
+    inp = _job_input(scans, halve=True)
+    guarded = job.run(inp, job.Options(), native=native)
+    plain = job.run(inp, job.Options(min_colour_psnr=0), native=native)
+    report = guarded.report
+    assert report["detail_scale"] > 1 and plain.report["detail_scale"] == 1, report["detail_scale"]
+    assert plain.report["colour_psnr"] is None
+    assert _psnr(native, inp, guarded) > _psnr(native, inp, plain) + 1
+    assert abs(report["colour_psnr"] - _psnr(native, inp, guarded)) < 0.5
+    assert plain.report["texels_after"] < report["texels_after"] <= report["texels_before"]
+    assert "texel density raised" in job.summary(report)
+
+
+def test_a_texture_resampled_closely_enough_keeps_its_layout(native, scans):
+    inp = _job_input(scans, halve=False)
+    guarded = job.run(inp, job.Options(), native=native)
+    plain = job.run(inp, job.Options(min_colour_psnr=0), native=native)
+    assert guarded.report["detail_scale"] == 1 and guarded.report["colour_psnr"] >= 40
+    assert np.array_equal(guarded.uvs, plain.uvs)
+    assert "texel density raised" not in job.summary(guarded.report)
+
+
+def _guard_with(monkeypatch, texels_before: int, psnr_at) -> tuple:
+    """(densities run, what the guard kept) with the layout and bake faked:
+    100 texels at density 1, growing with its square; psnr_at(density)."""
+    runs = []
+
+    def attempt(_job, options, *_):
+        runs.append(options.density_scale)
+        texels = round(100 * options.density_scale ** 2)
+        report = {"texels_before": texels_before, "texels_after": texels, "shrunk": False}
+        return SimpleNamespace(layout=SimpleNamespace(report=report), density=options.density_scale)
+
+    monkeypatch.setattr(job, "_attempt", attempt)
+    monkeypatch.setattr(job, "_colour_psnr", lambda _job, tried, _native: psnr_at(tried.density))
+    first = attempt(None, job.Options())
+    kept, seen = job._keep_detail(None, job.Options(), SimpleNamespace(native=None), [], first)
+    assert seen["detail_scale"] == kept.density
+    return runs[1:], kept.density
+
+
+def test_the_guard_stops_at_the_bound_the_sources_texels_or_a_step_that_adds_little(monkeypatch):
+    assert _guard_with(monkeypatch, 1000, lambda d: 30 + 4 * d) == ([1.25, 1.5, 2.0], 2.0)
+    assert _guard_with(monkeypatch, 1000, lambda d: 34 + 4 * d) == ([1.25, 1.5], 1.5)  # 40 dB reached
+    assert _guard_with(monkeypatch, 200, lambda d: 30 + 4 * d) == ([1.25], 1.25)  # 1.5 would take 225 texels
+    assert _guard_with(monkeypatch, 1000, lambda d: 39 + 0.4 * d) == ([1.25], 1.0)  # 0.1 dB: not worth it
+    assert _guard_with(monkeypatch, 1000, lambda d: 40.2) == ([], 1.0)
