@@ -421,6 +421,22 @@ TEST(CompareColors, SameResultOnAnyThreadCount) {
   EXPECT_NE(other_seed.psnr_db, one.psnr_db);
 }
 
+// Two triangles along one edge, its two vertices given twice (as glTF writes a seam).
+TEST(MakeMesh, WeldsExactCopiesUnlessToldNotTo) {
+  RowMatrixX3d p(6, 3);
+  p << 0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0;
+  RowMatrixX3i t(2, 3);
+  t << 0, 1, 2, 3, 4, 5;
+  const RowMatrixX2d uv = RowMatrixX2d::Zero(6, 2);
+  const Eigen::VectorXi page = Eigen::VectorXi::Zero(2);
+  const Mesh welded = make_mesh(p, t, uv, page, {PageSize{8, 8}});
+  EXPECT_EQ(welded.vertex_count(), 4);
+  EXPECT_EQ(welded.triangles(1, 0), welded.triangles(0, 1));
+  const Mesh as_given = make_mesh(p, t, uv, page, {PageSize{8, 8}}, /*weld=*/false);
+  EXPECT_EQ(as_given.vertex_count(), 6);
+  EXPECT_EQ(as_given.triangles, t);
+}
+
 // Without the clean / border split every point still counts: the same PSNR, no split figures.
 TEST(CompareColors, WithoutBordersTheSamePsnr) {
   const Mesh mesh = atlas::testing::grid_disk(12, 0.8, 64);

@@ -138,13 +138,13 @@ RowMatrixX3i triangle_indices(const py::handle& triangles, py::ssize_t vertex_co
 }
 
 Mesh mesh_from(const py::handle& positions, const py::handle& triangles, const py::handle& uvs,
-               const py::handle& face_page, const std::vector<PageSize>& pages) {
+               const py::handle& face_page, const std::vector<PageSize>& pages, bool weld = true) {
   const auto pos = checked<double>(positions, "positions", {3}, "(V, 3)");
   const RowMatrixX3i t = triangle_indices(triangles, pos.shape(0));
   const LayoutArrays l = layout_arrays(uvs, face_page, t.rows(), "uvs", "face_page");
   const RowMatrixX3d p = to_matrix<RowMatrixX3d>(pos, pos.shape(0), 3);
   py::gil_scoped_release release;  // the weld sorts every corner
-  return make_mesh(p, t, l.corner_uv, l.face_page, pages);
+  return make_mesh(p, t, l.corner_uv, l.face_page, pages, weld);
 }
 
 struct CancelToken {
@@ -789,7 +789,8 @@ py::dict compare_colors_py(const py::object& positions, const py::object& triang
   constexpr int kMaxSamples = 100'000'000;  // about a minute; far more than any figure needs
   if (samples > kMaxSamples) throw py::value_error("samples must be at most 100,000,000");
   const std::vector<PageSize> old_pages = image_sizes(old_images, "old_images");
-  const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, old_pages);
+  // The split takes old charts from welded vertices; the samples need no weld.
+  const Mesh mesh = mesh_from(positions, triangles, old_uvs, old_face_page, old_pages, borders);
   const LayoutArrays new_l = layout_arrays(new_uvs, new_face_page, mesh.face_count(), "new_uvs", "new_face_page",
                                            image_sizes(new_images, "new_images"));
   const UvLayout new_atlas = new_l.view();

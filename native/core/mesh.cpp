@@ -92,7 +92,7 @@ std::vector<int> weld_exact(const RowMatrixX3d& positions, RowMatrixX3d& welded)
 
 Mesh make_mesh(const RowMatrixX3d& positions, const RowMatrixX3i& triangles,
                const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page,
-               const std::vector<PageSize>& pages) {
+               const std::vector<PageSize>& pages, bool weld) {
   require_counts(positions, triangles, pages);
   require_finite(positions, "positions");
   require_finite(corner_uv, "uvs");  // untextured faces too: their UVs pass through
@@ -100,10 +100,15 @@ Mesh make_mesh(const RowMatrixX3d& positions, const RowMatrixX3i& triangles,
   require_indices(triangles, positions.rows());
 
   Mesh mesh;
-  const std::vector<int> remap = weld_exact(positions, mesh.positions);
-  mesh.triangles.resize(triangles.rows(), 3);
-  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
-    for (int k = 0; k < 3; ++k) mesh.triangles(f, k) = remap[triangles(f, k)];
+  if (weld) {
+    const std::vector<int> remap = weld_exact(positions, mesh.positions);
+    mesh.triangles.resize(triangles.rows(), 3);
+    for (Eigen::Index f = 0; f < triangles.rows(); ++f)
+      for (int k = 0; k < 3; ++k) mesh.triangles(f, k) = remap[triangles(f, k)];
+  } else {
+    mesh.positions = positions;
+    mesh.triangles = triangles;
+  }
   mesh.corner_uv = corner_uv;
   mesh.face_page = face_page;
   mesh.pages = pages;

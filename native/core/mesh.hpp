@@ -59,8 +59,10 @@ struct Mesh {
 // page index without a page (-1 marks an untextured face), non-positive page
 // size, empty mesh.
 // Degenerate faces (zero 3D or UV area) are kept: later stages handle them.
+// weld false keeps every vertex as given, for callers that only sample
+// faces (a weld sorts every vertex).
 Mesh make_mesh(const RowMatrixX3d& positions, const RowMatrixX3i& triangles,
                const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_page,
-               const std::vector<PageSize>& pages);
+               const std::vector<PageSize>& pages, bool weld = true);
 
 }  // namespace atlas
