@@ -75,8 +75,15 @@ def _guard_with(monkeypatch, texels_before: int, psnr_at) -> tuple:
 
 
 def test_the_guard_stops_at_the_bound_the_sources_texels_or_a_step_that_adds_little(monkeypatch):
-    assert _guard_with(monkeypatch, 1000, lambda d: 30 + 4 * d) == ([1.25, 1.5, 2.0], 2.0)
-    assert _guard_with(monkeypatch, 1000, lambda d: 34 + 4 * d) == ([1.25, 1.5], 1.5)  # 40 dB reached
-    assert _guard_with(monkeypatch, 200, lambda d: 30 + 4 * d) == ([1.25], 1.25)  # 1.5 would take 225 texels
+    assert _guard_with(monkeypatch, 1000, lambda d: 34 + 4 * d) == ([1.5], 1.5)  # 40 dB reached
+    assert _guard_with(monkeypatch, 1000, lambda d: 38 + 1.5 * (d - 1)) == ([1.5, 2.0], 2.0)
+    assert _guard_with(monkeypatch, 200, lambda d: 34 + 4 * d) == ([1.25], 1.25)  # 1.5 would take 225 texels
     assert _guard_with(monkeypatch, 1000, lambda d: 39 + 0.4 * d) == ([1.25], 1.0)  # 0.1 dB: not worth it
     assert _guard_with(monkeypatch, 1000, lambda d: 40.2) == ([], 1.0)
+    assert _guard_with(monkeypatch, 120, lambda d: 30 + 4 * d) == ([], 1.0)  # no step fits
+
+
+def test_the_guard_starts_at_the_step_the_shortfall_calls_for(monkeypatch):
+    # 2.5 dB short: at 5 dB a doubling, 1.41x; 5 dB short: 2x at once.
+    assert _guard_with(monkeypatch, 1000, lambda d: 32.5 + 5 * d) == ([1.5], 1.5)
+    assert _guard_with(monkeypatch, 1000, lambda d: 30 + 5 * d) == ([2.0], 2.0)

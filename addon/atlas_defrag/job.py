@@ -368,6 +368,10 @@ def _attempt(job: JobInput, options: Options, calls: _NativeCalls, bake_calls, o
 # and the least PSNR (dB) a step must add to be worth its texels.
 _DETAIL_STEPS = (1.25, 1.5, 2.0)
 _DETAIL_GAIN = 0.5
+# dB of PSNR a doubling of the texel density buys on sharp textures, on the
+# low side (bench/README.md, session 38): the guard starts at the step this
+# says the shortfall needs, since each step costs a whole layout and bake.
+_DETAIL_DB_PER_DOUBLING = 5.0
 # The progress bar's share of the first layout and bake; each of the colour
 # guard's steps has a part of the rest, so the bar never goes back.
 _FIRST_SHARE = 0.95
@@ -375,7 +379,8 @@ _FIRST_SHARE = 0.95
 
 def _keep_detail(job: JobInput, options: Options, calls: _NativeCalls, bake_calls, first: _Attempt):
     """The colour guard (min_colour_psnr): while the new base colour's PSNR
-    stays under it, the job again at the next of _DETAIL_STEPS, as long as
+    stays under it, the job again at the next of _DETAIL_STEPS (from the
+    one the shortfall calls for), as long as
     the pages stay within the source's texels at the density asked for and
     each step adds _DETAIL_GAIN. Resampling at the source's density blurs
     texels that carry full detail; more texels keep it. Returns the attempt
@@ -389,11 +394,13 @@ def _keep_detail(job: JobInput, options: Options, calls: _NativeCalls, bake_call
         return first, seen
     budget = report.get("texels_before", 0) * options.density_scale ** 2
     highest = schema.BY_NAME["density_scale"].high
+    steps = [step for step in _DETAIL_STEPS
+             if report.get("texels_after", 0) * step ** 2 <= budget and options.density_scale * step <= highest]
+    needed = 2.0 ** ((options.min_colour_psnr - psnr) / _DETAIL_DB_PER_DOUBLING)
+    start = next((k for k, step in enumerate(steps) if step >= needed), len(steps) - 1)
     kept = first
     step_share = (1.0 - _FIRST_SHARE) / len(_DETAIL_STEPS)
-    for k, step in enumerate(_DETAIL_STEPS):
-        if report.get("texels_after", 0) * step ** 2 > budget or options.density_scale * step > highest:
-            break
+    for k, step in enumerate(steps[max(start, 0):]):
         raised = Options(**dict(options.values(), density_scale=options.density_scale * step))
         attempt = _attempt(job, raised, calls, bake_calls, _FIRST_SHARE + k * step_share, step_share)
         new_report = attempt.layout.report
