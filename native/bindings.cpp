@@ -796,8 +796,9 @@ py::dict compare_colors_py(const py::object& positions, const py::object& triang
   const UvLayout new_atlas = new_l.view();
   const bool bytes = is_uint8_images(old_images, "old_images");
   if (bytes != is_uint8_images(new_images, "new_images")) throw py::value_error("old and new images must share a dtype");
-  const ColorFidelity c = bytes ? compare_typed<std::uint8_t>(mesh, old_images, new_atlas, new_images, samples, seed, borders)
-                                : compare_typed<float>(mesh, old_images, new_atlas, new_images, samples, seed, borders);
+  const ColorFidelity c =
+      bytes ? compare_typed<std::uint8_t>(mesh, old_images, new_atlas, new_images, samples, seed, borders)
+            : compare_typed<float>(mesh, old_images, new_atlas, new_images, samples, seed, borders);
   py::dict d;
   d["psnr_db"] = c.psnr_db;
   d["share_off_32"] = c.share_off_32;

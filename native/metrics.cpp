@@ -5,9 +5,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <sstream>
 #include <utility>
 
@@ -480,8 +480,8 @@ void add_sample(const ColorPair<T>& pair, int f, double w0, double w1, double w2
   const Eigen::Vector2d old_at = texel_at(pair.old_atlas, old_image, f, w0, w1, w2);
   sample_texture(old_image, old_at, Footprint{}, old_px);
   sample_texture(new_image, texel_at(pair.new_atlas, new_image, f, w0, w1, w2), Footprint{}, new_px);
-  const bool clean = pair.owner.empty() ||
-                     bilinear_texels_in_chart(pair.owner[old_page], pair.old_sizes[old_page], old_at, pair.face_chart[f]);
+  const bool clean = pair.owner.empty() || bilinear_texels_in_chart(pair.owner[old_page], pair.old_sizes[old_page],
+                                                                    old_at, pair.face_chart[f]);
   const int kind = clean ? 0 : 1;
   const int channels = std::min({3, old_image.channels, new_image.channels});
   bool is_off = false;

@@ -64,12 +64,13 @@ def _guard_with(monkeypatch, texels_before: int, psnr_at) -> tuple:
         runs.append(options.density_scale)
         texels = round(100 * options.density_scale ** 2)
         report = {"texels_before": texels_before, "texels_after": texels, "shrunk": False}
-        return SimpleNamespace(layout=SimpleNamespace(report=report), density=options.density_scale)
+        layout = SimpleNamespace(report=report, page_sizes=[(1, 1)])
+        return SimpleNamespace(layout=layout, density=options.density_scale)
 
     monkeypatch.setattr(job, "_attempt", attempt)
     monkeypatch.setattr(job, "_colour_psnr", lambda _job, tried, _native: psnr_at(tried.density))
     first = attempt(None, job.Options())
-    kept, seen = job._keep_detail(None, job.Options(), SimpleNamespace(native=None), [], first)
+    kept, seen = job._keep_detail(None, job.Options(), job._NativeCalls(None, None, None), [], first)
     assert seen["detail_scale"] == kept.density
     return runs[1:], kept.density
 
@@ -87,3 +88,32 @@ def test_the_guard_starts_at_the_step_the_shortfall_calls_for(monkeypatch):
     # 2.5 dB short: at 5 dB a doubling, 1.41x; 5 dB short: 2x at once.
     assert _guard_with(monkeypatch, 1000, lambda d: 32.5 + 5 * d) == ([1.5], 1.5)
     assert _guard_with(monkeypatch, 1000, lambda d: 30 + 5 * d) == ([2.0], 2.0)
+
+
+def test_a_density_the_user_chose_is_left_as_it_is(native, scans):
+    inp = _job_input(scans, halve=True)
+    for chosen in ({"density_scale": 0.5}, {"fixed_page_size": 512}, {"texels_per_unit": 300.0}):
+        report = job.run(inp, job.Options(**chosen), native=native).report
+        assert report["detail_scale"] == 1 and report["colour_psnr"] is None, chosen
+
+
+def test_the_guard_measures_the_pages_that_have_a_base_colour_and_shows_its_steps(native, scans):
+    """A second material group with no base colour (its faces' page holds a
+    roughness map only) is left out of the measure, not the guard; the
+    guard's steps are named on the progress bar, which never goes back."""
+    inp = _job_input(scans, halve=True)
+    mesh = inp.mesh
+    some = np.arange(len(mesh.triangles)) % 5 == 0
+    rough = job.ImageData("rough", inp.images[inp.pages[0].map_for("base_color").image].pixels[:, :, :1].copy(),
+                          colorspace="Non-Color")
+    inp.images["rough"] = rough
+    inp.pages.append(job.SourcePage([job.ImageMap("roughness", "rough")], group=1))
+    face_page = np.where(some & (mesh.face_page >= 0), len(inp.pages) - 1, mesh.face_page).astype(np.int32)
+    inp = dataclasses.replace(inp, mesh=dataclasses.replace(mesh, face_page=face_page))
+    stages = []
+    result = job.run(inp, job.Options(), native=native, progress=lambda stage, f: stages.append((stage, f)))
+    assert result.report["detail_scale"] > 1 and result.report["colour_psnr"] > 39
+    fractions = [f for _, f in stages]
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0
+    guard = [f for stage, f in stages if stage.startswith("colour guard")]
+    assert guard and job._FIRST_SHARE <= guard[0] < 0.9 and guard[-1] >= 0.99

@@ -2,9 +2,11 @@
 """The defragmentation job on plain data: no bpy in this module.
 
 The bpy read module turns an object into a :class:`JobInput`; :func:`run` calls
-the native core (``_native.defragment`` once, then ``_native.bake_maps`` once
-per material group and set of roles whose images share their sizes) and returns a :class:`JobResult` that the bpy
-write module turns back into a UV map, images and material links.
+the native core (``_native.defragment``, then ``_native.bake_maps`` once per
+material group and set of roles whose images share their sizes; all of it
+again at a higher texel density where the colour guard asks for it) and
+returns a :class:`JobResult` that the bpy write module turns back into a UV
+map, images and material links.
 
 Conventions (shared with ``_native``):
   * UVs are per triangle corner, shape (F, 3, 2), in page units: [0, 1] spans
@@ -260,6 +262,13 @@ class _NativeCalls:
         except ValueError as exc:
             raise DefragError(str(exc)) from exc
 
+    def named(self, prefix: str) -> "_NativeCalls":
+        """The same calls, their stages reported as prefix + stage."""
+        if self.progress is None:
+            return self
+        progress = self.progress
+        return _NativeCalls(self.native, lambda stage, fraction: progress(prefix + stage, fraction), self.cancel)
+
     def share(self, offset: float, share: float, stages: Sequence[str] = ()):
         """Maps a call's (stage, fraction) onto [offset, offset + share]; a
         call with several stages reports each from 0 to 1, in this order."""
@@ -309,7 +318,6 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     t_start = time.perf_counter()
     bake_calls = _bake_batches(job)
     first = _attempt(job, options, calls, bake_calls, 0.0, _FIRST_SHARE)
-    t_first = time.perf_counter()
     kept, guard = _keep_detail(job, options, calls, bake_calls, first)
     layout, images, texels = kept.layout, kept.images, kept.texels
     page_group = _new_page_groups(layout)
@@ -319,7 +327,8 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     seconds = dict(report.get("seconds", {}) or {})
     seconds.setdefault("layout", kept.layout_seconds)
     seconds["bake"] = kept.bake_seconds
-    seconds["detail"] = t_end - t_first
+    # The guard's checks and the attempts it did not keep (the first, when a re-run is kept).
+    seconds["detail"] = t_end - t_start - kept.layout_seconds - kept.bake_seconds
     seconds["total"] = t_end - t_start
     report.update(guard)
     report.update(seconds=seconds, pages_before=int(len(job.pages)),
@@ -372,41 +381,38 @@ _DETAIL_GAIN = 0.5
 # low side (bench/README.md, session 38): the guard starts at the step this
 # says the shortfall needs, since each step costs a whole layout and bake.
 _DETAIL_DB_PER_DOUBLING = 5.0
-# The progress bar's share of the first layout and bake; each of the colour
-# guard's steps has a part of the rest, so the bar never goes back.
-_FIRST_SHARE = 0.95
+# The progress bar's share of the first layout and bake; the colour guard's
+# steps share the rest, so that the bar never goes back.
+_FIRST_SHARE = 0.8
 
 
 def _keep_detail(job: JobInput, options: Options, calls: _NativeCalls, bake_calls, first: _Attempt):
     """The colour guard (min_colour_psnr): while the new base colour's PSNR
     stays under it, the job again at the next of _DETAIL_STEPS (from the
-    one the shortfall calls for), as long as
-    the pages stay within the source's texels at the density asked for and
-    each step adds _DETAIL_GAIN. Resampling at the source's density blurs
-    texels that carry full detail; more texels keep it. Returns the attempt
-    kept and the report's colour_psnr (None: not measured) and detail_scale."""
+    one the shortfall calls for), as long as the pages stay as many and
+    within the source's texels at the density asked for, and each step adds
+    _DETAIL_GAIN. Resampling at the source's density blurs texels that carry
+    full detail; more texels keep it. A density the user set (below the
+    source's, a fixed page size, texels per unit) is left as it is. Returns
+    the attempt kept and the report's colour_psnr (None: not measured) and
+    detail_scale."""
     report = first.layout.report
-    if options.min_colour_psnr <= 0 or options.fixed_page_size or options.texels_per_unit or report.get("shrunk"):
+    chosen = options.density_scale < 1 or options.fixed_page_size or options.texels_per_unit
+    if options.min_colour_psnr <= 0 or chosen or report.get("shrunk"):
         return first, {"colour_psnr": None, "detail_scale": 1.0}
     psnr = _colour_psnr(job, first, calls.native)
     seen = {"colour_psnr": psnr, "detail_scale": 1.0}
     if psnr is None or psnr >= options.min_colour_psnr:
         return first, seen
-    budget = report.get("texels_before", 0) * options.density_scale ** 2
-    highest = schema.BY_NAME["density_scale"].high
-    steps = [step for step in _DETAIL_STEPS
-             if report.get("texels_after", 0) * step ** 2 <= budget and options.density_scale * step <= highest]
-    needed = 2.0 ** ((options.min_colour_psnr - psnr) / _DETAIL_DB_PER_DOUBLING)
-    start = next((k for k, step in enumerate(steps) if step >= needed), len(steps) - 1)
+    steps = _detail_steps(options, psnr, report)
     kept = first
-    step_share = (1.0 - _FIRST_SHARE) / len(_DETAIL_STEPS)
-    for k, step in enumerate(steps[max(start, 0):]):
+    for k, step in enumerate(steps):
         raised = Options(**dict(options.values(), density_scale=options.density_scale * step))
-        attempt = _attempt(job, raised, calls, bake_calls, _FIRST_SHARE + k * step_share, step_share)
-        new_report = attempt.layout.report
+        share = (1.0 - _FIRST_SHARE) / len(steps)
+        attempt = _attempt(job, raised, calls.named(f"colour guard {step:g}x: "), bake_calls,
+                           _FIRST_SHARE + k * share, share)
         new_psnr = _colour_psnr(job, attempt, calls.native)
-        grew = new_report.get("shrunk") or new_report.get("texels_after", 0) > budget
-        if grew or new_psnr is None or new_psnr < psnr + _DETAIL_GAIN:
+        if _outgrew(attempt, first, options) or new_psnr is None or new_psnr < psnr + _DETAIL_GAIN:
             break
         kept, psnr, seen = attempt, new_psnr, {"colour_psnr": new_psnr, "detail_scale": step}
         if psnr >= options.min_colour_psnr:
@@ -414,23 +420,53 @@ def _keep_detail(job: JobInput, options: Options, calls: _NativeCalls, bake_call
     return kept, seen
 
 
+def _detail_steps(options: Options, psnr: float, report: dict) -> List[float]:
+    """The densities the guard tries, from the one the shortfall calls for:
+    those whose pages would stay within the source's texels."""
+    budget = report.get("texels_before", 0) * options.density_scale ** 2
+    highest = schema.BY_NAME["density_scale"].high
+    steps = [step for step in _DETAIL_STEPS
+             if report.get("texels_after", 0) * step ** 2 <= budget and options.density_scale * step <= highest]
+    needed = 2.0 ** ((options.min_colour_psnr - psnr) / _DETAIL_DB_PER_DOUBLING)
+    start = next((k for k, step in enumerate(steps) if step >= needed), len(steps) - 1)
+    return steps[max(start, 0):]
+
+
+def _outgrew(attempt: _Attempt, first: _Attempt, options: Options) -> bool:
+    """Whether a step of the guard shrank its charts, took more pages than the
+    first attempt or more texels than the source holds."""
+    report = attempt.layout.report
+    budget = first.layout.report.get("texels_before", 0) * options.density_scale ** 2
+    return (bool(report.get("shrunk")) or len(attempt.layout.page_sizes) > len(first.layout.page_sizes)
+            or report.get("texels_after", 0) > budget)
+
+
 def _colour_psnr(job: JobInput, attempt: _Attempt, native) -> Optional[float]:
     """PSNR of the new base colour against the old over the surface
-    (compare_colors, every point), or None when some page has no base colour
-    or the images differ in dtype."""
-    if not job.pages or any("base_color" not in page.roles() for page in job.pages):
-        return None
-    old = [job.images[page.map_for("base_color").image].pixels for page in job.pages]
+    (compare_colors, every point), on the faces of pages with a base colour
+    in 8 bits; None where there are none (float colours have no fixed peak
+    for a PSNR bound to mean the same)."""
+    layout, mesh = attempt.layout, job.mesh
+    old = [job.images[page.map_for("base_color").image].pixels if "base_color" in page.roles() else None
+           for page in job.pages]
     by_page = {im.page: im.pixels for im in attempt.images if im.role == "base_color"}
-    new = [by_page.get(q) for q in range(len(attempt.layout.page_sizes))]
-    if any(a is None for a in new) or len({a.dtype for a in old + new}) != 1:
+    new = [by_page.get(q) for q in range(len(layout.page_sizes))]
+    if any(a is not None and a.dtype != np.uint8 for a in old + new):
         return None
-    mesh = job.mesh
-    fidelity = native.compare_colors(
-        np.ascontiguousarray(mesh.positions, dtype=np.float64), np.ascontiguousarray(mesh.triangles, dtype=np.int32),
-        np.ascontiguousarray(mesh.uvs, dtype=np.float64), np.ascontiguousarray(mesh.face_page, dtype=np.int32),
-        [np.ascontiguousarray(a) for a in old], attempt.layout.uvs, attempt.layout.face_page,
-        [np.ascontiguousarray(a) for a in new], borders=False)
+    measured = np.array([a is not None for a in old] + [False])[mesh.face_page]
+    measured &= np.array([a is not None for a in new] + [False])[layout.face_page]
+    if not measured.any():
+        return None
+    blank = np.zeros((1, 1, 3), np.uint8)  # the image of a page no measured face is on
+    try:
+        fidelity = native.compare_colors(
+            np.ascontiguousarray(mesh.positions, dtype=np.float64),
+            np.ascontiguousarray(mesh.triangles, dtype=np.int32), np.ascontiguousarray(mesh.uvs, dtype=np.float64),
+            np.where(measured, mesh.face_page, -1).astype(np.int32), [blank if a is None else a for a in old],
+            layout.uvs, np.where(measured, layout.face_page, -1).astype(np.int32),
+            [blank if a is None else a for a in new], borders=False)
+    except ValueError:  # an input the layout took and the measure does not: no guard
+        return None
     return float(fidelity["psnr_db"]) if fidelity["samples"] else None
 
 

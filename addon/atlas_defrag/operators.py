@@ -96,7 +96,9 @@ def stop_text(report) -> str:
 
 
 def image_text(report) -> str:
-    """The new images with their sizes, and the density scale the packer applied."""
+    """The new images with their sizes, and their texel density against the
+    source's when it differs (asked for, raised by the colour guard or shrunk
+    to fit)."""
     names = []
     for name in report.get("images", []):
         img = bpy.data.images.get(name)
@@ -104,7 +106,7 @@ def image_text(report) -> str:
     text = "New images: " + (", ".join(names) or "none")
     scale = report.get("scale")
     if scale is not None and abs(scale - 1.0) > 1e-3:
-        text += f"; texel density scaled by {scale:.3g} to fit the page size"
+        text += f"; texel density {scale:.3g}x the source's" + (" (shrunk to fit)" if report.get("shrunk") else "")
     return text
 
 

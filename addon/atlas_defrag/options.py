@@ -5,7 +5,8 @@ From this table come the operator's properties and dialog (operators.py), the
 batch entry's arguments (batch.py), the validated values passed to the native
 module (job.Options) and the option table of the README (tools/options_doc.py).
 The native module checks the same ranges (python_tests/test_options.py).
-Adding an option is one entry here, plus its use in the native core.
+Adding an option is one entry here, plus its use in the native core (or in
+job.run, for options marked job).
 
 No bpy and no numpy: batch.py loads this file by path outside Blender.
 """
