@@ -400,25 +400,33 @@ TEST(CompareColors, RejectsMissingImages) {
   EXPECT_THROW(compare_colors(mesh, layout_of(mesh), small, layout_of(mesh), small, 10, 0), InputError);
 }
 
+// A grid atlas and the same atlas moved, each with an image of its own pattern.
+struct MovedAtlas {
+  Mesh mesh = atlas::testing::grid_disk(12, 0.8, 64);
+  std::vector<std::uint8_t> a = pattern_image<std::uint8_t>(64, 64, 3, 1.0);
+  std::vector<std::uint8_t> b = pattern_image<std::uint8_t>(64, 64, 3, 0.9);
+  RowMatrixX2d moved = (mesh.corner_uv.array() * 0.9 + 0.03).matrix();
+  std::vector<ImageView<std::uint8_t>> old_images = {view_of(a, 64, 64, 3)};
+  std::vector<ImageView<std::uint8_t>> new_images = {view_of(b, 64, 64, 3)};
+
+  ColorFidelity compare(unsigned seed, bool borders = true) const {
+    return compare_colors(mesh, layout_of(mesh), old_images, {&moved, &mesh.face_page, &mesh.pages}, new_images,
+                          30000, seed, borders);
+  }
+};
+
 TEST(CompareColors, SameResultOnAnyThreadCount) {
-  const Mesh mesh = atlas::testing::grid_disk(12, 0.8, 64);
-  const std::vector<std::uint8_t> a = pattern_image<std::uint8_t>(64, 64, 3, 1.0);
-  const std::vector<std::uint8_t> b = pattern_image<std::uint8_t>(64, 64, 3, 0.9);
-  const RowMatrixX2d moved = (mesh.corner_uv.array() * 0.9 + 0.03).matrix();
-  const std::vector<ImageView<std::uint8_t>> old_images = {view_of(a, 64, 64, 3)};
-  const std::vector<ImageView<std::uint8_t>> new_images = {view_of(b, 64, 64, 3)};
-  const UvLayout new_atlas{&moved, &mesh.face_page, &mesh.pages};
+  const MovedAtlas atlas;
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
-  const ColorFidelity one = compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 11);
+  const ColorFidelity one = atlas.compare(11);
   omp_set_num_threads(3);
-  const ColorFidelity three = compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 11);
+  const ColorFidelity three = atlas.compare(11);
   omp_set_num_threads(threads);
   EXPECT_EQ(one.psnr_db, three.psnr_db);
   EXPECT_EQ(one.share_off_32, three.share_off_32);
   EXPECT_LT(one.psnr_db, 40.0);  // the images really differ
-  const ColorFidelity other_seed = compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 12);
-  EXPECT_NE(other_seed.psnr_db, one.psnr_db);
+  EXPECT_NE(atlas.compare(12).psnr_db, one.psnr_db);
 }
 
 // Two triangles along one edge, its two vertices given twice (as glTF writes a seam).
@@ -439,16 +447,9 @@ TEST(MakeMesh, WeldsExactCopiesUnlessToldNotTo) {
 
 // Without the clean / border split every point still counts: the same PSNR, no split figures.
 TEST(CompareColors, WithoutBordersTheSamePsnr) {
-  const Mesh mesh = atlas::testing::grid_disk(12, 0.8, 64);
-  const std::vector<std::uint8_t> a = pattern_image<std::uint8_t>(64, 64, 3, 1.0);
-  const std::vector<std::uint8_t> b = pattern_image<std::uint8_t>(64, 64, 3, 0.9);
-  const RowMatrixX2d moved = (mesh.corner_uv.array() * 0.9 + 0.03).matrix();
-  const std::vector<ImageView<std::uint8_t>> old_images = {view_of(a, 64, 64, 3)};
-  const std::vector<ImageView<std::uint8_t>> new_images = {view_of(b, 64, 64, 3)};
-  const UvLayout new_atlas{&moved, &mesh.face_page, &mesh.pages};
-  const ColorFidelity split = compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 11);
-  const ColorFidelity whole =
-      compare_colors(mesh, layout_of(mesh), old_images, new_atlas, new_images, 30000, 11, /*borders=*/false);
+  const MovedAtlas atlas;
+  const ColorFidelity split = atlas.compare(11);
+  const ColorFidelity whole = atlas.compare(11, /*borders=*/false);
   EXPECT_GT(split.clean_samples, 0);
   EXPECT_LT(split.clean_samples, split.samples);
   EXPECT_NEAR(whole.psnr_db, split.psnr_db, 1e-9);
