@@ -5,6 +5,7 @@ import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from atlas_defrag import job
 
@@ -117,3 +118,15 @@ def test_the_guard_measures_the_pages_that_have_a_base_colour_and_shows_its_step
     assert fractions == sorted(fractions) and fractions[-1] == 1.0
     guard = [f for stage, f in stages if stage.startswith("colour guard")]
     assert guard and job._FIRST_SHARE <= guard[0] < 0.9 and guard[-1] >= 0.99
+
+
+def test_a_run_cancelled_during_a_step_of_the_guard_is_cancelled(native, scans):
+    inp = _job_input(scans, halve=True)
+    token = native.CancelToken()
+
+    def progress(stage, _fraction):
+        if stage.startswith("colour guard"):
+            token.cancel()
+
+    with pytest.raises(job.DefragCancelled):
+        job.run(inp, job.Options(), native=native, progress=progress, cancel=token)
