@@ -130,3 +130,17 @@ def test_a_run_cancelled_during_a_step_of_the_guard_is_cancelled(native, scans):
 
     with pytest.raises(job.DefragCancelled):
         job.run(inp, job.Options(), native=native, progress=progress, cancel=token)
+
+
+def test_a_float_base_colour_leaves_the_guard_to_the_8_bit_pages(native, scans):
+    """A page whose base colour is float (no fixed peak for a PSNR bound) is
+    left out of the measure; the 8-bit pages are still measured."""
+    inp = _job_input(scans, halve=True)
+    first = job.run(inp, job.Options(min_colour_psnr=0), native=native)
+    attempt = SimpleNamespace(layout=SimpleNamespace(uvs=first.uvs, face_page=first.face_page,
+                                                     page_sizes=first.page_sizes), images=first.images)
+    alone = job._colour_psnr(inp, attempt, native)
+    inp.images["hdr"] = job.ImageData("hdr", np.ones((8, 8, 3), np.float32), is_float=True)
+    inp.pages.append(job.SourcePage([job.ImageMap("base_color", "hdr")], group=1))
+    assert alone is not None
+    assert job._colour_psnr(inp, attempt, native) == alone

@@ -37,7 +37,7 @@ except ImportError as exc:
 def progress_line(stage: str, fraction: float) -> None:
     """One self-overwriting status line, on terminals only (logs stay clean)."""
     if sys.stderr.isatty():
-        print(f"\r  {stage:<10} {fraction:6.1%}", end="", file=sys.stderr, flush=True)
+        print(f"\r  {stage:<10} {fraction:6.1%}\x1b[K", end="", file=sys.stderr, flush=True)  # K: clears the rest
 
 
 # MTL statements of the maps an MTL can name; a metallic-roughness map (two

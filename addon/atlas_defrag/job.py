@@ -317,7 +317,7 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
     calls = _NativeCalls(native, progress, cancel)
     t_start = time.perf_counter()
     bake_calls = _bake_batches(job)
-    first = _attempt(job, options, calls, bake_calls, 0.0, _FIRST_SHARE)
+    first = _attempt(job, options, calls, bake_calls, 0.0, _FIRST_SHARE if _guard_may_run(options) else 1.0)
     kept, guard = _keep_detail(job, options, calls, bake_calls, first)
     layout, images, texels = kept.layout, kept.images, kept.texels
     page_group = _new_page_groups(layout)
@@ -397,8 +397,7 @@ def _keep_detail(job: JobInput, options: Options, calls: _NativeCalls, bake_call
     the attempt kept and the report's colour_psnr (None: not measured) and
     detail_scale."""
     report = first.layout.report
-    chosen = options.density_scale < 1 or options.fixed_page_size or options.texels_per_unit
-    if options.min_colour_psnr <= 0 or chosen or report.get("shrunk"):
+    if not _guard_may_run(options) or report.get("shrunk"):
         return first, {"colour_psnr": None, "detail_scale": 1.0}
     psnr = _colour_psnr(job, first, calls.native)
     seen = {"colour_psnr": psnr, "detail_scale": 1.0}
@@ -420,6 +419,13 @@ def _keep_detail(job: JobInput, options: Options, calls: _NativeCalls, bake_call
     return kept, seen
 
 
+def _guard_may_run(options: Options) -> bool:
+    """Whether the colour guard is on and the density is not the user's own
+    (a density scale below 1, a fixed page size, texels per unit)."""
+    chosen = options.density_scale < 1 or options.fixed_page_size or options.texels_per_unit
+    return options.min_colour_psnr > 0 and not chosen
+
+
 def _detail_steps(options: Options, psnr: float, report: dict) -> List[float]:
     """The densities the guard tries, from the one the shortfall calls for:
     those whose pages would stay within the source's texels."""
@@ -429,12 +435,12 @@ def _detail_steps(options: Options, psnr: float, report: dict) -> List[float]:
              if report.get("texels_after", 0) * step ** 2 <= budget and options.density_scale * step <= highest]
     needed = 2.0 ** ((options.min_colour_psnr - psnr) / _DETAIL_DB_PER_DOUBLING)
     start = next((k for k, step in enumerate(steps) if step >= needed), len(steps) - 1)
-    return steps[max(start, 0):]
+    return steps[start:]
 
 
 def _outgrew(attempt: _Attempt, first: _Attempt, options: Options) -> bool:
     """Whether a step of the guard shrank its charts, took more pages than the
-    first attempt or more texels than the source holds."""
+    first attempt or more texels than the source holds at the density asked for."""
     report = attempt.layout.report
     budget = first.layout.report.get("texels_before", 0) * options.density_scale ** 2
     return (bool(report.get("shrunk")) or len(attempt.layout.page_sizes) > len(first.layout.page_sizes)
@@ -442,17 +448,18 @@ def _outgrew(attempt: _Attempt, first: _Attempt, options: Options) -> bool:
 
 
 def _colour_psnr(job: JobInput, attempt: _Attempt, native) -> Optional[float]:
-    """PSNR of the new base colour against the old over the surface
-    (compare_colors, every point), on the faces of pages with a base colour
-    in 8 bits; None where there are none (float colours have no fixed peak
-    for a PSNR bound to mean the same)."""
+    """PSNR of the new base colour against the old (compare_colors, 400,000
+    points over the surface), on the faces of pages with a base colour in 8
+    bits; None where there are none (float colours have no fixed peak for a
+    PSNR bound to mean the same)."""
+    def eight_bit(pixels):
+        return pixels if pixels is not None and pixels.dtype == np.uint8 else None
+
     layout, mesh = attempt.layout, job.mesh
-    old = [job.images[page.map_for("base_color").image].pixels if "base_color" in page.roles() else None
+    old = [eight_bit(job.images[page.map_for("base_color").image].pixels) if "base_color" in page.roles() else None
            for page in job.pages]
     by_page = {im.page: im.pixels for im in attempt.images if im.role == "base_color"}
-    new = [by_page.get(q) for q in range(len(layout.page_sizes))]
-    if any(a is not None and a.dtype != np.uint8 for a in old + new):
-        return None
+    new = [eight_bit(by_page.get(q)) for q in range(len(layout.page_sizes))]
     measured = np.array([a is not None for a in old] + [False])[mesh.face_page]
     measured &= np.array([a is not None for a in new] + [False])[layout.face_page]
     if not measured.any():

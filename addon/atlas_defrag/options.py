@@ -110,7 +110,8 @@ SCHEMA: Tuple[Option, ...] = (
     Option("min_colour_psnr", float, 40.0, "Least Colour PSNR",
            "When the new base colour matches the old one less closely than this (PSNR in dB over the surface), "
            "as on sharp textures, the job runs again at 1.25, 1.5 or 2 times the texel density, as long as the "
-           "pages stay within the source's texels (0: never; not with a fixed page size or Texels per Unit)",
+           "pages stay as many and within the source's texels at the density asked for (0: never; not with a "
+           "Density Scale below 1, a fixed page size or Texels per Unit)",
            low=0.0, high=99.0, job=True),
 )
 
