@@ -405,9 +405,9 @@ def _keep_detail(job: JobInput, options: Options, calls: _NativeCalls, bake_call
         return first, seen
     steps = _detail_steps(options, psnr, report)
     kept = first
+    share = (1.0 - _FIRST_SHARE) / max(1, len(steps))
     for k, step in enumerate(steps):
         raised = Options(**dict(options.values(), density_scale=options.density_scale * step))
-        share = (1.0 - _FIRST_SHARE) / len(steps)
         attempt = _attempt(job, raised, calls.named(f"colour guard {step:g}x: "), bake_calls,
                            _FIRST_SHARE + k * share, share)
         new_psnr = _colour_psnr(job, attempt, calls.native)
@@ -426,10 +426,15 @@ def _guard_may_run(options: Options) -> bool:
     return options.min_colour_psnr > 0 and not chosen
 
 
+def _source_texels(report: dict, options: Options) -> float:
+    """The source's texels at the density asked for."""
+    return report.get("texels_before", 0) * options.density_scale ** 2
+
+
 def _detail_steps(options: Options, psnr: float, report: dict) -> List[float]:
     """The densities the guard tries, from the one the shortfall calls for:
     those whose pages would stay within the source's texels."""
-    budget = report.get("texels_before", 0) * options.density_scale ** 2
+    budget = _source_texels(report, options)
     highest = schema.BY_NAME["density_scale"].high
     steps = [step for step in _DETAIL_STEPS
              if report.get("texels_after", 0) * step ** 2 <= budget and options.density_scale * step <= highest]
@@ -442,9 +447,8 @@ def _outgrew(attempt: _Attempt, first: _Attempt, options: Options) -> bool:
     """Whether a step of the guard shrank its charts, took more pages than the
     first attempt or more texels than the source holds at the density asked for."""
     report = attempt.layout.report
-    budget = first.layout.report.get("texels_before", 0) * options.density_scale ** 2
     return (bool(report.get("shrunk")) or len(attempt.layout.page_sizes) > len(first.layout.page_sizes)
-            or report.get("texels_after", 0) > budget)
+            or report.get("texels_after", 0) > _source_texels(first.layout.report, options))
 
 
 def _colour_psnr(job: JobInput, attempt: _Attempt, native) -> Optional[float]:
@@ -491,7 +495,7 @@ def _size_warnings(report: dict, options: Options, chart_texels: float) -> List[
         return [f"charts scaled to {report.get('scale', 0):.3g}x the input's texel density, below the density "
                 "asked for, to fit max_page_size, max_pages, fixed_page_size or the input's texel count"]
     before, after = report.get("texels_before", 0), report.get("texels_after", 0)
-    expected = before * options.density_scale ** 2
+    expected = _source_texels(report, options)
     if options.texels_per_unit or not before or after <= _GROWTH_TOLD * expected or chart_texels <= expected:
         return []
     return [f"the new pages hold {after / expected:.1f}x the input's texels at the density asked for: its faces "
@@ -718,6 +722,14 @@ def summary(report: dict) -> str:
             + (f"{num('packing_cuts')} cuts for packing to stay within the source's texels, "
                if report.get("cut_to_fit") else "")
             + (f"charts scaled to {num('scale', '{:.3g}')} of their texel density, " if report.get("shrunk") else "")
-            + (f"texel density raised {num('detail_scale', '{:.3g}')}x to keep the colour's detail (PSNR "
-               f"{num('colour_psnr', '{:.1f}')} dB), " if report.get("detail_scale", 1.0) > 1.0 else "")
+            + (f"{detail_text(report)}, " if detail_text(report) else "")
             + f"time {'?' if secs is None else f'{secs:.1f}'} s")
+
+
+def detail_text(report: dict) -> str:
+    """What the colour guard did, for the lines that report a run: empty
+    unless it raised the texel density."""
+    if report.get("detail_scale", 1.0) <= 1.0:
+        return ""
+    return (f"texel density raised {report['detail_scale']:.3g}x to keep the colour's detail "
+            f"(PSNR {report['colour_psnr']:.1f} dB)")
