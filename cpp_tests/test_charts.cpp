@@ -144,6 +144,7 @@ TEST(Aggregate, ChartsOfACylinderMergePastAHemisphere) {
   expect_all_disks(merged);
   AggregateOptions hemisphere_only;
   hemisphere_only.developable_curvature = 0;
+  hemisphere_only.reference_chart_faces = 0;  // 640 faces per chart would scale the exemption past 1,280
   const ChartRun gated = aggregate(sheet, hemisphere_only);
   EXPECT_EQ(gated.aggregation.chart_count(), 2);
   EXPECT_EQ(gated.aggregation.stops.normal_coherence, 1);
@@ -512,6 +513,24 @@ TEST(Aggregate, SmallChartsMergePastAHemisphere) {
   const std::vector<double> coherence = normal_coherence(sphere);
   EXPECT_LT(*std::min_element(coherence.begin(), coherence.end()), 0.5);
   expect_all_disks(sphere);
+}
+
+// The cylinder sheet below at four times the faces (twice the rows and
+// columns, the same two charts) merges alike past the hemisphere: the gate's
+// face counts scale with the faces per input chart.
+TEST(Aggregate, FinerTessellationMergesAlike) {
+  AggregateOptions options;
+  options.developable_curvature = 0;  // the face counts alone decide
+  options.coherence_free_faces = 1280;
+  options.reference_chart_faces = 640;  // the coarse sheet's
+  const ChartRun coarse = aggregate(cylinder_sheet(16, 40, 1.5 * M_PI), options);
+  const ChartRun fine = aggregate(cylinder_sheet(32, 80, 1.5 * M_PI), options);
+  ASSERT_EQ(fine.graph.chart_count(), 2);
+  EXPECT_EQ(coarse.aggregation.chart_count(), 1);
+  EXPECT_EQ(fine.aggregation.chart_count(), 1);
+  expect_all_disks(fine);
+  options.reference_chart_faces = 0;
+  EXPECT_EQ(aggregate(cylinder_sheet(32, 80, 1.5 * M_PI), options).aggregation.chart_count(), 2);
 }
 
 TEST(Aggregate, NeverMergesAcrossNonManifoldEdge) {

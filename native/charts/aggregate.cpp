@@ -67,6 +67,13 @@ double weight_surface(const Cluster& c1, const Link& l) {
   return share > 0 ? c1.area_3d / share : std::numeric_limits<double>::infinity();
 }
 
+// The gates' face counts for this input: options.reference_chart_faces.
+double tessellation_scale(const ChartGraph& graph, double reference_chart_faces) {
+  if (reference_chart_faces <= 0 || graph.chart_count() == 0) return 1.0;
+  const auto textured = std::count_if(graph.face_chart.begin(), graph.face_chart.end(), [](int c) { return c >= 0; });
+  return std::max(1.0, static_cast<double>(textured) / graph.chart_count() / reference_chart_faces);
+}
+
 class Aggregator {
  public:
   Aggregator(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
@@ -76,6 +83,9 @@ class Aggregator {
         disks_(mesh, topology, graph.face_chart, graph.chart_count(), graph.self_seam, options.partial_merges,
                graph.holes),
         clusters_(graph.chart_count()) {
+    const double scale = tessellation_scale(graph, options.reference_chart_faces);
+    coherence_free_faces_ = static_cast<size_t>(options.coherence_free_faces * scale);
+    gate_free_faces_ = static_cast<size_t>(kGateFreeFaces * scale);
     if (options.developable_curvature > 0) {
       defect_ = angle_defects(mesh);
       for (int v = 0; v < mesh.vertex_count(); ++v)
@@ -165,7 +175,7 @@ class Aggregator {
       return Gate::MaxChartFaces;
     const double area = ca.area_3d + cb.area_3d;
     const size_t fa = disks_.faces(a).size(), fb = disks_.faces(b).size();
-    const bool small = fa + fb <= static_cast<size_t>(options_.coherence_free_faces) || std::min(fa, fb) <= kGateFreeFaces;
+    const bool small = fa + fb <= coherence_free_faces_ || std::min(fa, fb) <= gate_free_faces_;
     if (!small && area > 0 && (ca.normal_sum + cb.normal_sum).norm() < options_.min_normal_coherence * area)
       return defect_.empty() ? Gate::NormalCoherence : Gate::Curved;
     return Gate::Open;
@@ -283,6 +293,7 @@ class Aggregator {
   std::priority_queue<Candidate> queue_;
   std::vector<std::pair<int, int>> merges_;
   double total_area_3d_ = 0, total_area_uv_ = 0;
+  size_t coherence_free_faces_ = 0, gate_free_faces_ = 0;  // scaled by tessellation_scale
   int alive_ = 0;
 };
 

@@ -34,6 +34,13 @@ struct AggregateOptions {
   // colour detail (bench/README.md). 0: the gate applies to every merge but
   // those of a chart of at most 100 faces.
   int coherence_free_faces = 1000;
+  // Photogrammetry tools cut charts by camera view, not by triangle: the same
+  // scan tessellated four times finer has as many charts of four times the
+  // faces. The face counts above (1000 and 100) hold for this many textured
+  // faces per input chart, and scale with a finer input (never below 1x), so
+  // that it merges alike; the shared scans have 42-86. max_chart_faces does
+  // not scale: it bounds solver time, which counts faces. 0: no scaling.
+  double reference_chart_faces = 100;
   // A union that min_normal_coherence refuses merges all the same when the
   // Gaussian curvature inside it (the sum of the angle defects at its
   // interior vertices, core/angle_defects.hpp) is at most this many radians
