@@ -516,8 +516,8 @@ TEST(Aggregate, SmallChartsMergePastAHemisphere) {
 }
 
 // The cylinder sheet below at four times the faces (twice the rows and
-// columns, the same two charts) merges alike past the hemisphere: the gate's
-// face counts scale with the faces per input chart.
+// columns, the same two charts) merges alike past the hemisphere and the
+// cap: the gates' face counts scale with the faces per input chart.
 TEST(Aggregate, FinerTessellationMergesAlike) {
   AggregateOptions options;
   options.developable_curvature = 0;  // the face counts alone decide
@@ -531,6 +531,12 @@ TEST(Aggregate, FinerTessellationMergesAlike) {
   expect_all_disks(fine);
   options.reference_chart_faces = 0;
   EXPECT_EQ(aggregate(cylinder_sheet(32, 80, 1.5 * M_PI), options).aggregation.chart_count(), 2);
+  AggregateOptions capped;  // so does the cap
+  capped.max_chart_faces = 1280;
+  capped.reference_chart_faces = 640;
+  EXPECT_EQ(aggregate(cylinder_sheet(32, 80, 1.5 * M_PI), capped).aggregation.chart_count(), 1);
+  capped.reference_chart_faces = 0;
+  EXPECT_EQ(aggregate(cylinder_sheet(32, 80, 1.5 * M_PI), capped).aggregation.chart_count(), 2);
 }
 
 TEST(Aggregate, NeverMergesAcrossNonManifoldEdge) {

@@ -18,6 +18,10 @@ namespace {
 // its whole border as seam.
 constexpr size_t kGateFreeFaces = 100;
 
+// max_chart_faces scales with the tessellation up to this factor: a chart of
+// four times the faces already takes several times as long to flatten.
+constexpr double kMaxCapScale = 4;
+
 // What one cluster knows about its border with one neighbour.
 struct Link {
   double length_3d = 0;
@@ -86,6 +90,7 @@ class Aggregator {
     const double scale = tessellation_scale(graph, options.reference_chart_faces);
     coherence_free_faces_ = static_cast<size_t>(options.coherence_free_faces * scale);
     gate_free_faces_ = static_cast<size_t>(kGateFreeFaces * scale);
+    max_chart_faces_ = static_cast<size_t>(options.max_chart_faces * std::min(scale, kMaxCapScale));
     if (options.developable_curvature > 0) {
       defect_ = angle_defects(mesh);
       for (int v = 0; v < mesh.vertex_count(); ++v)
@@ -170,8 +175,7 @@ class Aggregator {
     const bool uv = options_.weighting == Weighting::UV;
     const double smaller = uv ? std::min(ca.area_uv, cb.area_uv) : std::min(ca.area_3d, cb.area_3d);
     if (smaller / (uv ? total_area_uv_ : total_area_3d_) >= options_.min_chart_fraction) return Gate::MinChartFraction;
-    if (options_.max_chart_faces > 0 &&
-        disks_.faces(a).size() + disks_.faces(b).size() > static_cast<size_t>(options_.max_chart_faces))
+    if (max_chart_faces_ > 0 && disks_.faces(a).size() + disks_.faces(b).size() > max_chart_faces_)
       return Gate::MaxChartFaces;
     const double area = ca.area_3d + cb.area_3d;
     const size_t fa = disks_.faces(a).size(), fb = disks_.faces(b).size();
@@ -293,7 +297,7 @@ class Aggregator {
   std::priority_queue<Candidate> queue_;
   std::vector<std::pair<int, int>> merges_;
   double total_area_3d_ = 0, total_area_uv_ = 0;
-  size_t coherence_free_faces_ = 0, gate_free_faces_ = 0;  // scaled by tessellation_scale
+  size_t coherence_free_faces_ = 0, gate_free_faces_ = 0, max_chart_faces_ = 0;  // scaled by tessellation_scale
   int alive_ = 0;
 };
 

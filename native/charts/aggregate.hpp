@@ -38,8 +38,9 @@ struct AggregateOptions {
   // scan tessellated four times finer has as many charts of four times the
   // faces. The face counts above (1000 and 100) hold for this many textured
   // faces per input chart, and scale with a finer input (never below 1x), so
-  // that it merges alike; the shared scans have 42-86. max_chart_faces does
-  // not scale: it bounds solver time, which counts faces. 0: no scaling.
+  // that it merges alike; the shared scans have 42-86. max_chart_faces
+  // scales too, up to 4x: it bounds solver time, which grows faster than
+  // the faces. 0: no scaling.
   double reference_chart_faces = 100;
   // A union that min_normal_coherence refuses merges all the same when the
   // Gaussian curvature inside it (the sum of the angle defects at its
@@ -51,9 +52,10 @@ struct AggregateOptions {
   // rule splits a chart that then loses detail (bench/README.md for the
   // value). 0 disables.
   double developable_curvature = 0.6;
-  // No merged chart grows beyond this many faces: the cost of flattening a
-  // chart grows faster than its size (sparse Cholesky fill), and many
-  // mid-sized charts keep both cores busy. 0 disables.
+  // No merged chart grows beyond this many faces (scaled as
+  // reference_chart_faces says): the cost of flattening a chart grows faster
+  // than its size (sparse Cholesky fill), and many mid-sized charts keep both
+  // cores busy. 0 disables.
   int max_chart_faces = 20000;
   // Two charts whose union would not be a disk (they touch along several
   // arcs) merge along their longest shared arc, the others staying a seam
