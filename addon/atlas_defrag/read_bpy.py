@@ -114,10 +114,34 @@ def check_textures(obj, uv_map: Optional[str] = None) -> None:
 
 
 def _no_texture_message(obj, uv_name: str, warnings: List[str]) -> str:
+    grouped = sorted({f"'{node.image.name}' in node group '{group.name}'"
+                      for s in obj.material_slots for group, node in grouped_images(s.material)})
+    hint = (f" (image {', '.join(grouped)}: only Image Texture nodes at a material's top level are rebuilt; "
+            "ungroup them, Ctrl+Alt+G, to have them rebuilt)" if grouped else "")
     if warnings:  # it has image nodes, none the job can follow
-        return f"No image texture this job can rebuild on '{obj.name}': " + "; ".join(warnings)
+        return f"No image texture this job can rebuild on '{obj.name}': " + "; ".join(warnings) + hint
     return (f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "
-            f"its Principled BSDF through UV map '{uv_name}'")
+            f"its Principled BSDF through UV map '{uv_name}'" + hint)
+
+
+def node_groups(tree) -> list:
+    """The node groups the nodes of tree (or None) use, and those these use,
+    each once."""
+    found, todo = {}, [tree] if tree is not None else []
+    while todo:
+        for node in todo.pop().nodes:
+            group = node.node_tree if node.bl_idname == "ShaderNodeGroup" else None
+            if group is not None and group not in found:
+                found[group] = None
+                todo.append(group)
+    return list(found)
+
+
+def grouped_images(mat) -> List[tuple]:
+    """(group, node) for every Image Texture node with an image inside the
+    node groups mat uses: the job neither reads nor rewires them."""
+    return [(group, node) for group in node_groups(compat.node_tree(mat)) for node in group.nodes
+            if node.bl_idname == "ShaderNodeTexImage" and node.image is not None]
 
 
 def _render_uv_name(me) -> str:

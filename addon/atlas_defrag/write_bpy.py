@@ -19,7 +19,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 import bpy
 import numpy as np
 
-from . import compat, png_files
+from . import compat, png_files, read_bpy
 from .job import DefragError, JobResult, OutputImage, loop_uvs, with_channels
 from .read_bpy import ReadResult, mesh_signature
 
@@ -244,12 +244,12 @@ def _rewire_material(mat, info, new_uv: str, page_images: Dict[str, object], jou
             _set_attr(tree.nodes[name], "uv_map", new_uv, journal)
 
 
-def _pin_to_old_map(mat, render_uv: str, journal: _Journal) -> None:
-    """The nodes of mat that read the render-active UV map without naming it
-    (image nodes with nothing in their Vector input, the UV output of Texture
-    Coordinate nodes, UV Map and tangent Normal Map nodes with no map named)
-    name the old one: the new map is render-active now."""
-    tree = compat.node_tree(mat)
+def _pin_to_old_map(tree, render_uv: str, journal: _Journal) -> None:
+    """The nodes of a material's or a node group's tree that read the
+    render-active UV map without naming it (image nodes with nothing in their
+    Vector input, the UV output of Texture Coordinate nodes, UV Map and
+    tangent Normal Map nodes with no map named) name the old one: the new map
+    is render-active now."""
     if tree is None:
         return
     pin = None
@@ -283,20 +283,50 @@ def _pin_default_uv_users(target: _Target, active_uv: Optional[str]) -> None:
     me, render_uv, journal = target.obj.data, target.read.render_uv, target.journal
     users = [o for o in bpy.data.objects if o.data == me]
     shared = []
-    for mat in dict.fromkeys(s.material for o in users for s in o.material_slots if s.material):
+    materials = list(dict.fromkeys(s.material for o in users for s in o.material_slots if s.material))
+    for mat in materials:
         if _drawn_elsewhere_through_another_map(mat, me, render_uv):
-            shared.append(mat.name)
+            shared.append(f"material '{mat.name}'")
         else:
-            _pin_to_old_map(mat, render_uv, journal)
+            _pin_to_old_map(compat.node_tree(mat), render_uv, journal)
+    shared += _pin_node_groups(target, materials)
     for mod in (m for o in users for m in o.modifiers):
         for attr in ("uv_layer", "mask_tex_uv_layer"):
             if active_uv and getattr(mod, attr, None) == "":
                 _set_attr(mod, attr, active_uv, journal)
     if shared:
-        target.warnings.append(f"Material(s) {', '.join(sorted(shared))} read the render-active UV map "
+        named = ", ".join(sorted(shared))
+        target.warnings.append(f"{named[0].upper() + named[1:]} read the render-active UV map "
                                f"without naming it, and other meshes draw them through maps not named "
                                f"'{render_uv}': on this mesh they now read the new map (name the map in "
                                "their UV Map nodes to keep the old one)")
+
+
+def _pin_node_groups(target: _Target, materials: list) -> List[str]:
+    """_pin_to_old_map inside the node groups the materials use, where every
+    material using the group (and so every mesh drawing it) reads a map named
+    like the old one; the others are returned, named, for the warning. Their
+    images are not rebuilt: a warning names them."""
+    me, render_uv = target.obj.data, target.read.render_uv
+    reaching = {g: [] for mat in materials for g in read_bpy.node_groups(compat.node_tree(mat))}
+    if not reaching:
+        return []
+    for mat in bpy.data.materials:
+        for g in read_bpy.node_groups(compat.node_tree(mat)):
+            if g in reaching:
+                reaching[g].append(mat)
+    shared = []
+    for group, mats in reaching.items():
+        if group.library is not None or any(_drawn_elsewhere_through_another_map(m, me, render_uv) for m in mats):
+            shared.append(f"node group '{group.name}'")
+        else:
+            _pin_to_old_map(group, render_uv, target.journal)
+    images = sorted({f"'{node.image.name}' in node group '{group.name}'"
+                     for mat in materials for group, node in read_bpy.grouped_images(mat)})
+    if images:
+        target.warnings.append(f"Image {', '.join(images)} not rebuilt: only Image Texture nodes at a "
+                               "material's top level are (ungroup them, Ctrl+Alt+G, to have them rebuilt)")
+    return shared
 
 
 def _drawn_elsewhere_through_another_map(mat, me, render_uv: str) -> bool:

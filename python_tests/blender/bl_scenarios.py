@@ -1244,6 +1244,62 @@ def default_uv_readers_keep_the_old_map(pkg):
     assert bpy.data.objects["Readers"].modifiers["Displace"].uv_layer == ""
 
 
+def _image_group(name, image):
+    """A node group holding one Image Texture node of image, Vector input
+    empty, its colour the group's output."""
+    group = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    if hasattr(group, "interface"):  # 4.0+
+        group.interface.new_socket("Value", in_out="OUTPUT", socket_type="NodeSocketFloat")
+    else:
+        group.outputs.new("NodeSocketFloat", "Value")
+    tex, out = group.nodes.new("ShaderNodeTexImage"), group.nodes.new("NodeGroupOutput")
+    tex.image = image
+    group.links.new(tex.outputs["Color"], out.inputs[0])
+    return group
+
+
+def _use_group(mat, group, socket):
+    tree = mat.node_tree
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    tree.links.new(node.outputs[0], bsdf.inputs[socket])
+
+
+def images_in_node_groups_keep_the_old_map(pkg):
+    """An image node inside a node group reads the render-active map too: it
+    is pinned to the old map inside the group and named in a warning (the job
+    does not rebuild it), unless another mesh draws the group through a map
+    named otherwise, which the warning says. With the base colour in a group
+    the refusal says where the image is."""
+    H.reset()
+    obj = H.textured_plane("Grouped")
+    image = H.image_nodes(obj.data.materials[0])[0].image
+    pinned, shared = _image_group("Rough", image), _image_group("Shared", image)
+    _use_group(obj.data.materials[0], pinned, "Roughness")
+    _use_group(obj.data.materials[0], shared, "Metallic")
+    other = H.textured_plane("Other")
+    other.data.uv_layers[0].name = "Elsewhere"
+    _use_group(other.data.materials[0], shared, "Metallic")
+    H.make_active(obj)
+    report = pkg.defragment(obj)
+    assert H.vector_uv_map(next(n for n in pinned.nodes if n.bl_idname == "ShaderNodeTexImage")) == "UVMap"
+    assert not next(n for n in shared.nodes if n.bl_idname == "ShaderNodeTexImage").inputs["Vector"].is_linked
+    assert any("'Grouped_tex' in node group 'Rough'" in w and "not rebuilt" in w for w in report["warnings"])
+    assert any(w.startswith("Node group 'Shared' read the render-active UV map") for w in report["warnings"])
+    lone = H.textured_plane("OnlyInGroup")
+    mat = lone.data.materials[0]
+    _use_group(mat, _image_group("Base", H.image_nodes(mat)[0].image), "Base Color")
+    mat.node_tree.nodes.remove(H.image_nodes(mat)[0])
+    H.make_active(lone)
+    try:
+        pkg.defragment(lone)
+    except pkg.DefragError as exc:
+        assert "in node group 'Base'" in str(exc) and "ungroup" in str(exc), str(exc)
+    else:
+        raise AssertionError("a base colour only inside a group was taken")
+
+
 def an_image_already_named_as_the_new_one_keeps_its_name(pkg):
     """A user's image named <image>_defrag stays that image; the new one is
     numbered (Blender 3.4 gave a renamed image the name, numbering the other)."""
@@ -1325,6 +1381,7 @@ SCENARIOS = {
     "long_uv_map_names_fit_the_nodes": long_uv_map_names_fit_the_nodes,
     "an_image_already_named_as_the_new_one_keeps_its_name": an_image_already_named_as_the_new_one_keeps_its_name,
     "material_shared_with_an_unselected_object": material_shared_with_an_unselected_object,
+    "images_in_node_groups_keep_the_old_map": images_in_node_groups_keep_the_old_map,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)
