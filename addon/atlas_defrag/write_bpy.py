@@ -76,9 +76,13 @@ def _unique_path(directory: str, stem: str, ext: str, taken: set) -> str:
 
 
 def _set_look(img, out: OutputImage) -> None:
+    """The source's colour space and alpha mode; but Blender hands out an
+    8-bit premultiplied image's pixels with straight alpha, and so they were
+    baked and written: such an output is tagged straight, or Blender would
+    divide its colours by alpha a second time."""
     compat.set_colorspace(img, out.colorspace)
     try:
-        img.alpha_mode = out.alpha_mode
+        img.alpha_mode = "STRAIGHT" if out.alpha_mode == "PREMUL" and not out.is_float else out.alpha_mode
     except (TypeError, ValueError):
         pass
 

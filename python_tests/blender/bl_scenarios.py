@@ -1168,6 +1168,34 @@ def linear_float_images_keep_their_colour_space(pkg):
     assert np.allclose(rgb[rgb.max(axis=1) > 0.01], 0.2, atol=1e-3), np.unique(rgb.round(3))
 
 
+def premultiplied_byte_images_keep_their_colours(pkg):
+    """An 8-bit PNG set to premultiplied alpha: Blender hands out its pixels
+    straight, as they are baked; the new image shows the same colours (it
+    was tagged premultiplied and showed them divided by alpha again)."""
+    import importlib
+
+    png_files = importlib.import_module(pkg.__name__ + ".png_files")
+    H.reset()
+    obj = H.textured_plane("Premul", image_size=(16, 16))
+    colour, alpha = np.array([0.2, 0.4, 0.6]), 0.25
+    texel = np.rint(np.append(colour * alpha, alpha) * 255).astype(np.uint8)  # premultiplied in the file
+    with scratch_folder("atlas_defrag_premul_") as folder:
+        path = os.path.join(folder, "premul.png")
+        with open(path, "wb") as f:
+            f.write(png_files.encode_png(np.tile(texel, (16, 16, 1))))
+        src = bpy.data.images.load(path)
+        src.alpha_mode = "PREMUL"
+        src.pack()
+        H.image_nodes(obj.material_slots[0].material)[0].image = src
+        report = pkg.defragment(obj, padding=0)
+    new = bpy.data.images[report["images"][0]]
+    values = np.empty(new.size[0] * new.size[1] * 4, np.float32)
+    new.pixels.foreach_get(values)
+    shown = values.reshape(-1, 4)
+    shown = shown[shown[:, 3] > 0.2]
+    assert len(shown) and np.allclose(shown[:, :3], colour, atol=0.02), np.unique(shown.round(2), axis=0)[:4]
+
+
 def obj_output_names_a_base_colour_behind_a_mix(pkg):
     """Blender's glTF importer puts a Mix node between the image and Base
     Color for vertex colours or a colour factor, and Blender's OBJ exporter
@@ -1382,6 +1410,7 @@ SCENARIOS = {
     "an_image_already_named_as_the_new_one_keeps_its_name": an_image_already_named_as_the_new_one_keeps_its_name,
     "material_shared_with_an_unselected_object": material_shared_with_an_unselected_object,
     "images_in_node_groups_keep_the_old_map": images_in_node_groups_keep_the_old_map,
+    "premultiplied_byte_images_keep_their_colours": premultiplied_byte_images_keep_their_colours,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)
