@@ -513,6 +513,7 @@ def _read(obj, me, uv_name: str) -> ReadResult:
     render_uv = _render_uv_name(me)
     warnings: List[str] = []
     geo = _read_geometry(obj, me, me.uv_layers[uv_name])
+    _refuse_non_finite(obj, uv_name, geo)
     warnings += _rounded_by_single_precision(obj, geo)
     materials = _analyse_slots(obj, uv_name, render_uv, warnings)
     n_slots = len(obj.material_slots)
@@ -530,6 +531,19 @@ def _read(obj, me, uv_name: str) -> ReadResult:
         job=job, mesh_name=obj.data.name, uv_map=uv_name, render_uv=render_uv, n_loops=geo.n_loops,
         tri_loops=geo.tri_loops, tri_polygons=geo.tri_polygons, slot_of_face=slot_of_face.astype(np.int32),
         materials=list(materials.values()), signature=mesh_signature(obj, me), warnings=warnings)
+
+
+def _refuse_non_finite(obj, uv_name: str, geo: _Geometry) -> None:
+    """NaN or inf on the UV map or in the positions, named by what Edit mode
+    shows (faces and vertices by index), not by the job's arrays."""
+    bad_faces = np.unique(geo.tri_polygons[~np.isfinite(geo.uvs).all(axis=(1, 2))])
+    if len(bad_faces):
+        raise DefragError(f"UV map '{uv_name}' of '{obj.name}' has coordinates that are not numbers (NaN or inf) "
+                          f"on {len(bad_faces)} face(s), face {bad_faces[0]} first: unwrap those faces again")
+    bad_vertices = np.flatnonzero(~np.isfinite(geo.positions).all(axis=1))
+    if len(bad_vertices):
+        raise DefragError(f"'{obj.name}' has {len(bad_vertices)} vertex(es) whose position is not a number "
+                          f"(NaN or inf) in world space, vertex {bad_vertices[0]} first: fix or delete them")
 
 
 def _rounded_by_single_precision(obj, geo: _Geometry) -> List[str]:

@@ -986,6 +986,8 @@ ERRORS = {
     "eight_uv_maps": "8 UV maps",
     "udim": "UDIM",
     "no_faces": "has no faces",
+    "nan_uvs": "UV map 'UVMap' of 'Plane' has coordinates that are not numbers (NaN or inf) on 1 face(s), face 4",
+    "nan_positions": "'Plane' has 1 vertex(es) whose position is not a number (NaN or inf) in world space, vertex 5",
 }
 
 
@@ -1016,6 +1018,14 @@ def make_error_case(case):
         me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [])
         me.materials.append(obj.data.materials[0])
         obj.data = me
+        return obj
+    if case == "nan_uvs":  # as a broken exporter or script leaves them
+        obj = H.textured_plane()
+        obj.data.uv_layers[0].data[obj.data.polygons[4].loop_start].uv = (float("nan"), 0.5)
+        return obj
+    if case == "nan_positions":
+        obj = H.textured_plane()
+        obj.data.vertices[5].co = (float("nan"), 0, 0)
         return obj
     raise ValueError(case)
 
