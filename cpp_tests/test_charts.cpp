@@ -80,6 +80,25 @@ Mesh cylinder_sheet(int rows, int columns, double turn) {
   return atlas::testing::with_chart_uvs(positions, triangles, chart);
 }
 
+// The mesh with n loose triangles added, far from it and from each other,
+// each a chart of its own: a scan's debris.
+Mesh with_debris(Mesh mesh, int n) {
+  const Eigen::Index v = mesh.positions.rows(), f = mesh.triangles.rows();
+  mesh.positions.conservativeResize(v + 3 * n, 3);
+  mesh.triangles.conservativeResize(f + n, 3);
+  mesh.corner_uv.conservativeResize(3 * (f + n), 2);
+  mesh.face_page.conservativeResize(f + n);
+  for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      mesh.positions.row(v + 3 * i + k) << 10.0 + i, k == 1, k == 2;
+      mesh.corner_uv.row(3 * (f + i) + k) << (i + (k == 1)) / (n + 1.0), 0.01 * (k == 2);
+    }
+    mesh.triangles.row(f + i) << int(v) + 3 * i, int(v) + 3 * i + 1, int(v) + 3 * i + 2;
+    mesh.face_page(f + i) = 0;
+  }
+  return mesh;
+}
+
 // The mesh without the faces `drop`: holes where they were.
 Mesh without_faces(const Mesh& mesh, std::vector<int> drop) {
   std::sort(drop.begin(), drop.end());
@@ -529,6 +548,8 @@ TEST(Aggregate, FinerTessellationMergesAlike) {
   EXPECT_EQ(coarse.aggregation.chart_count(), 1);
   EXPECT_EQ(fine.aggregation.chart_count(), 1);
   expect_all_disks(fine);
+  // Loose triangles do not count as the surface's tessellation.
+  EXPECT_EQ(aggregate(with_debris(cylinder_sheet(32, 80, 1.5 * M_PI), 200), options).aggregation.chart_count(), 201);
   options.reference_chart_faces = 0;
   EXPECT_EQ(aggregate(cylinder_sheet(32, 80, 1.5 * M_PI), options).aggregation.chart_count(), 2);
   AggregateOptions capped;  // so does the cap

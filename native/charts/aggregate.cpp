@@ -72,10 +72,17 @@ double weight_surface(const Cluster& c1, const Link& l) {
 }
 
 // The gates' face counts for this input: options.reference_chart_faces.
+// Charts with no neighbour are left out: a scan's debris (loose triangles
+// and fragments, as phone scans keep) would otherwise count as the surface's
+// tessellation.
 double tessellation_scale(const ChartGraph& graph, double reference_chart_faces) {
-  if (reference_chart_faces <= 0 || graph.chart_count() == 0) return 1.0;
-  const auto textured = std::count_if(graph.face_chart.begin(), graph.face_chart.end(), [](int c) { return c >= 0; });
-  return std::max(1.0, static_cast<double>(textured) / graph.chart_count() / reference_chart_faces);
+  if (reference_chart_faces <= 0) return 1.0;
+  std::vector<char> linked(graph.chart_count(), 0);
+  for (const ChartAdjacency& adj : graph.adjacency) linked[adj.a] = linked[adj.b] = 1;
+  const auto charts = std::count(linked.begin(), linked.end(), 1);
+  const auto faces = std::count_if(graph.face_chart.begin(), graph.face_chart.end(),
+                                   [&](int c) { return c >= 0 && linked[c]; });
+  return charts > 0 ? std::max(1.0, static_cast<double>(faces) / charts / reference_chart_faces) : 1.0;
 }
 
 class Aggregator {

@@ -37,7 +37,8 @@ struct AggregateOptions {
   // Photogrammetry tools cut charts by camera view, not by triangle: the same
   // scan tessellated four times finer has as many charts of four times the
   // faces. The face counts above (1000 and 100) hold for this many textured
-  // faces per input chart, and scale with a finer input (never below 1x), so
+  // faces per input chart (charts with a neighbour: loose debris does not
+  // count), and scale with a finer input (never below 1x), so
   // that it merges alike; the shared scans have 42-86. max_chart_faces
   // scales too, up to 4x: it bounds solver time, which grows faster than
   // the faces. 0: no scaling.
