@@ -39,7 +39,7 @@ struct AggregateOptions {
   // faces. The face counts above (1000 and 100) hold for this many textured
   // faces per input chart (charts with a neighbour: loose debris does not
   // count), and scale with a finer input (never below 1x), so
-  // that it merges alike; the shared scans have 42-86. max_chart_faces
+  // that it merges alike; the shared scans stay under it. max_chart_faces
   // scales too, up to 4x: it bounds solver time, which grows faster than
   // the faces. 0: no scaling.
   double reference_chart_faces = 100;
