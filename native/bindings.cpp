@@ -341,6 +341,7 @@ py::dict report_dict(const PipelineReport& r) {
   py::dict d;
   d["duplicate_faces"] = r.duplicate_faces;
   d["charts_before"] = r.charts_before;
+  d["opposed_winding_edges"] = r.opposed_winding_edges;
   d["charts_aggregated"] = r.charts_aggregated;
   d["aggregate_stops"] = stops_dict(r.aggregate_stops);
   d["refine_faces_moved"] = r.refine_faces_moved;

@@ -456,9 +456,24 @@ void summarize_energy(const std::vector<FlatChart>& charts, PipelineReport& repo
   }
 }
 
-// The input's chart count, seam length and texels (of the pages its textured faces use), into report.
+// PipelineReport::opposed_winding_edges of the mesh.
+int opposed_winding_edges(const Mesh& mesh, const MeshTopology& topology) {
+  int count = 0;
+  for (int e = 0; e < topology.edge_count(); ++e) {
+    if (topology.edge_valence(e) != 2) continue;
+    const int ci = topology.edge_corners[topology.edge_offsets[e]];
+    const int cj = topology.edge_corners[topology.edge_offsets[e] + 1];
+    if (!mesh.repeats_vertex(ci / 3) && !mesh.repeats_vertex(cj / 3))
+      count += mesh.triangles(ci / 3, ci % 3) == mesh.triangles(cj / 3, cj % 3);
+  }
+  return count;
+}
+
+// The input's chart count, seam length, texels (of the pages its textured
+// faces use) and opposed windings, into report.
 void report_input(const Mesh& welded, const MeshTopology& topology, const ChartGraph& graph, PipelineReport& report) {
   report.charts_before = graph.chart_count();
+  report.opposed_winding_edges = opposed_winding_edges(welded, topology);
   report.seam_before = seam_length_ratio(welded, topology, welded.corner_uv, welded.face_page);
   std::vector<char> used(welded.pages.size(), 0);
   for (int f = 0; f < welded.face_count(); ++f)

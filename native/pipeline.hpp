@@ -61,6 +61,9 @@ struct StageTime {
 struct PipelineReport {
   int duplicate_faces = 0;     // faces repeating another, given its UVs (see degenerate_faces.hpp)
   int charts_before = 0;       // UV charts of the input, copies left out
+  // Edges whose two faces run along them the same way (faces wound against
+  // each other, one normal flipped): no chart grows across them.
+  int opposed_winding_edges = 0;
   int charts_aggregated = 0;   // after aggregation, before overlap splits
   AggregationStops aggregate_stops;  // why the aggregation merged no further
   int refine_faces_moved = 0;  // faces the seam refinement moved to a neighbouring chart

@@ -770,6 +770,30 @@ def test_a_scan_tessellated_four_times_finer_merges_alike(native, defragmented, 
     assert m["new"]["seam_ratio"] <= 1.15 * coarse["report"]["seam_after"]
 
 
+def test_faces_wound_against_their_neighbours_are_counted_and_said(native, defragmented):
+    """Faces wound the other way round (a flipped normal, as some exports
+    leave them) keep the charts apart where they are: the report counts the
+    edges between them and their neighbours, and the job's warning says how
+    to mend the input."""
+    from atlas_defrag import job
+
+    scan, result = defragmented("tetra")
+    assert result["report"]["opposed_winding_edges"] == 0
+    assert job._winding_warnings(result["report"]) == []
+    flip = np.arange(len(scan.triangles)) % 100 == 0
+    triangles, uvs = scan.triangles.copy(), scan.uvs.copy()
+    triangles[flip], uvs[flip] = triangles[flip][:, [0, 2, 1]], uvs[flip][:, [0, 2, 1]]
+    welded = np.unique(scan.positions, axis=0, return_inverse=True)[1].reshape(-1)[triangles]
+    edges = np.sort(np.stack([welded, np.roll(welded, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    _, edge, valence = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    flips_on_edge = np.bincount(edge.reshape(-1), np.repeat(flip, 3).astype(float))
+    expected = int(((valence == 2) & (flips_on_edge == 1)).sum())
+    report = native.defragment(scan.positions, triangles, uvs, scan.face_page, scan.page_sizes)["report"]
+    assert expected > 300 and report["opposed_winding_edges"] == expected
+    warning, = job._winding_warnings(report)
+    assert f"{expected} edges join faces wound opposite ways" in warning and "Recalculate Outside" in warning
+
+
 def test_a_scan_with_holes_merges_round_them_with_the_guarantees(native, scans):
     """Phone LiDAR and photogrammetry meshes have holes where nothing was
     seen. With 100 of the Meshroom scan's faces taken out, charts used to stop

@@ -335,7 +335,7 @@ def run(job: JobInput, options: Options, progress: Progress = None, cancel=None,
                   pages_after=int(len(layout.page_sizes)), images_written=len(images),
                   padding=int(layout.page_padding.min(initial=options.padding)),
                   copied_share=texels["copied_texels"] / max(1, texels["covered_texels"]))
-    report["warnings"] = _size_warnings(report, options, _chart_texels(layout))
+    report["warnings"] = _size_warnings(report, options, _chart_texels(layout)) + _winding_warnings(report)
     if progress is not None:
         progress("done", 1.0)
     return JobResult(uvs=layout.uvs, face_page=layout.face_page, page_sizes=layout.page_sizes,
@@ -501,6 +501,17 @@ def _size_warnings(report: dict, options: Options, chart_texels: float) -> List[
     return [f"the new pages hold {after / expected:.1f}x the input's texels at the density asked for: its faces "
             "share or repeat texels (UVs that overlap or run outside the page), and each face now gets texels "
             "of its own; texels_at_most_input keeps the input's count, at a lower density"]
+
+
+def _winding_warnings(report: dict) -> List[str]:
+    """Faces wound against their neighbours keep the charts apart: said, with
+    the fix, as the layout cannot mend the input's winding."""
+    edges = report.get("opposed_winding_edges", 0)
+    if not edges:
+        return []
+    return [f"{edges} edges join faces wound opposite ways (normals flipped against their neighbours): no chart "
+            "grows across them, so charts and seams stay many; recalculate the normals first (Edit Mode: "
+            "Mesh > Normals > Recalculate Outside) and run again"]
 
 
 def _chart_texels(layout: _Layout) -> float:
