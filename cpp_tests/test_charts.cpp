@@ -558,6 +558,14 @@ TEST(Aggregate, FinerTessellationMergesAlike) {
   EXPECT_EQ(aggregate(cylinder_sheet(32, 80, 1.5 * M_PI), capped).aggregation.chart_count(), 1);
   capped.reference_chart_faces = 0;
   EXPECT_EQ(aggregate(cylinder_sheet(32, 80, 1.5 * M_PI), capped).aggregation.chart_count(), 2);
+  // Nine times finer, the cap stops at four times: two charts of 5,760 faces
+  // merge under a cap of 2,880, not 2,879.
+  capped.reference_chart_faces = 640;
+  const Mesh finest = cylinder_sheet(48, 120, 1.5 * M_PI);
+  capped.max_chart_faces = 2880;
+  EXPECT_EQ(aggregate(finest, capped).aggregation.chart_count(), 1);
+  capped.max_chart_faces = 2879;
+  EXPECT_EQ(aggregate(finest, capped).aggregation.chart_count(), 2);
 }
 
 TEST(Aggregate, NeverMergesAcrossNonManifoldEdge) {

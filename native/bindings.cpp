@@ -222,7 +222,7 @@ PipelineOptions pipeline_options(const py::object& obj) {
     else if (key == "min_normal_coherence") o.aggregate.min_normal_coherence = option_value<double>(value, key, "0..1");
     else if (key == "coherence_free_faces") o.aggregate.coherence_free_faces = option_value<int>(value, key, ">= 0");
     else if (key == "reference_chart_faces")
-      o.aggregate.reference_chart_faces = option_value<double>(value, key, "0 (no scaling) or > 0");
+      o.aggregate.reference_chart_faces = option_value<double>(value, key, "0 (no scaling) or >= 1");
     else if (key == "developable_curvature") o.aggregate.developable_curvature = option_value<double>(value, key, ">= 0");
     else if (key == "max_chart_faces") o.aggregate.max_chart_faces = option_value<int>(value, key, "0 (no cap) or >= 1");
     else if (key == "partial_merges") o.aggregate.partial_merges = bool_option(value, key);
@@ -278,8 +278,9 @@ PipelineOptions pipeline_options(const py::object& obj) {
   if (!(o.aggregate.developable_curvature >= 0))
     throw py::value_error("developable_curvature must be >= 0 (radians; 0: no exemption from min_normal_coherence)");
   if (o.aggregate.coherence_free_faces < 0) throw py::value_error("coherence_free_faces must be >= 0 (0: gate every merge but those of charts of at most 100 faces)");
-  if (!(o.aggregate.reference_chart_faces >= 0 && std::isfinite(o.aggregate.reference_chart_faces)))
-    throw py::value_error("reference_chart_faces must be >= 0 (0: face counts not scaled)");
+  if (!(o.aggregate.reference_chart_faces == 0 ||
+        (o.aggregate.reference_chart_faces >= 1 && std::isfinite(o.aggregate.reference_chart_faces))))
+    throw py::value_error("reference_chart_faces must be 0 (face counts not scaled) or >= 1");
   if (o.aggregate.max_chart_faces < 0) throw py::value_error("max_chart_faces must be >= 0 (0: no cap)");
   if (o.pack.texel_budget < 0) throw py::value_error("texel_budget must be 0 (automatic) or >= 16");
   if (o.slim.max_iterations < 0) throw py::value_error("max_iterations must be >= 0");

@@ -456,24 +456,30 @@ void summarize_energy(const std::vector<FlatChart>& charts, PipelineReport& repo
   }
 }
 
-// PipelineReport::opposed_winding_edges of the mesh.
-int opposed_winding_edges(const Mesh& mesh, const MeshTopology& topology) {
+// PipelineReport::opposed_winding_edges of the mesh: between two textured
+// faces of one group, the edges a chart could otherwise grow across.
+int opposed_winding_edges(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
+                          const std::vector<int>& face_group) {
   int count = 0;
   for (int e = 0; e < topology.edge_count(); ++e) {
     if (topology.edge_valence(e) != 2) continue;
     const int ci = topology.edge_corners[topology.edge_offsets[e]];
     const int cj = topology.edge_corners[topology.edge_offsets[e] + 1];
-    if (!mesh.repeats_vertex(ci / 3) && !mesh.repeats_vertex(cj / 3))
-      count += mesh.triangles(ci / 3, ci % 3) == mesh.triangles(cj / 3, cj % 3);
+    const int fi = ci / 3, fj = cj / 3;
+    if (graph.face_chart[fi] < 0 || graph.face_chart[fj] < 0 || mesh.repeats_vertex(fi) || mesh.repeats_vertex(fj) ||
+        (!face_group.empty() && face_group[fi] != face_group[fj]))
+      continue;
+    count += mesh.triangles(fi, ci % 3) == mesh.triangles(fj, cj % 3);
   }
   return count;
 }
 
 // The input's chart count, seam length, texels (of the pages its textured
 // faces use) and opposed windings, into report.
-void report_input(const Mesh& welded, const MeshTopology& topology, const ChartGraph& graph, PipelineReport& report) {
+void report_input(const Mesh& welded, const MeshTopology& topology, const ChartGraph& graph,
+                  const std::vector<int>& face_group, PipelineReport& report) {
   report.charts_before = graph.chart_count();
-  report.opposed_winding_edges = opposed_winding_edges(welded, topology);
+  report.opposed_winding_edges = opposed_winding_edges(welded, topology, graph, face_group);
   report.seam_before = seam_length_ratio(welded, topology, welded.corner_uv, welded.face_page);
   std::vector<char> used(welded.pages.size(), 0);
   for (int f = 0; f < welded.face_count(); ++f)
@@ -653,7 +659,7 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   StageClock clock(report);
   const MeshTopology welded_topology = build_topology(welded.triangles, welded.vertex_count());
   const ChartGraph welded_graph = build_chart_graph(welded, welded_topology, face_group);
-  report_input(welded, welded_topology, welded_graph, report);
+  report_input(welded, welded_topology, welded_graph, face_group, report);
   // Everything from here on works on the cut surface (see cut_mesh.hpp). Its
   // charts are the input's, except that a chart joined only across a winding
   // flip falls in two.

@@ -175,7 +175,8 @@ BAD_OPTIONS = [("target_charts", 2 ** 40), ("target_charts", -3), ("target_chart
                ("density_scale", "2"), ("fixed_page_size", 63), ("texel_budget", -1), ("texel_budget", 15),
                ("weighting", 3), ("min_normal_coherence", 2.0), ("max_iterations", -1), ("nope", 1),
                ("max_chart_faces", np.int64(-2)), ("developable_curvature", -0.5), ("developable_curvature", np.nan),
-               ("reference_chart_faces", -1.0), ("reference_chart_faces", np.inf), ("padding", np.int64(3)), ("density_scale", np.float32(1.5))]
+               ("reference_chart_faces", -1.0), ("reference_chart_faces", np.inf), ("reference_chart_faces", 0.5),
+               ("padding", np.int64(3)), ("density_scale", np.float32(1.5))]
 
 
 def _mutate(rng, arrays):

@@ -792,6 +792,9 @@ def test_faces_wound_against_their_neighbours_are_counted_and_said(native, defra
     assert expected > 300 and report["opposed_winding_edges"] == expected
     warning, = job._winding_warnings(report)
     assert f"{expected} edges join faces wound opposite ways" in warning and "Recalculate Outside" in warning
+    untextured = np.where(flip, -1, scan.face_page)  # no chart would grow across their edges anyway
+    report = native.defragment(scan.positions, triangles, uvs, untextured, scan.page_sizes)["report"]
+    assert report["opposed_winding_edges"] == 0
 
 
 def test_a_scan_with_holes_merges_round_them_with_the_guarantees(native, scans):

@@ -115,7 +115,7 @@ def check_textures(obj, uv_map: Optional[str] = None) -> None:
 
 def _no_texture_message(obj, uv_name: str, warnings: List[str]) -> str:
     grouped = sorted({f"'{node.image.name}' in node group '{group.name}'"
-                      for s in obj.material_slots for group, node in grouped_images(s.material)})
+                      for s in obj.material_slots for group, node in _grouped_images(s.material)})
     hint = (f" (image {', '.join(grouped)}: only Image Texture nodes at a material's top level are rebuilt; "
             "ungroup them, Ctrl+Alt+G, to have them rebuilt)" if grouped else "")
     if warnings:  # it has image nodes, none the job can follow
@@ -137,7 +137,7 @@ def node_groups(tree) -> list:
     return list(found)
 
 
-def grouped_images(mat) -> List[tuple]:
+def _grouped_images(mat) -> List[tuple]:
     """(group, node) for every Image Texture node with an image inside the
     node groups mat uses: the job neither reads nor rewires them."""
     return [(group, node) for group in node_groups(compat.node_tree(mat)) for node in group.nodes

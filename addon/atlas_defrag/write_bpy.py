@@ -248,14 +248,25 @@ def _rewire_material(mat, info, new_uv: str, page_images: Dict[str, object], jou
             _set_attr(tree.nodes[name], "uv_map", new_uv, journal)
 
 
+def _default_uv_readers(tree) -> list:
+    """The nodes of a material's or a node group's tree (or None) that read
+    the render-active UV map without naming it: image nodes with nothing in
+    their Vector input, Texture Coordinate nodes whose UV output is used, UV
+    Map and tangent Normal Map nodes with no map named."""
+    def reads(node):
+        kind = node.bl_idname
+        if kind == "ShaderNodeTexImage":
+            return node.image is not None and not node.inputs["Vector"].is_linked
+        if kind == "ShaderNodeTexCoord":
+            return node.outputs["UV"].is_linked
+        named = kind == "ShaderNodeUVMap" or kind == "ShaderNodeNormalMap" and node.space == "TANGENT"
+        return named and not node.uv_map
+    return [node for node in tree.nodes if reads(node)] if tree is not None else []
+
+
 def _pin_to_old_map(tree, render_uv: str, journal: _Journal) -> None:
-    """The nodes of a material's or a node group's tree that read the
-    render-active UV map without naming it (image nodes with nothing in their
-    Vector input, the UV output of Texture Coordinate nodes, UV Map and
-    tangent Normal Map nodes with no map named) name the old one: the new map
-    is render-active now."""
-    if tree is None:
-        return
+    """The _default_uv_readers of tree name the old map: the new map is
+    render-active now."""
     pin = None
 
     def pinned(near):
@@ -266,14 +277,13 @@ def _pin_to_old_map(tree, render_uv: str, journal: _Journal) -> None:
             _place_left_of(near, pin, 260.0)
         return pin.outputs["UV"]
 
-    for node in list(tree.nodes):
-        if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and not node.inputs["Vector"].is_linked:
+    for node in _default_uv_readers(tree):
+        if node.bl_idname == "ShaderNodeTexImage":
             _relink(tree, pinned(node), node.inputs["Vector"], journal)
         elif node.bl_idname == "ShaderNodeTexCoord":
             for link in list(node.outputs["UV"].links):
                 _relink(tree, pinned(node), link.to_socket, journal)
-        elif (node.bl_idname == "ShaderNodeUVMap" or node.bl_idname == "ShaderNodeNormalMap"
-              and node.space == "TANGENT") and not node.uv_map:
+        else:
             _set_attr(node, "uv_map", render_uv, journal)
 
 
@@ -307,29 +317,39 @@ def _pin_default_uv_users(target: _Target, active_uv: Optional[str]) -> None:
 
 
 def _pin_node_groups(target: _Target, materials: list) -> List[str]:
-    """_pin_to_old_map inside the node groups the materials use, where every
-    material using the group (and so every mesh drawing it) reads a map named
-    like the old one; the others are returned, named, for the warning. Their
-    images are not rebuilt: a warning names them."""
+    """_pin_to_old_map inside the node groups the materials use that read the
+    render-active map without naming it, where every material using the
+    group (and so every mesh drawing it) reads a map named like the old one;
+    the others are returned, named, for the warning. A group linked from a
+    library cannot change, and is said apart. The images pinned are not
+    rebuilt: a warning names them."""
     me, render_uv = target.obj.data, target.read.render_uv
-    reaching = {g: [] for mat in materials for g in read_bpy.node_groups(compat.node_tree(mat))}
+    reaching = {g: [] for mat in materials for g in read_bpy.node_groups(compat.node_tree(mat))
+                if _default_uv_readers(g)}
     if not reaching:
         return []
     for mat in bpy.data.materials:
         for g in read_bpy.node_groups(compat.node_tree(mat)):
             if g in reaching:
                 reaching[g].append(mat)
-    shared = []
+    shared, linked, images = [], [], []
     for group, mats in reaching.items():
-        if group.library is not None or any(_drawn_elsewhere_through_another_map(m, me, render_uv) for m in mats):
+        if group.library is not None:
+            linked.append(f"'{group.name}'")
+        elif any(_drawn_elsewhere_through_another_map(m, me, render_uv) for m in mats):
             shared.append(f"node group '{group.name}'")
         else:
+            images += [f"'{n.image.name}' in node group '{group.name}'" for n in _default_uv_readers(group)
+                       if n.bl_idname == "ShaderNodeTexImage"]
             _pin_to_old_map(group, render_uv, target.journal)
-    images = sorted({f"'{node.image.name}' in node group '{group.name}'"
-                     for mat in materials for group, node in read_bpy.grouped_images(mat)})
     if images:
-        target.warnings.append(f"Image {', '.join(images)} not rebuilt: only Image Texture nodes at a "
-                               "material's top level are (ungroup them, Ctrl+Alt+G, to have them rebuilt)")
+        target.warnings.append(f"Image {', '.join(sorted(images))} not rebuilt: only Image Texture nodes at a "
+                               "material's top level are (ungroup them, Ctrl+Alt+G, to have them rebuilt); "
+                               f"they keep reading UV map '{render_uv}'")
+    if linked:
+        target.warnings.append(f"Node group(s) {', '.join(sorted(linked))}, linked from a library, read the "
+                               "render-active UV map without naming it and cannot be changed: on this mesh they "
+                               "now read the new map (make them local, then run again)")
     return shared
 
 

@@ -71,10 +71,11 @@ double weight_surface(const Cluster& c1, const Link& l) {
   return share > 0 ? c1.area_3d / share : std::numeric_limits<double>::infinity();
 }
 
-// The gates' face counts for this input: options.reference_chart_faces.
-// Charts with no neighbour are left out: a scan's debris (loose triangles
-// and fragments, as phone scans keep) would otherwise count as the surface's
-// tessellation.
+// The factor the gates' face counts scale by: textured faces per input
+// chart with a neighbour / reference_chart_faces, from 1 to the face count
+// (past it no gate changes). Charts with no neighbour are left out: a scan's
+// debris (loose triangles and fragments, as phone scans keep) would
+// otherwise count as the surface's tessellation.
 double tessellation_scale(const ChartGraph& graph, double reference_chart_faces) {
   if (reference_chart_faces <= 0) return 1.0;
   std::vector<char> linked(graph.chart_count(), 0);
@@ -82,7 +83,9 @@ double tessellation_scale(const ChartGraph& graph, double reference_chart_faces)
   const auto charts = std::count(linked.begin(), linked.end(), 1);
   const auto faces = std::count_if(graph.face_chart.begin(), graph.face_chart.end(),
                                    [&](int c) { return c >= 0 && linked[c]; });
-  return charts > 0 ? std::max(1.0, static_cast<double>(faces) / charts / reference_chart_faces) : 1.0;
+  if (charts == 0) return 1.0;
+  const double scale = static_cast<double>(faces) / charts / reference_chart_faces;
+  return std::clamp(scale, 1.0, std::max(1.0, static_cast<double>(graph.face_chart.size())));
 }
 
 class Aggregator {

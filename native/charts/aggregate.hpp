@@ -36,12 +36,12 @@ struct AggregateOptions {
   int coherence_free_faces = 1000;
   // Photogrammetry tools cut charts by camera view, not by triangle: the same
   // scan tessellated four times finer has as many charts of four times the
-  // faces. The face counts above (1000 and 100) hold for this many textured
-  // faces per input chart (charts with a neighbour: loose debris does not
-  // count), and scale with a finer input (never below 1x), so
-  // that it merges alike; the shared scans stay under it. max_chart_faces
-  // scales too, up to 4x: it bounds solver time, which grows faster than
-  // the faces. 0: no scaling.
+  // faces. The face counts above (1000 and 100) hold for up to this many
+  // textured faces per input chart (charts with a neighbour: loose debris
+  // does not count; the shared scans stay under it), and scale with a finer
+  // input, so that the same surface merges alike however finely it is
+  // tessellated. max_chart_faces scales too, up to 4x: it bounds solver
+  // time, which grows faster than the faces. 0: no scaling; else >= 1.
   double reference_chart_faces = 100;
   // A union that min_normal_coherence refuses merges all the same when the
   // Gaussian curvature inside it (the sum of the angle defects at its

@@ -1308,23 +1308,30 @@ def images_in_node_groups_keep_the_old_map(pkg):
     """An image node inside a node group reads the render-active map too: it
     is pinned to the old map inside the group and named in a warning (the job
     does not rebuild it), unless another mesh draws the group through a map
-    named otherwise, which the warning says. With the base colour in a group
-    the refusal says where the image is."""
+    named otherwise, which the warning says. A group that reads no UV map,
+    or one pinned already (by another object's run), is not named. With the
+    base colour in a group the refusal says where the image is."""
     H.reset()
-    obj = H.textured_plane("Grouped")
+    obj, second, other = H.textured_plane("Grouped"), H.textured_plane("Second"), H.textured_plane("Other")
     image = H.image_nodes(obj.data.materials[0])[0].image
     pinned, shared = _image_group("Rough", image), _image_group("Shared", image)
+    plain = bpy.data.node_groups.new("Plain", "ShaderNodeTree")
     _use_group(obj.data.materials[0], pinned, "Roughness")
+    _use_group(second.data.materials[0], pinned, "Roughness")
     _use_group(obj.data.materials[0], shared, "Metallic")
-    other = H.textured_plane("Other")
     other.data.uv_layers[0].name = "Elsewhere"
     _use_group(other.data.materials[0], shared, "Metallic")
+    for mat in (obj.data.materials[0], other.data.materials[0]):
+        mat.node_tree.nodes.new("ShaderNodeGroup").node_tree = plain
     H.make_active(obj)
     report = pkg.defragment(obj)
     assert H.vector_uv_map(next(n for n in pinned.nodes if n.bl_idname == "ShaderNodeTexImage")) == "UVMap"
     assert not next(n for n in shared.nodes if n.bl_idname == "ShaderNodeTexImage").inputs["Vector"].is_linked
     assert any("'Grouped_tex' in node group 'Rough'" in w and "not rebuilt" in w for w in report["warnings"])
     assert any(w.startswith("Node group 'Shared' read the render-active UV map") for w in report["warnings"])
+    assert not any("Plain" in w for w in report["warnings"]), report["warnings"]
+    H.make_active(second)
+    assert not any("Rough" in w for w in pkg.defragment(second)["warnings"])
     lone = H.textured_plane("OnlyInGroup")
     mat = lone.data.materials[0]
     _use_group(mat, _image_group("Base", H.image_nodes(mat)[0].image), "Base Color")
