@@ -738,29 +738,14 @@ def test_a_per_triangle_atlas_merges_into_few_charts_with_the_guarantees(native,
     assert m["new"]["seam_ratio"] <= 0.1 * m["old"]["seam_ratio"]
 
 
-def split_in_four(positions, triangles, uvs):
-    """Every triangle split into four at its edges' midpoints, in 3D and in
-    UV: the same surface and atlas, tessellated four times finer."""
-    corners = np.stack([triangles, np.roll(triangles, -1, axis=1)], axis=2).reshape(-1, 2)
-    edges, edge_of = np.unique(np.sort(corners, axis=1), axis=0, return_inverse=True)
-    mid = len(positions) + edge_of.reshape(-1, 3)  # per face: the midpoints of edges 01, 12, 20
-    points = np.vstack([positions, positions[edges].mean(axis=1)])
-    a, b, c = triangles.T
-    ab, bc, ca = mid.T
-    faces = np.stack([np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))], axis=1)
-    u0, u1, u2 = uvs[:, 0], uvs[:, 1], uvs[:, 2]
-    m01, m12, m20 = (u0 + u1) / 2, (u1 + u2) / 2, (u2 + u0) / 2
-    corner_uvs = np.stack([np.stack(t, axis=1) for t in ((u0, m01, m20), (m01, u1, m12), (m20, m12, u2),
-                                                         (m01, m12, m20))], axis=1)
-    return points, faces.reshape(-1, 3).astype(triangles.dtype), corner_uvs.reshape(-1, 3, 2)
-
-
 @pytest.mark.parametrize("name", ["tetra", "meshroom"])
 def test_a_scan_tessellated_four_times_finer_merges_alike(native, defragmented, name):
     """Scanners export the same surface at 50k or 500k faces, with as many
     charts: the gates that count faces scale with the faces per chart. Split
     in four, the tetra scan used to stop at 54 charts and seam 17.1, the
     Meshroom scan at 76 charts and seam 9.3 (the chart size cap)."""
+    from scan_variants import split_in_four
+
     scan, coarse = defragmented(name)
     points, faces, uvs = split_in_four(scan.positions, scan.triangles, scan.uvs)
     before = (points, faces, uvs, np.repeat(scan.face_page, 4), scan.page_sizes)
