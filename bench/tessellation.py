@@ -19,22 +19,14 @@ layout's native stages summed, one run each. Writes bench/TESSELLATION.md
 """
 from __future__ import annotations
 
-import argparse
-import datetime
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from holes import measured, run_table  # beside this file
+
 HERE = Path(__file__).resolve().parent
-REPO = HERE.parent
-MODELS = REPO.parent / "shared" / "models"
-SCANS = {
-    "tetra": "tetra_miniature/teTra-Mk5-miniature-model.obj",
-    "meshroom": "meshroom_esp32cam/texturedMesh.obj",
-    "smithsonian": "smithsonian_usnm1145291/usnm_1145291.glb",
-}
 DEBRIS = 300
 
 
@@ -55,10 +47,7 @@ def row(native, label: str, before: tuple, pages: list) -> str:
     old = native.defragment(*before, options={"reference_chart_faces": 0})["report"]
     result = native.defragment(*before)
     r = result["report"]
-    m = native.measure(*before, result["uvs"], result["face_page"], result["page_sizes"])
-    new = native.bake(before[2], before[3], pages, result["uvs"], result["face_page"], result["page_sizes"])
-    psnr = native.compare_colors(before[0], before[1], before[2], before[3], pages, result["uvs"],
-                                 result["face_page"], new, samples=200000)["psnr_db"]
+    m, psnr = measured(native, before, pages, result)
     return (f"| {label} | {len(before[1]):,} | {old['charts_after']} | {old['seam_after']:.2f} | "
             f"{sum(old['seconds'].values()):.2f} | {r['charts_after']} | {r['seam_after']:.2f} | "
             f"{m['new']['flipped_faces']} | {m['new']['overlap_texels']} | "
@@ -66,30 +55,13 @@ def row(native, label: str, before: tuple, pages: list) -> str:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--addon", default=str(REPO / "build" / "addon"), help="folder holding the atlas_defrag package")
-    p.add_argument("--out", default=str(HERE / "TESSELLATION.md"))
-    args = p.parse_args(argv)
-    sys.path[:0] = [args.addon, str(REPO / "tools")]
-    import scan_io
-    from atlas_defrag import _native
-    commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
-                            text=True).stdout.strip()
-    lines = ["# One surface at other tessellations", "",
-             f"`bench/tessellation.py`, {datetime.datetime.now():%Y-%m-%d %H:%M}, commit `{commit}`, module from "
-             f"`{args.addon}`. *Unscaled*: `reference_chart_faces` 0, the aggregation's face counts as they are; "
-             "*default*: scaled with the faces per input chart. Charts count the loose triangles, one chart each.",
-             "", "| variant | faces | unscaled: charts | seam | s | default: charts | seam | flips | texels twice | "
-             "below half density | PSNR dB | s |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for name, path in SCANS.items():
-        scan = scan_io.load(MODELS / path)
-        pages = [np.ascontiguousarray(scan_io.load_image(q)[:, :, :3]) for q in scan.page_images]
-        lines.append(f"| **{name}** | | | | | | | | | | | |")
-        for label, before in variants(name, scan).items():
-            lines.append(row(_native, label, before, pages))
-            print(lines[-1], flush=True)
-    Path(args.out).write_text("\n".join(lines) + "\n")
-    return 0
+    header = ["variant", "faces", "unscaled: charts", "seam", "s", "default: charts", "seam", "flips",
+              "texels twice", "below half density", "PSNR dB", "s"]
+    return run_table(argv, __doc__, HERE / "TESSELLATION.md", "One surface at other tessellations",
+                     "*Unscaled*: `reference_chart_faces` 0, the aggregation's face counts as they are; *default*: "
+                     "scaled with the faces per input chart. Charts count the loose triangles, one chart each.",
+                     header, lambda native, name, scan, pages: (row(native, label, before, pages)
+                                                                for label, before in variants(name, scan).items()))
 
 
 if __name__ == "__main__":
