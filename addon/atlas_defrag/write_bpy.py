@@ -395,6 +395,10 @@ def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
         raise DefragError(f"storage must be 'PACK' or 'SAVE', not {storage!r}")
     image_dir = _image_dir(storage, image_dir)
     journal = _Journal()
+    if storage == "SAVE":
+        made = _missing_folders(image_dir)
+        os.makedirs(image_dir, exist_ok=True)
+        journal.add(lambda: _remove_empty_folders(made))
     try:
         return _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_first, journal,
                       shared or SharedImages())
@@ -433,8 +437,25 @@ def _image_dir(storage: str, image_dir: Optional[str]) -> str:
             raise DefragError(f"Image folder '{image_dir}' is relative to an unsaved .blend: "
                               "save the file first, or give an absolute folder")
         image_dir = os.path.join(os.path.dirname(bpy.path.abspath(bpy.data.filepath)), image_dir)
-    os.makedirs(image_dir, exist_ok=True)
     return image_dir
+
+
+def _missing_folders(path: str) -> List[str]:
+    """The folders os.makedirs(path) would make, deepest first."""
+    made = []
+    while path and not os.path.isdir(path) and path != os.path.dirname(path):
+        made.append(path)
+        path = os.path.dirname(path)
+    return made
+
+
+def _remove_empty_folders(folders: List[str]) -> None:
+    """A failed write takes back the folders it made, where nothing else went."""
+    for folder in folders:
+        try:
+            os.rmdir(folder)
+        except OSError:
+            return
 
 
 @dataclass

@@ -1206,6 +1206,30 @@ def premultiplied_byte_images_keep_their_colours(pkg):
     assert len(shown) and np.allclose(shown[:, :3], colour, atol=0.02), np.unique(shown.round(2), axis=0)[:4]
 
 
+def a_failed_save_takes_back_its_folders(pkg):
+    """A write that fails once it has made the image folder (a full disk)
+    takes the folders it made back with the rest (an empty one was left)."""
+    import importlib
+
+    png_files = importlib.import_module(pkg.__name__ + ".png_files")
+    H.reset()
+    obj = H.textured_plane("Full")
+    write_pngs = png_files.write_pngs
+
+    def full_disk(files):
+        raise OSError(28, "No space left on device")
+
+    with scratch_folder("atlas_defrag_full_") as folder:
+        png_files.write_pngs = full_disk
+        try:
+            message = _report_error(pkg, lambda: pkg.defragment(obj, storage="SAVE",
+                                                                 image_dir=os.path.join(folder, "new", "maps")))
+        finally:
+            png_files.write_pngs = write_pngs
+        assert "No space left" in message, message
+        assert os.listdir(folder) == [], os.listdir(folder)
+
+
 def obj_output_names_a_base_colour_behind_a_mix(pkg):
     """Blender's glTF importer puts a Mix node between the image and Base
     Color for vertex colours or a colour factor, and Blender's OBJ exporter
@@ -1428,6 +1452,7 @@ SCENARIOS = {
     "material_shared_with_an_unselected_object": material_shared_with_an_unselected_object,
     "images_in_node_groups_keep_the_old_map": images_in_node_groups_keep_the_old_map,
     "premultiplied_byte_images_keep_their_colours": premultiplied_byte_images_keep_their_colours,
+    "a_failed_save_takes_back_its_folders": a_failed_save_takes_back_its_folders,
 }
 for _case in ERRORS:
     SCENARIOS["error_" + _case] = (lambda c: (lambda pkg: error_case(pkg, c)))(_case)

@@ -20,7 +20,8 @@ NATIVE_SCENARIOS = ["operator_tetra", "png_read_from_file", "edit_mode_undo", "p
                     "operator_takes_what_it_is_told", "image_settings_the_bake_cannot_follow_are_said",
                     "linear_float_images_keep_their_colour_space", "obj_output_names_a_base_colour_behind_a_mix",
                     "linked_duplicate_with_its_own_material_is_named",
-                    "images_in_node_groups_keep_the_old_map", "premultiplied_byte_images_keep_their_colours"]
+                    "images_in_node_groups_keep_the_old_map", "premultiplied_byte_images_keep_their_colours",
+                    "a_failed_save_takes_back_its_folders"]
 
 
 def test_is_blender_4():
