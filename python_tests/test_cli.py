@@ -180,6 +180,29 @@ def test_gltf_json_cut_short_is_refused_in_words(tmp_path, name):
         scan_io.load(path)
 
 
+def test_glb_cut_short_is_refused_in_words(scan_path, tmp_path):
+    """A GLB whose download or copy stopped: its header gives the whole
+    length, which says so before any chunk is read."""
+    import scan_io
+
+    data = scan_path("smithsonian").read_bytes()
+    path = tmp_path / "cut.glb"
+    path.write_bytes(data[:len(data) * 6 // 10])
+    with pytest.raises(ValueError, match=f"^the file is cut short: its header gives {len(data):,} bytes and it holds "):
+        scan_io.load(path)
+
+
+def test_an_embedded_map_that_cannot_be_decoded_is_named(tmp_path):
+    """Pillow names only its stream object for bytes it cannot identify: the
+    message names the map and says what is wrong."""
+    import defrag_scan
+    import scan_io
+
+    with pytest.raises(defrag_scan.job.DefragError, match="^cannot read the texture page0_normal .embedded.: "
+                       "the image's bytes are in no image format this reader decodes"):
+        defrag_scan.read_texture(scan_io.image_size, b"not an image at all", "page0_normal (embedded)")
+
+
 def test_gltf_json_nested_too_deeply_is_refused_in_words(tmp_path):
     import scan_io
 
@@ -483,13 +506,15 @@ def _two_material_obj(folder: Path, mtl: str, mtllib: str = "m.mtl", textures=("
 @pytest.mark.parametrize("mtl, mtllib, textures", [
     ("newmtl a\nmap_Kd -s 1 1 1 my t0.png\nnewmtl b\nmap_Kd t1.png # diffuse\n", "m.mtl", ("my t0.png", "t1.png")),
     ("\ufeffnewmtl a\nmap_kd t0.png\nnewmtl b\nmap_Kd C:\\scans\\t1.png\n", "m.mtl", ("t0.png", "t1.png")),
+    ("newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd C:\\scans\\job\\maps\\t1.png\n", "m.mtl", ("t0.png", "maps/t1.png")),
     ("newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n", "mat/m.mtl", ("mat/t0.png", "t1.png")),
     ('newmtl a\nmap_Kd -bm 1 "my t0.png"\nnewmtl b\nmap_Kd "t1.png"\n', '"my m.mtl"', ("my t0.png", "t1.png")),
 ])
 def test_mtl_textures_are_found_as_writers_name_them(tmp_path, mtl, mtllib, textures):
     """Names with spaces after options, a trailing comment, a byte-order
-    mark, lower-case keywords, a path from another machine, a texture
-    beside an MTL in a subfolder, names in quotes (Blender reads them)."""
+    mark, lower-case keywords, a path from another machine (its file beside
+    the MTL, or in the folder the path ends in), a texture beside an MTL in
+    a subfolder, names in quotes (Blender reads them)."""
     import scan_io
 
     scan = scan_io.load(_two_material_obj(tmp_path, mtl, mtllib, textures))
@@ -787,8 +812,9 @@ def test_cli_lays_a_mesh_drawn_by_several_nodes_out_once(native, scans, scan_pat
 ])
 def test_a_failed_write_leaves_the_earlier_runs_files_as_they_were(tmp_path, tool_env, broken, failure, message):
     """Whatever stops the writing (the PNG encoder, a full disk), no OBJ is
-    left naming images that were not written, and a run over an earlier
-    one's output leaves those files whole: it writes beside them first."""
+    left naming images that were not written, a run over an earlier one's
+    output leaves those files whole (it writes beside them first), and the
+    folders a run made for its output go again."""
     source = _two_material_obj(tmp_path / "in", "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
     out = tmp_path / "out"
     assert subprocess.run([sys.executable, str(CLI), str(source), str(out)], capture_output=True,
@@ -797,13 +823,13 @@ def test_a_failed_write_leaves_the_earlier_runs_files_as_they_were(tmp_path, too
     code = (f"import sys, defrag_scan\ndef broken(*args): raise {failure}\n"
             f"defrag_scan.{broken} = broken\nsys.exit(defrag_scan.main(sys.argv[1:]))\n")
     env = dict(tool_env, PYTHONPATH=os.pathsep.join([str(CLI.parent), tool_env["PYTHONPATH"]]))
-    for folder in (out, tmp_path / "fresh"):
+    for folder in (out, tmp_path / "fresh" / "maps"):
         run = subprocess.run([sys.executable, "-c", code, str(source), str(folder)], capture_output=True, text=True,
                              timeout=300, env=env)
         assert run.returncode == 1 and message in run.stderr, run.stderr
         assert "Traceback" not in run.stderr or "OSError" not in failure, run.stderr  # a full disk: one line
     assert {p.name: p.read_bytes() for p in out.iterdir()} == earlier
-    assert list((tmp_path / "fresh").iterdir()) == []
+    assert not (tmp_path / "fresh").exists()
 
 
 def _run_twice_the_image_move_hit(tmp_path, tool_env, hit: str):

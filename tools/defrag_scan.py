@@ -28,7 +28,7 @@ import scan_io  # beside this file
 # The add-on's bpy-free modules: from PYTHONPATH (scripts/demo.sh sets it), else from this checkout's build.
 sys.path.append(str(Path(__file__).resolve().parent.parent / "build" / "addon"))
 try:
-    from atlas_defrag import _native, job, options, png_files
+    from atlas_defrag import _native, job, made_folders, options, png_files
 except ImportError as exc:
     sys.exit(f"defrag_scan: {exc}: build the module (cmake --build build) and put its folder "
              "on the path: PYTHONPATH=build/addon")
@@ -72,12 +72,17 @@ def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: li
     return unnamed
 
 
-def decoded(source, label: str) -> np.ndarray:
-    """scan_io.load_image, its failures (a file cut short) as DefragError naming the image."""
+def read_texture(read, source, label: str):
+    """read(source) (scan_io.load_image or image_size), its failures (a file
+    cut short, bytes no decoder knows) as DefragError naming the image."""
     try:
-        return scan_io.load_image(source)
+        return read(source)
     except (OSError, ValueError, SyntaxError) as exc:  # Pillow raises SyntaxError on some broken files
         raise job.DefragError(f"cannot read the texture {label}: {exc}") from exc
+
+
+def decoded(source, label: str) -> np.ndarray:
+    return read_texture(scan_io.load_image, source, label)
 
 
 class DecodingImage:
@@ -87,8 +92,9 @@ class DecodingImage:
 
     def __init__(self, name: str, source, colorspace: str, pool: ThreadPoolExecutor):
         self.name, self.colorspace, self.is_float, self.alpha_mode = name, colorspace, False, "STRAIGHT"
-        self.size = scan_io.image_size(source)
-        self._pixels = pool.submit(decoded, source, source_label(source, name))
+        label = source_label(source, name)
+        self.size = read_texture(scan_io.image_size, source, label)
+        self._pixels = pool.submit(decoded, source, label)
 
     @property
     def pixels(self) -> np.ndarray:
@@ -255,18 +261,20 @@ def write_checked(args, scan, laid, rows, inp, result, old):
     refuse_overwriting_input(outputs, scan.files)
     with ThreadPoolExecutor(max_workers=1) as pool:
         measured = pool.submit(quality, laid, inp, result, old.result()) if args.metrics else None
+        made, scratch, written = made_folders.missing(args.output), None, False
         try:
             args.output.mkdir(parents=True, exist_ok=True)
             scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=args.output))
-        except OSError as exc:
-            raise Failed(f"writing into {args.output} failed: {exc}") from exc
-        try:
             unnamed = write_obj(scratch / outputs[0].name, scan, *every_instance(result, rows), maps)
             swap_in(scratch, outputs[1:] + outputs[:1])
+            written = True
         except OSError as exc:
             raise Failed(f"writing into {args.output} failed: {exc}") from exc
-        finally:  # Ctrl-C and encoder errors too: nothing half written is left
-            shutil.rmtree(scratch, ignore_errors=True)
+        finally:  # Ctrl-C and encoder errors too: nothing half written is left, nor folders made for it
+            if scratch is not None:
+                shutil.rmtree(scratch, ignore_errors=True)
+            if not written:
+                made_folders.remove_empty(made)
         return (measured.result() if measured else (None, None)), unnamed
 
 

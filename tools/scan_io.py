@@ -61,23 +61,37 @@ class Scan:
         return first, rows
 
 
+def _open_image(source):
+    """PIL.Image.open of a path or of bytes. For bytes in no format Pillow
+    knows, its UnidentifiedImageError names only its stream object: the
+    error raised instead says what was not recognised."""
+    from PIL import Image, UnidentifiedImageError
+
+    Image.MAX_IMAGE_PIXELS = None  # scans routinely exceed Pillow's bomb guard
+    in_memory = isinstance(source, (bytes, bytearray))
+    try:
+        return Image.open(io.BytesIO(source) if in_memory else source)
+    except UnidentifiedImageError:
+        what = "the image's bytes are" if in_memory else f"{source} is"
+        raise UnidentifiedImageError(f"{what} in no image format this reader decodes (PNG, JPEG, WebP, TIFF, ...)"
+                                     ) from None
+
+
 def load_image(source) -> np.ndarray:
     """(H, W, C) uint8 with row 0 at the bottom (v = 0), as Blender stores
     pixels; C is 1 (grey), 3 or 4. 8-bit RGB and RGBA PNGs are decoded as the
     add-on decodes them (png_files.decode_png: libdeflate, then the row
     filters undone natively straight into Blender's row order, skipping Pillow's copy
     into numpy and the flip); other files, and PNGs it refuses, by Pillow."""
-    from PIL import Image
     from atlas_defrag import png_files
 
     data = bytes(source) if isinstance(source, (bytes, bytearray)) else Path(source).read_bytes()
     pixels = png_files.decode_png_or_none(data)
     if pixels is not None:
         return pixels
-    Image.MAX_IMAGE_PIXELS = None  # scans routinely exceed Pillow's bomb guard
     if data.startswith(png_files.SIGNATURE) and not png_files.critical_crcs_hold(data):
         raise ValueError("a critical chunk of the PNG fails its CRC (libpng, so Blender, refuses it)")
-    img = Image.open(io.BytesIO(data))
+    img = _open_image(data)
     if img.mode.startswith("I;16") or img.mode == "I":  # 16-bit grey: Pillow's convert would clip it
         pixels = (np.asarray(img).astype(np.uint32) >> 8).clip(0, 255).astype(np.uint8)[::-1]
         return np.ascontiguousarray(pixels[..., None])
@@ -106,11 +120,8 @@ def _refuse_beyond_memory(size: tuple[int, int], name: str):
 def image_size(source) -> tuple[int, int]:
     """(width, height) from the header; ValueError when decoding those pixels
     would take more than half this machine's memory."""
-    from PIL import Image
-
-    Image.MAX_IMAGE_PIXELS = None
     in_memory = isinstance(source, (bytes, bytearray))
-    with Image.open(io.BytesIO(source) if in_memory else source) as img:
+    with _open_image(source) as img:
         _refuse_beyond_memory(img.size, "in the file" if in_memory else str(source))
         return img.size
 
@@ -192,12 +203,13 @@ def _texture_path(reference: str, folders: list[Path]) -> Path:
     """The file a map_Kd statement names: its arguments after the options,
     with a trailing comment or only the last word as fallbacks (older writers
     never quoted names), relative to the MTL's folder, then the OBJ's; a path
-    from another machine (C:\\...) by its file name there."""
+    from another machine (C:\\...\\textures\\t.jpg) by its trailing folders
+    there, longest first, down to its file name (textures/t.jpg, then t.jpg)."""
     from atlas_defrag import mtl_text
 
     whole = mtl_text.unquoted(mtl_text.map_file(reference)).replace("\\", "/")
     names = [whole, whole.split(" #")[0].strip(), whole.split()[-1] if whole.split() else ""]
-    names += [n.rsplit("/", 1)[-1] for n in names]
+    names += [n.split("/", k)[-1] for n in names for k in range(1, n.count("/") + 1)]
     for name in filter(None, names):
         for folder in folders:
             if (folder / name).is_file():
@@ -446,7 +458,11 @@ def _image_bytes(gltf: dict, buffers: list, folder: Path, texture_index: int) ->
         return _uri_bytes(image["uri"], folder)
     view = _item(gltf["bufferViews"], image["bufferView"], "bufferView")
     start = view.get("byteOffset", 0)
-    return _item(buffers, view["buffer"], "buffer")[start:start + view["byteLength"]]
+    binary = _item(buffers, view["buffer"], "buffer")
+    if start + view["byteLength"] > len(binary):
+        raise ValueError(f"image {_texture_source(texture)} lies in bytes {start}-{start + view['byteLength']} of "
+                         f"buffer {view['buffer']}, which holds {len(binary)}")
+    return binary[start:start + view["byteLength"]]
 
 
 def _image_name(gltf: dict, texture_index: int) -> str:
@@ -505,6 +521,10 @@ def load_glb(path: Path) -> Scan:
     data = path.read_bytes()
     if len(data) < 20 or struct.unpack_from("<I", data, 0)[0] != 0x46546C67:
         raise ValueError("not a binary glTF file")
+    declared = struct.unpack_from("<I", data, 8)[0]
+    if declared > len(data):
+        raise ValueError(f"the file is cut short: its header gives {declared:,} bytes and it holds {len(data):,} "
+                         "(an interrupted download or copy?)")
     json_len, _ = struct.unpack_from("<II", data, 12)
     gltf = _parsed_json(data[20:20 + json_len])
     bin_offset = 20 + json_len

@@ -19,7 +19,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 import bpy
 import numpy as np
 
-from . import compat, png_files, read_bpy
+from . import compat, made_folders, png_files, read_bpy
 from .job import DefragError, JobResult, OutputImage, loop_uvs, with_channels
 from .read_bpy import ReadResult, mesh_signature
 
@@ -396,9 +396,9 @@ def write(obj, read: ReadResult, result: JobResult, *, storage: str = "PACK",
     image_dir = _image_dir(storage, image_dir)
     journal = _Journal()
     if storage == "SAVE":
-        made = _missing_folders(image_dir)
+        made = made_folders.missing(image_dir)
         os.makedirs(image_dir, exist_ok=True)
-        journal.add(lambda: _remove_empty_folders(made))
+        journal.add(lambda: made_folders.remove_empty(made))
     try:
         return _write(obj, read, result, storage, image_dir, duplicate_materials, new_map_first, journal,
                       shared or SharedImages())
@@ -438,24 +438,6 @@ def _image_dir(storage: str, image_dir: Optional[str]) -> str:
                               "save the file first, or give an absolute folder")
         image_dir = os.path.join(os.path.dirname(bpy.path.abspath(bpy.data.filepath)), image_dir)
     return image_dir
-
-
-def _missing_folders(path: str) -> List[str]:
-    """The folders os.makedirs(path) would make, deepest first."""
-    made = []
-    while path and not os.path.isdir(path) and path != os.path.dirname(path):
-        made.append(path)
-        path = os.path.dirname(path)
-    return made
-
-
-def _remove_empty_folders(folders: List[str]) -> None:
-    """A failed write takes back the folders it made, where nothing else went."""
-    for folder in folders:
-        try:
-            os.rmdir(folder)
-        except OSError:
-            return
 
 
 @dataclass
