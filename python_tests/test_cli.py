@@ -251,6 +251,10 @@ def test_gltf_primitive_without_indices_reads_its_vertices_in_order(tmp_path):
     # The buffer holds the 36 bytes the accessor reads, its view only 24.
     ({"bufferViews": [{"buffer": 0, "byteLength": 24}]}, "reads 36 bytes of bufferView 0, which holds 24"),
     ({"buffers": [{"byteLength": 36, "uri": "pipe.bin"}]}, "pipe.bin is not a regular file"),
+    # A texture transform its writer did not list in extensionsUsed.
+    ({"materials": [{"pbrMetallicRoughness": {"baseColorTexture": {
+        "index": 0, "extensions": {"KHR_texture_transform": {"scale": [2, 2]}}}}}]},
+     "uses KHR_texture_transform, which this reader does not support"),
 ])
 def test_cli_names_what_is_wrong_with_a_bad_gltf(tool_env, tmp_path, changes, message):
     """Bad files end in one line on stderr and exit code 1, not a traceback

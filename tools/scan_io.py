@@ -572,6 +572,7 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
     if not version.startswith("2"):
         raise ValueError(f"not a glTF 2.0 file (asset version {version or 'missing'})")
     required, listed = (_names(gltf, "extensionsRequired"), _names(gltf, "extensionsUsed"))
+    listed |= _extensions_in(gltf.get("materials", []))  # some writers leave extensionsUsed out
     unread = ((required | listed) & _UNREAD_EXTENSIONS) | (required - _READ_EXTENSIONS)
     if unread:
         raise ValueError(f"uses {', '.join(sorted(unread))}, which this reader does not support")
@@ -593,6 +594,16 @@ def _checked_gltf(path: Path, gltf, read_buffers) -> Scan:
            for name in prim.get("attributes", {})):
         scan.warnings.append(_VERTEX_COLOURS)
     return scan
+
+
+def _extensions_in(item) -> set:
+    """The names of the extensions found anywhere inside item (parsed JSON)."""
+    if isinstance(item, list):
+        return set().union(*map(_extensions_in, item))
+    if not isinstance(item, dict):
+        return set()
+    found = set(item["extensions"]) if isinstance(item.get("extensions"), dict) else set()
+    return found.union(*map(_extensions_in, item.values()))
 
 
 def _names(gltf: dict, key: str) -> set:
