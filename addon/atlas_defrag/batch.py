@@ -598,16 +598,30 @@ def _libraries_named_by(model: str) -> set:
 
 
 def _images_named_by(model: str, libraries: set) -> set:
-    """The files that libraries (model's, from _libraries_named_by) name."""
+    """The files that libraries (model's, from _libraries_named_by) name, in
+    map statements or in the note of the images written unnamed (_note_unnamed)."""
     folder = os.path.dirname(model)
     named = set()
     for lib in libraries:
         try:
             with open(os.path.join(folder, lib), "rb") as f:
-                named |= _map_files(f.read())
+                data = f.read()
         except OSError:
             continue
+        named |= _map_files(data) | {ln[len(_UNNAMED_NOTE):].strip().decode("utf-8", "replace")
+                                     for ln in _lines_starting(data, b"#") if ln.startswith(_UNNAMED_NOTE)}
     return named
+
+
+# The MTL's comment naming an image written beside an OBJ that no statement
+# names (an occlusion map): a rerun then knows the file for its own.
+_UNNAMED_NOTE = b"# written beside this model by Atlas Defrag, named by no statement:"
+
+
+def _note_unnamed(mtl: str, images: list) -> None:
+    """Appends the _UNNAMED_NOTE of each of images to the MTL."""
+    with open(mtl, "ab") as f:
+        f.write(b"".join(_UNNAMED_NOTE + b" " + name.encode("utf-8") + b"\n" for name in images))
 
 
 def _format_problem(src: str, dst: str) -> str:
@@ -755,6 +769,8 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, re
                               _base_colour_files(objects) if is_obj else frozenset(), copies,
                               frozenset() if is_obj else _rebuilt_materials(objects, tmp))
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
+    if unnamed:
+        _note_unnamed(os.path.join(tmp, os.path.splitext(os.path.basename(dst))[0] + ".mtl"), unnamed)
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
 
@@ -1463,9 +1479,11 @@ def main_multi(argv) -> int:
         if threading.current_thread() is threading.main_thread() else {}
     try:
         with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for f, out, status, err in pool.map(lambda job: runner.run(*job), jobs):
+            for f, out, status, err, warnings in pool.map(lambda job: runner.run(*job), jobs):
                 print(f"atlas_defrag: {status}: {f} -> {out}" + (f"\n  {err}" if err else ""),
                       file=sys.stderr if status in ("failed", "interrupted") else sys.stdout)
+                for line in warnings:
+                    print(f"  {line}", file=sys.stderr)
                 counts[status] += 1
     finally:
         _restore_handlers(previous)
@@ -1590,12 +1608,12 @@ class _Runner:
                 proc.send_signal(signal.SIGINT)
 
     def run(self, f, out, rep):
-        """(input, output, status, error line)."""
+        """(input, output, status, error line, the model's warning lines)."""
         if os.path.isfile(out):
-            return f, out, "skipped", ""
+            return f, out, "skipped", "", []
         with self.lock:
             if self.stopping:
-                return f, out, "interrupted", "not started"
+                return f, out, "interrupted", "not started", []
             proc = subprocess.Popen(self.command + [f, out, "--report", rep] + self.passthrough,
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=self.env)
             self.running.add(proc)
@@ -1605,13 +1623,13 @@ class _Runner:
             with self.lock:
                 self.running.discard(proc)
         if proc.returncode == 0:
-            return f, out, "ok", ""
+            return f, out, "ok", "", [ln for ln in stderr.splitlines() if ln.startswith("atlas_defrag: warning:")]
         err = [ln for ln in stderr.splitlines() if "atlas_defrag: error" in ln]
         err = err[-1] if err else stderr.strip()[-500:]
         if "No module named 'numpy'" in stderr:
             err += " (Blender found a python3 without numpy on PATH: run Blender's own Python or set --blender)"
         status = "interrupted" if self.stopping or proc.returncode == EXIT_INTERRUPTED else "failed"
-        return f, out, status, err
+        return f, out, status, err, []
 
 
 def main(argv=None) -> int:
