@@ -8,7 +8,8 @@ One model (inside Blender)::
 
 IN is .obj, .gltf, .glb or .ply; OUT is .obj (writes OBJ + MTL + PNG beside it)
 or .glb / .gltf. The exit code is 0 on success (or when skipped), 1 on failure
-with the reason on stderr, 2 on bad arguments.
+with the reason on stderr (an output that would replace an input included),
+2 on arguments the parser refuses (an unknown option, a format it cannot write).
 
 Several models (any Python, Blender included): one Blender process per model,
 ``--jobs`` at once, skipping those whose output exists::
@@ -455,12 +456,10 @@ def _real(path: str) -> str:
     return os.path.normcase(os.path.realpath(path))
 
 
-def _model_files(dst: str) -> set:
-    """The files the export writes besides images: the model and, for OBJ, its MTL."""
-    files = {dst}
-    if dst.lower().endswith(".obj"):
-        files.add(os.path.splitext(dst)[0] + ".mtl")
-    return files
+def _model_files(dst: str) -> list:
+    """The files the export writes besides images: the model and, for OBJ,
+    its MTL (after it: a refusal names the model first)."""
+    return [dst] + ([os.path.splitext(dst)[0] + ".mtl"] if dst.lower().endswith(".obj") else [])
 
 
 def _refuse_folders(paths) -> None:
@@ -1200,7 +1199,7 @@ def _report_path_problem(path, src: str, dst: str) -> str:
     path = os.path.abspath(path)
     if os.path.isdir(path):
         return f"--report {path} is a folder"
-    other = _file_among(path, _input_files(os.path.abspath(src))[0] | _model_files(os.path.abspath(dst)))
+    other = _file_among(path, _input_files(os.path.abspath(src))[0] | set(_model_files(os.path.abspath(dst))))
     if other:
         return f"--report {path} would overwrite {other}"
     if os.path.lexists(path) and not _is_report(path):

@@ -129,11 +129,12 @@ def _digest(folder: Path) -> dict:
 def test_outputs_that_would_overwrite_inputs_are_refused(tmp_path):
     model = _copy_tetra(tmp_path / "tetra")
     before = _digest(model.parent)
-    # The model itself; an output whose MTL is the input's (mtllib 3Ddata.mtl).
-    for out in (model, model.parent / "3Ddata.obj"):
+    # The model itself (named first, before its MTL); an output whose MTL is
+    # the input's (mtllib 3Ddata.mtl).
+    for out, clash in ((model, model), (model.parent / "3Ddata.obj", model.parent / "3Ddata.mtl")):
         proc = subprocess.run([sys.executable, str(BATCH), str(model), str(out)], capture_output=True, text=True,
                               timeout=900)
-        assert proc.returncode == 1 and "would overwrite the input file" in proc.stderr, proc.stderr[-2000:]
+        assert proc.returncode == 1 and f"would overwrite the input file {clash}:" in proc.stderr, proc.stderr[-2000:]
     assert _digest(model.parent) == before
 
 
