@@ -13,6 +13,7 @@
 #include <tuple>
 
 #include "charts/degenerate_faces.hpp"
+#include "core/corners.hpp"
 #include "core/geometry.hpp"
 #include "core/parallel_for.hpp"
 #include "core/topology.hpp"
@@ -469,7 +470,7 @@ int opposed_winding_edges(const Mesh& mesh, const MeshTopology& topology, const 
     if (graph.face_chart[fi] < 0 || graph.face_chart[fj] < 0 || mesh.repeats_vertex(fi) || mesh.repeats_vertex(fj) ||
         (!face_group.empty() && face_group[fi] != face_group[fj]))
       continue;
-    count += mesh.triangles(fi, ci % 3) == mesh.triangles(fj, cj % 3);
+    count += corner_vertex(mesh.triangles, ci) == corner_vertex(mesh.triangles, cj);  // run the same way
   }
   return count;
 }

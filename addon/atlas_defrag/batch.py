@@ -459,7 +459,12 @@ def _real(path: str) -> str:
 def _model_files(dst: str) -> list:
     """The files the export writes besides images: the model and, for OBJ,
     its MTL (after it: a refusal names the model first)."""
-    return [dst] + ([os.path.splitext(dst)[0] + ".mtl"] if dst.lower().endswith(".obj") else [])
+    return [dst] + ([_mtl_beside(dst)] if dst.lower().endswith(".obj") else [])
+
+
+def _mtl_beside(obj: str) -> str:
+    """The MTL of an OBJ's own name: the one Blender's exporter writes, and its importer reads too."""
+    return os.path.splitext(obj)[0] + ".mtl"
 
 
 def _refuse_folders(paths) -> None:
@@ -479,7 +484,7 @@ def _input_files(src: str) -> tuple:
     folder = os.path.dirname(src)
     try:
         if src.lower().endswith(".obj"):
-            files.add(os.path.splitext(src)[0] + ".mtl")
+            files.add(_mtl_beside(src))
             with open(src, "rb") as f:
                 data = f.read()
             faces = _obj_face_lines(data)
@@ -541,7 +546,7 @@ def _refuse_foreign_library(dst: str, libraries: set) -> None:
     """BatchError when the MTL an OBJ output would write exists and is not
     one of libraries, the earlier output's at dst (_libraries_named_by): it
     is another model's, say."""
-    mtl = os.path.splitext(dst)[0] + ".mtl"
+    mtl = _mtl_beside(dst)
     if dst.lower().endswith(".obj") and os.path.lexists(mtl) and os.path.basename(mtl) not in libraries:
         raise BatchError(f"{mtl} exists and is not the material library of {dst} (another model's?): "
                          "choose another output name")
@@ -769,7 +774,7 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, re
                               frozenset() if is_obj else _rebuilt_materials(objects, tmp))
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
     if unnamed:
-        _note_unnamed(os.path.join(tmp, os.path.splitext(os.path.basename(dst))[0] + ".mtl"), unnamed)
+        _note_unnamed(_mtl_beside(tmp_out), unnamed)
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
 
