@@ -369,8 +369,9 @@ def print_report(result: job.JobResult, m: dict, fidelity: dict, t_load: float) 
           f"{', SHRUNK below the density asked for' if r['shrunk'] else ''}; pages {result.page_sizes.tolist()}, "
           f"padding {r['padding']})")
     print(f"  copied        {r['copied_share']:.1%} of the covered texels taken unresampled from the old atlas")
-    if job.detail_text(r):
-        print(f"  colour guard  {job.detail_text(r)}; option min_colour_psnr")
+    detail = job.detail_text(r)
+    if detail:
+        print(f"  colour guard  {detail}; option min_colour_psnr")
     if m is not None:
         print(f"  flipped       {m['old']['flipped_faces']} -> {m['new']['flipped_faces']}; "
               f"texels shared by two triangles {m['old']['overlap_texels']} -> {m['new']['overlap_texels']}")

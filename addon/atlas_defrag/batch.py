@@ -1415,7 +1415,8 @@ def _run_single(args, interrupt: _Interrupt) -> int:
     for o in report["objects"]:
         fitted = (f", {o.get('packing_cuts')} cuts for packing to stay within the source's texels"
                   if o.get("cut_to_fit") else "")
-        raised = f", {pkg.job.detail_text(o)}" if pkg.job.detail_text(o) else ""
+        detail = pkg.job.detail_text(o)
+        raised = f", {detail}" if detail else ""
         print(f"atlas_defrag: {o['object']}: charts {o.get('charts_before')} -> {o.get('charts_after')}, "
               f"seam {o.get('seam_before', 0):.4g} -> {o.get('seam_after', 0):.4g}{fitted}{raised}")
     print(f"atlas_defrag: wrote {args.output} in {report['seconds']['total']:.1f} s")

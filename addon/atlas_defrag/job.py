@@ -727,13 +727,14 @@ def summary(report: dict) -> str:
         v = report.get(key)
         return "?" if v is None else fmt.format(v)
     secs = report.get("seconds", {}).get("total")
+    detail = detail_text(report)
     return (f"charts {num('charts_before')} -> {num('charts_after')}, "
             f"seam {num('seam_before', '{:.4g}')} -> {num('seam_after', '{:.4g}')}, "
             f"pages {num('pages_before')} -> {num('pages_after')} ({num('padding')} texels of padding), "
             + (f"{num('packing_cuts')} cuts for packing to stay within the source's texels, "
                if report.get("cut_to_fit") else "")
             + (f"charts scaled to {num('scale', '{:.3g}')} of their texel density, " if report.get("shrunk") else "")
-            + (f"{detail_text(report)}, " if detail_text(report) else "")
+            + (f"{detail}, " if detail else "")
             + f"time {'?' if secs is None else f'{secs:.1f}'} s")
 
 

@@ -264,9 +264,9 @@ def _default_uv_readers(tree) -> list:
     return [node for node in tree.nodes if reads(node)] if tree is not None else []
 
 
-def _pin_to_old_map(tree, render_uv: str, journal: _Journal) -> None:
-    """The _default_uv_readers of tree name the old map: the new map is
-    render-active now."""
+def _pin_to_old_map(tree, readers: list, render_uv: str, journal: _Journal) -> None:
+    """readers, the _default_uv_readers of tree, name the old map: the new
+    map is render-active now."""
     pin = None
 
     def pinned(near):
@@ -277,7 +277,7 @@ def _pin_to_old_map(tree, render_uv: str, journal: _Journal) -> None:
             _place_left_of(near, pin, 260.0)
         return pin.outputs["UV"]
 
-    for node in _default_uv_readers(tree):
+    for node in readers:
         if node.bl_idname == "ShaderNodeTexImage":
             _relink(tree, pinned(node), node.inputs["Vector"], journal)
         elif node.bl_idname == "ShaderNodeTexCoord":
@@ -302,7 +302,8 @@ def _pin_default_uv_users(target: _Target, active_uv: Optional[str]) -> None:
         if _drawn_elsewhere_through_another_map(mat, me, render_uv):
             shared.append(f"material '{mat.name}'")
         else:
-            _pin_to_old_map(compat.node_tree(mat), render_uv, journal)
+            tree = compat.node_tree(mat)
+            _pin_to_old_map(tree, _default_uv_readers(tree), render_uv, journal)
     shared += _pin_node_groups(target, materials)
     for mod in (m for o in users for m in o.modifiers):
         for attr in ("uv_layer", "mask_tex_uv_layer"):
@@ -324,8 +325,9 @@ def _pin_node_groups(target: _Target, materials: list) -> List[str]:
     library cannot change, and is said apart. The images pinned are not
     rebuilt: a warning names them."""
     me, render_uv = target.obj.data, target.read.render_uv
-    reaching = {g: [] for mat in materials for g in read_bpy.node_groups(compat.node_tree(mat))
-                if _default_uv_readers(g)}
+    groups = (g for mat in materials for g in read_bpy.node_groups(compat.node_tree(mat)))
+    readers = {g: _default_uv_readers(g) for g in groups}
+    reaching = {g: [] for g, nodes in readers.items() if nodes}
     if not reaching:
         return []
     for mat in bpy.data.materials:
@@ -339,9 +341,9 @@ def _pin_node_groups(target: _Target, materials: list) -> List[str]:
         elif any(_drawn_elsewhere_through_another_map(m, me, render_uv) for m in mats):
             shared.append(f"node group '{group.name}'")
         else:
-            images += [f"'{n.image.name}' in node group '{group.name}'" for n in _default_uv_readers(group)
+            images += [f"'{n.image.name}' in node group '{group.name}'" for n in readers[group]
                        if n.bl_idname == "ShaderNodeTexImage"]
-            _pin_to_old_map(group, render_uv, target.journal)
+            _pin_to_old_map(group, readers[group], render_uv, target.journal)
     if images:
         target.warnings.append(f"Image {', '.join(sorted(images))} not rebuilt: only Image Texture nodes at a "
                                "material's top level are (ungroup them, Ctrl+Alt+G, to have them rebuilt); "
