@@ -347,7 +347,7 @@ MapMeasures measure_map(const Mesh& mesh, const UvLayout& old_atlas, const UvLay
   double total = 0, lost = 0;
   for (const auto& [r, w] : ratio) {
     total += w;
-    if (r < 0.5) lost += w;
+    if (r < kDensityFloor) lost += w;
   }
   m.density_loss_area_share = total > 0 ? lost / total : 0.0;
   const std::vector<double> rp = weighted_percentiles(ratio, {0.05, 0.50, 0.95});

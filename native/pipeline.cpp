@@ -1,7 +1,6 @@
 #include "pipeline.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <exception>
@@ -12,16 +11,11 @@
 #include <string>
 #include <tuple>
 
-#include "charts/degenerate_faces.hpp"
 #include "core/corners.hpp"
 #include "core/geometry.hpp"
 #include "core/parallel_for.hpp"
 #include "core/topology.hpp"
 #include "core/uv_layout.hpp"
-#include "flatten/reference_triangles.hpp"
-#include "flatten/relax_squeezed_faces.hpp"
-#include "pack/page_filling.hpp"
-#include "pack/smallest_box_turn.hpp"
 
 namespace atlas {
 namespace {
@@ -40,140 +34,14 @@ class StageClock {
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
-std::vector<std::vector<int>> faces_by_chart(const std::vector<int>& face_chart, int chart_count) {
-  std::vector<std::vector<int>> out(chart_count);
-  for (size_t f = 0; f < face_chart.size(); ++f)
-    if (face_chart[f] >= 0) out[face_chart[f]].push_back(static_cast<int>(f));
-  return out;
-}
-
 // The graph with no merge offered to an original chart that keeps a handle:
 // a merged chart holding it could only be split back.
 ChartGraph without_merges_of_handles(const Mesh& mesh, const MeshTopology& topology, ChartGraph graph) {
   const std::vector<char> handle =
-      charts_with_handles(mesh, topology, graph, faces_by_chart(graph.face_chart, graph.chart_count()));
+      charts_with_handles(mesh, topology, graph, faces_of_charts(graph));
   for (ChartAdjacency& adj : graph.adjacency)
     if (handle[adj.a] || handle[adj.b]) adj.mergeable = false;
   return graph;
-}
-
-// The density rule (FlattenOptions::max_density_loss): every chart is first
-// flattened allowing kStrictDensityLoss of its surface below half density, or
-// kDensityAllowance of the whole surface (which spares splitting small
-// pieces, closed scan debris above all). While the whole surface then loses
-// more than its budget (PipelineOptions::density_loss_budget), the aggregated
-// charts that lost most beyond the rule are flattened again under it without
-// the allowance, then under a half and a quarter of it. A budget of 0 has no
-// allowance and allows no loss at all, from the first flattening to the one
-// round after it.
-constexpr double kStrictDensityLoss = 0.02;
-constexpr double kDensityAllowance = 2e-4;
-// Repair rounds when no loss is allowed: each round lifts the faces still
-// squeezed, and every face a round lifts is one less reason to cut or split
-// (bench/README.md, session 23).
-constexpr int kNoLossRepairRounds = 6;
-
-// Faces of aggregated chart c: the faces of its original charts.
-size_t faces_in_aggregate(const Aggregation& aggregation, const std::vector<std::vector<int>>& chart_faces, int c) {
-  size_t n = 0;
-  for (int m : aggregation.members[c]) n += chart_faces[m].size();
-  return n;
-}
-
-// Flattens the aggregated charts `which` into pieces[c], stats[c], one chart
-// per task, in the given order. Every worker reports progress, by faces
-// flattened: time follows the face count, and thread 0 alone would stay
-// silent while it flattens the largest chart, which comes first.
-void flatten_charts(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                    const std::vector<std::vector<int>>& chart_faces, const Aggregation& aggregation,
-                    const std::vector<int>& which, const FlattenOptions& options, const RunControl& control,
-                    std::vector<std::vector<FlatChart>>& pieces, std::vector<FlattenStats>& stats) {
-  auto faces_of = [&](int c) { return faces_in_aggregate(aggregation, chart_faces, c); };
-  size_t total = 0;
-  for (int c : which) total += faces_of(c);
-  std::atomic<size_t> finished{0};
-  parallel_for(static_cast<int>(which.size()), 1, [&](int i) {
-    control.throw_if_cancelled();
-    const int c = which[i];
-    stats[c] = {};
-    pieces[c] = flatten_without_overlap(mesh, topology, graph, chart_faces, aggregation.members[c],
-                                        aggregation.merges, options, control,
-                                        stats[c]);
-    finished += faces_of(c);
-    control.progress_from_worker("flatten", double(finished) / std::max<size_t>(total, 1));
-  });
-  control.throw_if_cancelled();
-}
-
-// The aggregated charts to flatten again under the rule `level`: those whose
-// loss exceeds it, most excess first, until the rest of the loss fits
-// `budget` (a share of the surface). Empty when it fits already.
-std::vector<int> over_budget(const Mesh& mesh, const std::vector<std::vector<FlatChart>>& pieces, double level,
-                             double budget) {
-  double lost = 0, area = 0;
-  std::vector<std::pair<double, int>> excess;
-  for (size_t c = 0; c < pieces.size(); ++c) {
-    double chart_lost = 0, chart_area = 0;
-    for (const FlatChart& piece : pieces[c]) {
-      chart_lost += piece.density_lost_area;
-      for (int f : piece.faces) chart_area += mesh.area_3d(f);
-    }
-    lost += chart_lost, area += chart_area;
-    if (chart_lost > level * chart_area) excess.push_back({chart_lost - level * chart_area, static_cast<int>(c)});
-  }
-  std::sort(excess.rbegin(), excess.rend());
-  std::vector<int> out;
-  for (const auto& [amount, c] : excess) {
-    if (lost <= budget * area) break;
-    lost -= amount;
-    out.push_back(c);
-  }
-  return out;
-}
-
-// Every aggregated chart flattened (split where it must be), largest first
-// so the long ones start early.
-std::vector<FlatChart> flatten_all(const Mesh& mesh, const MeshTopology& topology, const ChartGraph& graph,
-                                   const Aggregation& aggregation, const PipelineOptions& options,
-                                   const RunControl& control, PipelineReport& report) {
-  const auto chart_faces = faces_by_chart(graph.face_chart, graph.chart_count());
-  std::vector<int> order(aggregation.chart_count());
-  std::iota(order.begin(), order.end(), 0);
-  auto faces_in = [&](int c) { return faces_in_aggregate(aggregation, chart_faces, c); };
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
-
-  std::vector<std::vector<FlatChart>> pieces(order.size());
-  std::vector<FlattenStats> stats(order.size());
-  double area = 0;
-  for (int f = 0; f < mesh.face_count(); ++f)
-    if (graph.face_chart[f] >= 0) area += mesh.area_3d(f);
-  const double budget = options.density_loss_budget;
-  const double allowance = budget > 0 ? kDensityAllowance * area : 0.0;
-  // A chart losing more than the budget would be flattened again or split
-  // below: the density repair, which changes no seam, goes first.
-  SlimOptions slim = options.slim;
-  slim.repair_share = std::min(slim.repair_share, budget);
-  if (budget == 0) slim.repair_rounds = std::max(slim.repair_rounds, kNoLossRepairRounds);
-  // With no budget the first flattening already allows no loss: under the
-  // looser rule every chart that lost any would be solved twice.
-  const double first_level = budget == 0 ? 0.0 : kStrictDensityLoss;
-  flatten_charts(mesh, topology, graph, chart_faces, aggregation, order,
-                 {slim, first_level, allowance, options.relief_cuts}, control, pieces, stats);
-  const std::vector<double> levels = budget == 0 ? std::vector<double>{0.0}
-      : std::vector<double>{kStrictDensityLoss, kStrictDensityLoss / 2, kStrictDensityLoss / 4};
-  for (double level : levels) {
-    std::vector<int> again = over_budget(mesh, pieces, level, budget);
-    std::sort(again.begin(), again.end(), [&](int a, int b) { return faces_in(a) > faces_in(b); });
-    flatten_charts(mesh, topology, graph, chart_faces, aggregation, again,
-                   {slim, level, 0, options.relief_cuts}, control, pieces, stats);
-    report.density_reflattened += static_cast<int>(again.size());
-  }
-  std::vector<FlatChart> out;
-  for (size_t c = 0; c < pieces.size(); ++c) {
-    report.flatten += stats[c];
-    for (auto& piece : pieces[c]) out.push_back(std::move(piece));
-  }
-  return out;
 }
 
 // The seams the refinement must keep: those the graph kept, plus every edge
@@ -381,19 +249,14 @@ int detach_turned_faces(const Mesh& mesh, const PipelineResult& result, std::vec
     for (size_t j = 0; j < chart.faces.size() && chart.faces.size() > 1; ++j) {
       const int f = chart.faces[j];
       if (stored_winding(result, f, winding) * winding >= 0) continue;
-      const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1)),
-                            c = mesh.positions.row(mesh.triangles(f, 2));
-      const double ab = (b - a).norm(), area = mesh.area_3d(f);
-      if (ab <= 0 || area <= 0) continue;
+      const Eigen::Vector3d a = mesh.positions.row(mesh.triangles(f, 0)), b = mesh.positions.row(mesh.triangles(f, 1));
+      const double area = mesh.area_3d(f);
+      if ((b - a).norm() <= 0 || area <= 0) continue;
       FlatChart lone;
       lone.faces = {f};
       lone.corner_uv.resize(3, 2);
-      // Laid flat with a at the origin and b on the x axis: c at
-      // ((c - a).(b - a) / |ab|, 2 A / |ab|).
-      const double x = (c - a).dot(b - a) / ab;
-      lone.corner_uv << 0, 0, ab, 0, x, 2 * area / ab;
-      const double density = std::sqrt(std::abs(mesh.signed_area_uv(f)) / area);
-      lone.corner_uv *= density > 0 ? density : 1.0;
+      const double density = std::abs(mesh.signed_area_uv(f)) / area;
+      write_flattened(a, b, mesh.positions.row(mesh.triangles(f, 2)), density > 0 ? density : 1.0, lone.corner_uv);
       detached.push_back(std::move(lone));
       // Out of its chart: the last face takes its rows.
       const size_t last = chart.faces.size() - 1;
@@ -508,88 +371,6 @@ void refine_charts(const Mesh& welded, const Mesh& mesh, const MeshTopology& top
   turn_solved_charts(charts);
 }
 
-// A flattened chart as a mesh of its own: corners of one mesh vertex at one
-// UV are one vertex (the two sides of a slit are two).
-struct IndexedChart {
-  RowMatrixX3i triangles;  // F x 3, rows of uv
-  RowMatrixX2d uv;         // n x 2, texels
-  std::vector<int> vertex;  // n: mesh vertex
-};
-
-IndexedChart indexed_chart(const Mesh& mesh, const FlatChart& chart) {
-  IndexedChart out;
-  out.triangles.resize(static_cast<Eigen::Index>(chart.faces.size()), 3);
-  std::map<std::tuple<int, double, double>, int> index;
-  std::vector<Eigen::Vector2d> uv;
-  for (size_t i = 0; i < chart.faces.size(); ++i)
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector2d p = chart.corner_uv.row(3 * static_cast<Eigen::Index>(i) + k).transpose();
-      const int v = mesh.triangles(chart.faces[i], k);
-      const auto [it, added] = index.emplace(std::make_tuple(v, p.x(), p.y()), static_cast<int>(uv.size()));
-      if (added) uv.push_back(p), out.vertex.push_back(v);
-      out.triangles(static_cast<Eigen::Index>(i), k) = it->second;
-    }
-  out.uv.resize(static_cast<Eigen::Index>(uv.size()), 2);
-  for (size_t v = 0; v < uv.size(); ++v) out.uv.row(static_cast<Eigen::Index>(v)) = uv[v].transpose();
-  return out;
-}
-
-// The smallest texel area of a face of the chart over its original one
-// (faces without an original area left out; 1 with none), and the chart's
-// texel area.
-std::pair<double, double> smallest_area_ratio(const Mesh& mesh, const FlatChart& chart) {
-  double smallest = 1, area = 0;
-  for (size_t i = 0; i < chart.faces.size(); ++i) {
-    const Eigen::Index row = 3 * static_cast<Eigen::Index>(i);
-    const auto corner = [&](int k) { return Eigen::Vector2d(chart.corner_uv.row(row + k)); };
-    const double now = std::abs(signed_area(corner(0), corner(1), corner(2)));
-    const double before = std::abs(mesh.signed_area_uv(chart.faces[i]));
-    area += now;
-    if (before > 0) smallest = std::min(smallest, now / before);
-  }
-  return {smallest, area};
-}
-
-// Relaxes a solved chart with the boundary near its squeezed faces free
-// (RelaxOptions::free_border); returns whether it moved.
-bool relax_border(const Mesh& mesh, const ChartGraph& graph, const RelaxOptions& options, FlatChart& chart) {
-  const IndexedChart local = indexed_chart(mesh, chart);
-  const ChartProblem problem = chart_problem(mesh, graph, chart.faces, local.triangles, local.vertex);
-  const ReferenceTriangles reference =
-      repaired_reference_triangles(problem.triangles, problem.positions, problem.reference_uv, problem.mirrored);
-  RowMatrixX2d uv = local.uv;
-  if (!relax_squeezed_faces(local.triangles, reference.corners, options, uv)) return false;
-  for (Eigen::Index i = 0; i < local.triangles.rows(); ++i)
-    for (int k = 0; k < 3; ++k) chart.corner_uv.row(3 * i + k) = uv.row(local.triangles(i, k));
-  return true;
-}
-
-// Most faces the flattening leaves below half their texel area touch their
-// chart's outline, where its relaxation (which holds the outline) cannot
-// reach them. The border refinements place a moved face where its new
-// chart's outline already has its corners; once they are done, the outlines
-// may change, so each solved chart with such a face is relaxed again with
-// the boundary near them free: a chart a few texels larger where it was
-// squeezed, instead of lost detail. A chart still squeezed and of at most
-// kDebrisTexels once grown until no face is (scan debris, a few faces of a
-// fraction of a texel each) is grown: it costs a few texels.
-constexpr double kDebrisTexels = 64;
-void relax_squeezed_borders(const Mesh& mesh, const ChartGraph& graph, const RelaxOptions& relax,
-                            std::vector<FlatChart>& charts) {
-  RelaxOptions options = relax;
-  options.free_border = true;
-  parallel_for(static_cast<int>(charts.size()), 1, [&](int c) {
-    FlatChart& chart = charts[c];
-    if (chart.kept_original) return;
-    auto [smallest, area] = smallest_area_ratio(mesh, chart);
-    if (smallest >= 0.5) return;
-    if (relax_border(mesh, graph, options, chart)) std::tie(smallest, area) = smallest_area_ratio(mesh, chart);
-    if (smallest >= 0.5) return;
-    const double growth = options.floor / smallest;
-    if (smallest > 0 && area * growth <= kDebrisTexels) chart.corner_uv *= std::sqrt(growth);
-  });
-}
-
 // Packs the charts into result. Untextured faces keep their input UVs and
 // page -1. A face whose winding float32 storage turns over becomes a chart of
 // its own and all is packed again (rare: slivers a hundredth of a texel high).
@@ -679,8 +460,14 @@ PipelineResult defragment_distinct(const Mesh& welded, const std::vector<int>& f
   // The flattening keeps the arcs partial merges left open as seams.
   ChartGraph flat_graph = graph;
   flat_graph.self_seam = aggregation.kept_seam;
-  std::vector<FlatChart> charts =
-      flatten_all(mesh, topology, flat_graph, aggregation, options, control, report);
+  AggregationFlattenOptions rule;
+  rule.slim = options.slim;
+  rule.density_loss_budget = options.density_loss_budget;
+  rule.relief_cuts = options.relief_cuts;
+  FlattenedAggregation flat = flatten_aggregation(mesh, topology, flat_graph, aggregation, rule, control);
+  report.flatten = flat.stats;
+  report.density_reflattened = flat.reflattened;
+  std::vector<FlatChart> charts = std::move(flat.charts);
   clock.lap("flatten");
   refine_charts(welded, mesh, topology, flat_graph.self_seam, face_group, Polygons(face_polygon), options.refine,
                 charts, report);

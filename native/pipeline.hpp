@@ -75,7 +75,8 @@ struct PipelineReport {
   int charts_after = 0;        // in the output
   int charts_solved = 0;       // flattened by SLIM (the rest kept their original UVs)
   FlattenStats flatten;        // charts split back by reason, scaffolded, halved (see kFlattenCounters)
-  int density_reflattened = 0;  // aggregated charts flattened again under the strict density rule (see pipeline.cpp)
+  int density_reflattened = 0;  // aggregated charts flattened again under a stricter density rule
+                                // (flatten_aggregation.hpp)
   double seam_before = 0, seam_after = 0;  // seam length / sqrt(area)
   long long texels_before = 0, texels_after = 0;
   double packing_efficiency = 0;

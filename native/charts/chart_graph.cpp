@@ -134,4 +134,11 @@ void require_face_groups(const std::vector<int>& face_group, int face_count) {
     throw InputError("face_group must hold one group per triangle");
 }
 
+std::vector<std::vector<int>> faces_of_charts(const ChartGraph& graph) {
+  std::vector<std::vector<int>> out(graph.chart_count());
+  for (size_t f = 0; f < graph.face_chart.size(); ++f)
+    if (graph.face_chart[f] >= 0) out[graph.face_chart[f]].push_back(static_cast<int>(f));
+  return out;
+}
+
 }  // namespace atlas

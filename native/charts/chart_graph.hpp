@@ -40,6 +40,9 @@ struct ChartGraph {
   int chart_count() const { return static_cast<int>(charts.size()); }
 };
 
+// Per chart of graph, its faces, ascending.
+std::vector<std::vector<int>> faces_of_charts(const ChartGraph& graph);
+
 // Throws InputError unless face_group is empty or holds one group per face.
 void require_face_groups(const std::vector<int>& face_group, int face_count);
 

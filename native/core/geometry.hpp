@@ -7,6 +7,11 @@ namespace atlas {
 
 constexpr double kPi = 3.14159265358979323846;
 
+// A face loses density when its texel area falls below this share of its
+// original one: it then keeps under half its texels, the unit of the
+// output's density guarantee (under 1% of the surface may lose density).
+constexpr double kDensityFloor = 0.5;
+
 // Signed area of a 2D triangle: ((b-a) x (c-a)) / 2, positive counter-clockwise.
 inline double signed_area(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
   return 0.5 * ((b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x()));

@@ -469,7 +469,7 @@ DensityLoss density_loss(const Mesh& mesh, const ChartGraph& graph, const LocalC
     const double before = std::abs(mesh.signed_area_uv(f));
     const double after = std::abs(signed_area(uv.row(local.triangles(i, 0)), uv.row(local.triangles(i, 1)),
                                               uv.row(local.triangles(i, 2))));
-    if (before > 0 && after < 0.5 * before) lost[graph.face_chart[f]] += area_3d, out.lost_area += area_3d;
+    if (before > 0 && after < kDensityFloor * before) lost[graph.face_chart[f]] += area_3d, out.lost_area += area_3d;
   }
   if (!lost.empty())
     out.culprit = std::max_element(lost.begin(), lost.end(), [](const auto& a, const auto& b) { return a.second < b.second; })->first;

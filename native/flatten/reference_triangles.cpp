@@ -33,17 +33,6 @@ bool well_shaped_3d(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Ei
   return well_shaped(triangle_area(a, b, c), (b - a).norm(), (c - b).norm(), (a - c).norm());
 }
 
-// The 3D triangle laid flat with its first edge on the x axis (an isometry,
-// so the orientation is positive), lengths scaled by sqrt(texel density).
-void write_flattened(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                     double density, Eigen::Ref<RowMatrixX2d> out) {
-  const Eigen::Vector3d e1 = b - a, e2 = c - a;
-  const double length = e1.norm(), scale = std::sqrt(density);
-  out.row(0) << 0, 0;
-  out.row(1) << scale * length, 0;
-  out.row(2) << scale * e1.dot(e2) / length, scale * e1.cross(e2).norm() / length;
-}
-
 // Equilateral triangle of the given area: side s with area sqrt(3)/4 s^2.
 void write_equilateral(double area, Eigen::Ref<RowMatrixX2d> out) {
   const double side = std::sqrt(4 * area / std::sqrt(3.0));
@@ -53,6 +42,17 @@ void write_equilateral(double area, Eigen::Ref<RowMatrixX2d> out) {
 }
 
 }  // namespace
+
+// Corners (0, 0), (|b - a|, 0) and ((c - a).(b - a) / |b - a|, |(b - a) x (c - a)| / |b - a|),
+// times sqrt(density).
+void write_flattened(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                     double density, Eigen::Ref<RowMatrixX2d> out) {
+  const Eigen::Vector3d e1 = b - a, e2 = c - a;
+  const double length = e1.norm(), scale = std::sqrt(density);
+  out.row(0) << 0, 0;
+  out.row(1) << scale * length, 0;
+  out.row(2) << scale * e1.dot(e2) / length, scale * e1.cross(e2).norm() / length;
+}
 
 ReferenceTriangles repaired_reference_triangles(const RowMatrixX3i& triangles,
                                                 const RowMatrixX3d& positions,

@@ -28,4 +28,10 @@ ReferenceTriangles repaired_reference_triangles(const RowMatrixX3i& triangles,
                                                 const RowMatrixX2d& reference_uv,
                                                 const Eigen::VectorXi& mirrored);
 
+// The 3D triangle (a, b, c) laid flat into out (3 x 2): a at the origin, b on
+// the positive x axis, c above it (an isometry, so the winding is positive),
+// lengths scaled by sqrt(density), density being texel area per 3D area.
+void write_flattened(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                     double density, Eigen::Ref<RowMatrixX2d> out);
+
 }  // namespace atlas

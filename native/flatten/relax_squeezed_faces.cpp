@@ -71,7 +71,7 @@ double energy(const std::vector<ReferenceFace>& faces, const std::vector<int>& w
 double area_below_half(const std::vector<ReferenceFace>& faces, const std::vector<int>& which, const RowMatrixX2d& uv) {
   double area = 0;
   for (int f : which)
-    if (jacobian(faces[f], uv).determinant() < 0.5) area += faces[f].area;
+    if (jacobian(faces[f], uv).determinant() < kDensityFloor) area += faces[f].area;
   return area;
 }
 
@@ -331,7 +331,7 @@ bool relax_squeezed_faces(const RowMatrixX3i& triangles, const RowMatrixX2d& ref
   const std::vector<ReferenceFace> all = reference_faces(triangles, reference);
   std::vector<int> squeezed;
   for (size_t f = 0; f < all.size(); ++f)
-    if (jacobian(all[f], uv).determinant() < 0.5) squeezed.push_back(static_cast<int>(f));
+    if (jacobian(all[f], uv).determinant() < kDensityFloor) squeezed.push_back(static_cast<int>(f));
   if (squeezed.empty()) return false;
   const MeshTopology topology = build_topology(triangles, static_cast<int>(uv.rows()));
   const std::vector<char> boundary = boundary_vertices(topology, static_cast<int>(uv.rows()));

@@ -6,7 +6,7 @@
 // global repair (SlimOptions::repair_rounds) re-solves the whole chart
 // instead, which grows it. Most faces left squeezed touch the boundary; once
 // no later step needs the outline as it is, free_border lets the boundary
-// near them move as well (see pipeline.cpp).
+// near them move as well (relax_squeezed_borders.hpp).
 #pragma once
 
 #include "core/mesh.hpp"

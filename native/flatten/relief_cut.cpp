@@ -34,7 +34,7 @@ Squeeze squeeze(const Mesh& mesh, const std::vector<int>& faces, const RowMatrix
     const double after = std::abs(signed_area(uv.row(triangles(i, 0)), uv.row(triangles(i, 1)),
                                               uv.row(triangles(i, 2))));
     if (before <= 0 || after <= 0) continue;
-    out.face_lost[i] = after < 0.5 * before;
+    out.face_lost[i] = after < kDensityFloor * before;
     const double a = mesh.area_3d(faces[i]), score = a * std::log(after / before);
     for (int k = 0; k < 3; ++k) weighted[triangles(i, k)] += score, weight[triangles(i, k)] += a;
   }

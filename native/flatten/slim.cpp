@@ -735,7 +735,7 @@ bool unusable(const ChartSolve& s, const std::vector<ProxyFace>& faces) {
 // the sum of the faces' (unweighted) areas.
 bool repair_density(ChartSolve& s, double reference_area, const SlimOptions& options, const RunControl& control,
                     ChartSolution& solution) {
-  double lost = area_below(s.faces, 0.5, s.x);
+  double lost = area_below(s.faces, kDensityFloor, s.x);
   const double start_energy = total_energy(s.faces, s.x);
   // A chart already past the bound is left alone: the repair raises the
   // energy of a solved chart, so it would be undone.
@@ -751,7 +751,7 @@ bool repair_density(ChartSolve& s, double reference_area, const SlimOptions& opt
     const Eigen::VectorXd kept = s.x;
     const bool kept_scaffolded = solution.scaffolded;
     const bool ok = solve_from(s, continued, control, solution).ok();
-    const double now_lost = area_below(unweighted, 0.5, s.x), energy = total_energy(unweighted, s.x);
+    const double now_lost = area_below(unweighted, kDensityFloor, s.x), energy = total_energy(unweighted, s.x);
     if (!ok || now_lost > lost || unusable(s, unweighted) ||
         (energy > start_energy && energy > options.repair_energy_bound * reference_area)) {
       s.x = kept, solution.scaffolded = kept_scaffolded;

@@ -1,10 +1,16 @@
-// Packing: places every chart on as few pages as possible, rasterised at texel
-// resolution so that no two charts (padding included) share a texel.
+// The pack stage. Takes flattened charts in texels. Gives their placement on
+// as few pages as possible (pack_charts), rasterised at texel resolution so
+// that no two charts (padding included) share a texel, and the page-side
+// rules it follows. Charts come out of the flattening at arbitrary angles:
+// turned_to_smallest_box (smallest_box_turn.hpp) turns them to their
+// smallest box first. page_filling, page_occupancy, placement_shape,
+// scaled_chart, chart_raster, coarse_mask and texel_mask are its internals.
 #pragma once
 #include <vector>
 
 #include "core/mesh.hpp"
 #include "core/run_control.hpp"
+#include "pack/smallest_box_turn.hpp"
 
 namespace atlas {
 
@@ -89,9 +95,14 @@ struct PackResult {
 PackResult pack_charts(const std::vector<RowMatrixX2d>& chart_uv, const PackOptions& options,
                        const RunControl& control);
 
+constexpr int kSideQuantum = 4;  // page sides are multiples of this in PageSides::MultipleOf4
+
 // True when a page side of `side` texels is of the kind `sides` allows (a
 // fixed_page_size must be).
 bool is_allowed_side(int side, PageSides sides);
+
+// Largest side <= max_side (>= kSideQuantum) of the kind `sides` allows.
+int largest_allowed_side(int max_side, PageSides sides);
 
 // The padding pack_charts keeps on pages whose longer side is `side` texels.
 int padding_for_side(const PackOptions& options, int side);

@@ -11,7 +11,6 @@
 
 namespace atlas {
 
-constexpr int kSideQuantum = 4;  // page sides are multiples of this in PageSides::MultipleOf4
 // Holes are searched on a grid of kHoleCell x kHoleCell texel cells: 4x less
 // work than texel by texel, at the price of hole spots on even texels and
 // cells lost where a hole's edge crosses them (larger cells lose holes that
@@ -43,8 +42,6 @@ long long area(const PageSize& page);
 
 // Smallest side >= `side` (and >= 1) of the kind `sides` allows.
 int allowed_side(double side, PageSides sides);
-// Largest side <= max_side (>= kSideQuantum) of that kind.
-int largest_allowed_side(int max_side, PageSides sides);
 
 // Where a chart went: its dilated mask's texel (0, 0) sits at (x, y) of the
 // virtual frame of page `page`.
