@@ -50,7 +50,8 @@ def defragment(obj, **options) -> dict:
     """Defragments the texture atlas of mesh object ``obj`` and returns the report.
 
     Keyword options: those of options.SCHEMA (README, *Options*), and uv_map
-    (default: the active UV map), storage ('PACK' or 'SAVE'), image_dir (with
+    (default: the active UV map, or the map the image maps read if they read
+    none through it), storage ('PACK' or 'SAVE'), image_dir (with
     'SAVE'), duplicate_materials, new_map_first (default True: the new UV map
     at index 0, where FBX readers look), progress (callable(stage, fraction),
     called from the native worker threads: it must not touch bpy),

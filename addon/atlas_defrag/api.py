@@ -21,7 +21,7 @@ STORAGE = ("PACK", "SAVE")
 
 @dataclass
 class Settings:
-    uv_map: Optional[str] = None  # None: the active UV map
+    uv_map: Optional[str] = None  # None: the active map, or the one the image maps read (read_bpy.check_object)
     options: job.Options = field(default_factory=job.Options)
     storage: str = "PACK"  # 'PACK' into the .blend or 'SAVE' beside it (or in image_dir)
     image_dir: Optional[str] = None
@@ -188,7 +188,8 @@ def finish(obj, read: read_bpy.ReadResult, result: job.JobResult, settings: Sett
 def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **options) -> dict:
     """Defragments obj's texture atlas synchronously; returns the report dict.
 
-    Options: those of options.SCHEMA, and uv_map (default: active), storage
+    Options: those of options.SCHEMA, and uv_map (default: the active one, or
+    the one the image maps read), storage
     ('PACK' | 'SAVE'), image_dir, duplicate_materials, new_map_first. The
     report's 'shrunk' (and a warning) says when charts lost texel density to
     fit max_page_size, max_pages or the input's texel count. Raises DefragError

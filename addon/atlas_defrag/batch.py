@@ -68,7 +68,9 @@ def _schema():
 def _add_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("defragmentation options")
     _schema().add_arguments(g)
-    g.add_argument("--uv-map", default=None, help="UV map to defragment (default: the active one)")
+    g.add_argument("--uv-map", default=None,
+                   help="UV map to defragment (default: the active one, or the one the image maps read if they "
+                        "read none through it)")
     g.add_argument("--texture", default=None,
                    help="image to use for meshes without an image texture (e.g. PLY)")
     g.add_argument("--keep-source-uv", action="store_true",

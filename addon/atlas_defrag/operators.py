@@ -218,8 +218,9 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
                       "new textures for them (the old UV map and images are kept)")
     bl_options = {"REGISTER", "UNDO", "PRESET"}
 
-    uv_map: StringProperty(name="UV Map", description="UV map to defragment (empty: the active one)",
-                           options={"SKIP_SAVE"})
+    uv_map: StringProperty(name="UV Map", options={"SKIP_SAVE"},
+                           description="UV map to defragment (empty: the active one, or the one the image maps "
+                                       "read if they read none through it)")
     run_again: BoolProperty(
         name="Run Again", default=False, options={"SKIP_SAVE"},
         description="Re-run the whole job with the changed settings (Blender waits until it ends)")

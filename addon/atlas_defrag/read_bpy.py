@@ -76,7 +76,7 @@ def check_object(obj, uv_map: Optional[str] = None):
         if layer is None:
             raise DefragError(f"Mesh '{me.name}' has no UV map named '{uv_map}'")
     else:
-        layer = me.uv_layers.active or me.uv_layers[0]
+        layer = _default_layer(obj)
     if len(me.uv_layers) >= compat.MAX_UV_MAPS:
         raise DefragError(
             f"Mesh '{me.name}' already has {len(me.uv_layers)} UV maps, the most Blender allows: "
@@ -86,6 +86,32 @@ def check_object(obj, uv_map: Optional[str] = None):
             raise DefragError(f"UV map '{name}' of mesh '{me.name}' has a name longer than {compat.NAME_BYTES} "
                               "bytes, which shader nodes and modifiers cannot hold: rename it")
     return layer
+
+
+def _default_layer(obj):
+    """The UV map a job reads when none is named: the active one, unless the
+    image maps read none through it and another map's (a UV Map node naming
+    it): then the first such map in the mesh's order."""
+    me = obj.data
+    active = me.uv_layers.active or me.uv_layers[0]
+    read = _maps_read_by_images(obj, _render_uv_name(me))
+    if active.name in read:
+        return active
+    return next((layer for layer in me.uv_layers if layer.name in read), active)
+
+
+def _maps_read_by_images(obj, render_uv: str) -> set:
+    """Names of the UV maps that the Image Texture nodes of obj's materials
+    read as plain UV lookups feeding a shader."""
+    found = set()
+    for mat in {s.material for s in obj.material_slots if s.material is not None}:
+        tree = compat.node_tree(mat)
+        for node in tree.nodes if tree is not None else ():
+            if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and not node.mute:
+                kind, uv_name = _vector_source(node, render_uv)
+                if kind != "other" and _downstream_roles(node)[0]:
+                    found.add(uv_name)
+    return found
 
 
 def _refuse_linked(obj) -> None:
@@ -118,6 +144,9 @@ def _no_texture_message(obj, uv_name: str, warnings: List[str]) -> str:
                       for s in obj.material_slots for group, node in _grouped_images(s.material)})
     hint = (f" (image {', '.join(grouped)}: only Image Texture nodes at a material's top level are rebuilt; "
             "ungroup them, Ctrl+Alt+G, to have them rebuilt)" if grouped else "")
+    elsewhere = [f"'{m}'" for m in sorted(_maps_read_by_images(obj, _render_uv_name(obj.data)) - {uv_name})]
+    if elsewhere:
+        hint += f" (the image maps read UV map {', '.join(elsewhere)}: choose it as the UV map to defragment)"
     if warnings:  # it has image nodes, none the job can follow
         return f"No image texture this job can rebuild on '{obj.name}': " + "; ".join(warnings) + hint
     return (f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "

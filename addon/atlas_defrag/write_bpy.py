@@ -627,6 +627,14 @@ def _rename_in_turn(me, renames) -> None:
         me.uv_layers[old].name = new
 
 
+def _used_elsewhere(mat, obj) -> bool:
+    """Whether mat has users besides obj's mesh slots, obj's own object-linked
+    slots and a fake user."""
+    ours = sum(m == mat for m in obj.data.materials)
+    ours += sum(s.link == "OBJECT" and s.material == mat for s in obj.material_slots)
+    return mat.users > ours + mat.use_fake_user
+
+
 def _rewire_materials(target: _Target, new_uv: str, page_role_image, duplicate_materials: bool):
     """One material per (source material, new page): the page with most faces
     keeps the slot, the others get new slots. Returns (created, rewired) names."""
@@ -649,7 +657,7 @@ def _rewire_materials(target: _Target, new_uv: str, page_role_image, duplicate_m
         if not pages:
             continue
         base = bpy.data.materials[info.name]
-        if not duplicate_materials and base.users > len(info.slots):
+        if not duplicate_materials and _used_elsewhere(base, obj):
             shared_with_others.append(base.name)
         mats = _materials_for(base, len(pages), duplicate_materials, journal, created_materials)
         for k, (q, mat) in enumerate(zip(pages, mats)):

@@ -849,6 +849,46 @@ def linked_duplicate_with_its_own_material_is_named(pkg):
     assert {H.vector_uv_map(n) for n in H.image_nodes(own)} <= {None, "UVMap"}, H.tree_state(own)
 
 
+def an_image_reading_another_map_decides_the_default_map(pkg):
+    """The image reads a map that is not the active one, through a UV Map
+    node: with no map named, the job (and the dialog's default) takes that
+    map; the active map named instead is refused with the map the image
+    reads in the message."""
+    H.reset()
+    obj = H.textured_plane(name="Scanned", uv_maps=2)
+    me, tree = obj.data, obj.material_slots[0].material.node_tree
+    scan = me.uv_layers[1].name
+    me.uv_layers.active = me.uv_layers[0]
+    node = tree.nodes.new("ShaderNodeUVMap")
+    node.uv_map = scan
+    tree.links.new(node.outputs["UV"], next(iter(H.image_nodes(obj.material_slots[0].material))).inputs["Vector"])
+    assert pkg.read_bpy.check_object(obj).name == scan
+    error = _report_error(pkg, lambda: pkg.read_bpy.check_textures(obj, me.uv_layers[0].name))
+    assert f"read UV map '{scan}'" in error, error
+    assert run_operator(pkg) == {"FINISHED"}, pkg.operators.last_outcome
+    report = pkg.operators.last_outcome["report"][0]
+    assert report["source_uv_map"] == scan and report["uv_map"] == f"{scan}_defrag", report
+    return {"uv_map": report["uv_map"]}
+
+
+def an_object_linked_slot_is_not_another_user(pkg):
+    """A material in an object-linked slot, the mesh's slot holding it too,
+    is used by this object alone: no warning that other objects use it, as
+    there is when another object's mesh holds it."""
+    def run(shared):
+        H.reset()
+        obj = H.textured_plane(name="Own")
+        mat = obj.material_slots[0].material
+        obj.material_slots[0].link = "OBJECT"
+        obj.material_slots[0].material = mat
+        if shared:
+            H.textured_plane(name="Other").data.materials[0] = mat
+        return [w for w in pkg.defragment(obj)["warnings"] if "also used by other objects" in w]
+    assert not run(shared=False)
+    assert run(shared=True)
+    return {}
+
+
 def quads_stay_whole(pkg):
     """A quad sphere cut into many charts by Smart UV Project: the seam
     refinement moves a quad's two triangles together or not at all, so no
@@ -1414,6 +1454,8 @@ def long_uv_map_names_fit_the_nodes(pkg):
 
 
 SCENARIOS = {
+    "an_image_reading_another_map_decides_the_default_map": an_image_reading_another_map_decides_the_default_map,
+    "an_object_linked_slot_is_not_another_user": an_object_linked_slot_is_not_another_user,
     "operator_tetra": lambda pkg: operator_on_model(pkg, "tetra"),
     "operator_smithsonian": lambda pkg: operator_on_model(pkg, "smithsonian"),
     "operator_meshroom": lambda pkg: operator_on_model(pkg, "meshroom"),

@@ -22,7 +22,8 @@ GROUPS = {
               "operator_takes_what_it_is_told", "image_settings_the_bake_cannot_follow_are_said",
               "linear_float_images_keep_their_colour_space", "obj_output_names_a_base_colour_behind_a_mix",
               "images_in_node_groups_keep_the_old_map", "premultiplied_byte_images_keep_their_colours",
-              "a_failed_save_takes_back_its_folders"]
+              "a_failed_save_takes_back_its_folders",
+              "an_image_reading_another_map_decides_the_default_map", "an_object_linked_slot_is_not_another_user"]
     + ["error_" + c for c in sorted(S.ERRORS)],
     "tetra": ["operator_tetra", "edit_mode_undo", "python_entry", "duplicate_materials_and_removal",
               "save_beside_blend", "world_scale_density", "cancel_leaves_nothing", "worker_thread_run"],
