@@ -189,8 +189,10 @@ def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **opt
     """Defragments obj's texture atlas synchronously; returns the report dict.
 
     Options: those of options.SCHEMA, and uv_map (default: the active one, or
-    the one the image maps read), storage
-    ('PACK' | 'SAVE'), image_dir, duplicate_materials, new_map_first. The
+    the one the image maps read), storage ('PACK' | 'SAVE'), image_dir,
+    duplicate_materials (default: as the operator, copies of the materials
+    that objects drawing other meshes use, which would otherwise read a UV
+    map they lack), new_map_first. The
     report's 'shrunk' (and a warning) says when charts lost texel density to
     fit max_page_size, max_pages or the input's texel count. Raises DefragError
     (a subclass of Exception) with the reason; on any error nothing is changed.
@@ -201,6 +203,8 @@ def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **opt
     """
     with as_defrag_error():
         settings = Settings.from_kwargs(**options)
+        if "duplicate_materials" not in options:
+            settings = replace(settings, duplicate_materials=uses_any(obj, shared_materials([obj])))
         t0 = time.perf_counter()
         read = prepare(obj, settings, pixels_later=wait_in_main_thread)
         t_read = time.perf_counter() - t0

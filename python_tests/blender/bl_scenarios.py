@@ -827,6 +827,10 @@ def material_shared_with_an_unselected_object(pkg):
     H.make_active(solo)
     mat = solo.material_slots[0].material
     assert run_operator(pkg) == {"FINISHED"} and solo.material_slots[0].material == mat
+    a, b, shared = _planes_sharing_a_material("ByScript", "Untouched")  # the Python entry alike
+    before = H.tree_state(shared)
+    pkg.defragment(a)
+    assert a.material_slots[0].material != shared and H.tree_state(shared) == before
 
 
 def linked_duplicate_with_its_own_material_is_named(pkg):
@@ -883,7 +887,8 @@ def an_object_linked_slot_is_not_another_user(pkg):
         obj.material_slots[0].material = mat
         if shared:
             H.textured_plane(name="Other").data.materials[0] = mat
-        return [w for w in pkg.defragment(obj)["warnings"] if "also used by other objects" in w]
+        report = pkg.defragment(obj, duplicate_materials=False)
+        return [w for w in report["warnings"] if "also used by other objects" in w]
     assert not run(shared=False)
     assert run(shared=True)
     return {}
