@@ -13,7 +13,7 @@
 #include "core/geometry.hpp"
 #include "flatten/cut_to_disk.hpp"
 #include "flatten/fill_holes.hpp"
-#include "flatten/flatten_chart.hpp"
+#include "flatten/flatten_without_overlap.hpp"
 #include "core/union_find.hpp"
 #include "test_meshes.hpp"
 

@@ -10,7 +10,7 @@
 #include "charts/disk_merge.hpp"
 #include "core/geometry.hpp"
 #include "flatten/disk_boundary.hpp"
-#include "flatten/flatten_chart.hpp"
+#include "flatten/flatten_without_overlap.hpp"
 #include "flatten/refine_seams.hpp"
 #include "flatten/straighten_borders.hpp"
 #include "core/min_cut.hpp"

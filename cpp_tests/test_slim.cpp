@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "flatten/flatten_chart.hpp"
+#include "flatten/flatten_without_overlap.hpp"
 #include "flatten/slim.hpp"
 #include "test_meshes.hpp"
 

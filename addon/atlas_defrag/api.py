@@ -203,10 +203,10 @@ def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **opt
     """
     with as_defrag_error():
         settings = Settings.from_kwargs(**options)
-        if "duplicate_materials" not in options:
-            settings = replace(settings, duplicate_materials=uses_any(obj, shared_materials([obj])))
         t0 = time.perf_counter()
         read = prepare(obj, settings, pixels_later=wait_in_main_thread)
+        if "duplicate_materials" not in options:  # obj is a mesh object: prepare checked it
+            settings = replace(settings, duplicate_materials=uses_any(obj, shared_materials([obj])))
         t_read = time.perf_counter() - t0
         fetched = {}
         if wait_in_main_thread:

@@ -231,14 +231,23 @@ def _nodes_feeding_outputs(tree) -> set:
     """Names of the nodes from which links lead to a material output: the
     job leaves the old image nodes in the material, unlinked, and what they
     name no longer shows."""
-    stack = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
-    seen = set()
+    return {n.name for n in _upstream([n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"])}
+
+
+def _upstream(starts, stop=lambda node: False) -> list:
+    """starts and the nodes from which links lead to them, each once, in the
+    order a depth-first walk meets them; the walk goes on past no node that
+    stop holds for."""
+    seen, stack, found = set(), list(starts), []
     while stack:
         node = stack.pop()
-        if node.name not in seen:
-            seen.add(node.name)
-            stack.extend(link.from_node for socket in node.inputs for link in socket.links)
-    return seen
+        if node.name in seen:
+            continue
+        seen.add(node.name)
+        found.append(node)
+        if not stop(node):
+            stack += [link.from_node for socket in node.inputs for link in socket.links]
+    return found
 
 
 def _drop_source_uv(obj, name: str, report: dict) -> None:
@@ -923,17 +932,9 @@ def _through_reroutes(node):
 
 def _upstream_images(node) -> list:
     """The image nodes (with an image) that feed node, directly or through others."""
-    seen, stack, found = set(), [node], []
-    while stack:
-        n = stack.pop()
-        if n.name in seen:
-            continue
-        seen.add(n.name)
-        if n.type == "TEX_IMAGE" and n.image is not None:
-            found.append(n)
-        else:
-            stack += [link.from_node for socket in n.inputs for link in socket.links]
-    return found
+    def image(n):
+        return n.type == "TEX_IMAGE" and n.image is not None
+    return [n for n in _upstream([node], stop=image) if image(n)]
 
 
 def _materials_of(objects) -> list:

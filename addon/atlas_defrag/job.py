@@ -378,8 +378,9 @@ def _attempt(job: JobInput, options: Options, calls: _NativeCalls, bake_calls, o
 _DETAIL_STEPS = (1.25, 1.5, 2.0)
 _DETAIL_GAIN = 0.5
 # dB of PSNR a doubling of the texel density buys on sharp textures, on the
-# low side (bench/README.md, session 38): the guard starts at the step this
-# says the shortfall needs, since each step costs a whole layout and bake.
+# low side (bench/README.md, "A colour guard for textures that carry full
+# detail"): the guard starts at the step this says the shortfall needs,
+# since each step costs a whole layout and bake.
 _DETAIL_DB_PER_DOUBLING = 5.0
 # The progress bar's share of the first layout and bake; the colour guard's
 # steps share the rest, so that the bar never goes back.

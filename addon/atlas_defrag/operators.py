@@ -65,8 +65,9 @@ class _Run:
 
 
 # The outcome of the last run, for scripts and tests: status is 'finished',
-# 'cancelled' or 'error'; message is what was reported.
-last_outcome = {"status": None, "message": ""}
+# 'cancelled' or 'error'; message is what was reported; report the run's
+# report (a list, one per object) or None.
+last_outcome = {"status": None, "message": "", "report": None}
 
 
 def _outcome(status, message, report=None):
@@ -484,8 +485,10 @@ def targets(context) -> list:
     active = context.active_object
     api.read_bpy.check_object(active)
     if active.mode == "OBJECT" and active not in getattr(context, "selected_objects", [active]):  # overrides too
-        raise DefragError(f"The active object '{active.name}' is not selected: select it, or make one of the "
-                          "selected meshes active")
+        hidden = not active.visible_get()
+        raise DefragError(f"The active object '{active.name}' is " + ("hidden (in the viewport), so not selected: "
+                          "unhide it and select it" if hidden else "not selected: select it") +
+                          ", or make one of the selected meshes active")
     out, seen = [active], {active.data.name}
     for obj in getattr(context, "selected_objects", []):
         if obj.type == "MESH" and obj.data.name not in seen:

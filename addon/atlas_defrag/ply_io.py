@@ -327,9 +327,10 @@ def _ascii_numbers(body: bytes) -> np.ndarray:
             raise ValueError("a value of its ASCII body is not a number") from exc
 
 
-def fan(flat: np.ndarray, counts: np.ndarray):
-    """Corners (T, 3) into flat of the fan triangles of the polygons, and the
-    polygon of each triangle; polygons of fewer than 3 corners give none."""
+def fan(counts: np.ndarray):
+    """Corners (T, 3) of the fan triangles of polygons of `counts` corners,
+    indices into their corners laid end to end, and the polygon of each
+    triangle; polygons of fewer than 3 corners give none."""
     counts = np.asarray(counts, dtype=np.int64)
     if (counts == 3).all():  # a triangle mesh, as scans are: nothing to fan
         return np.arange(3 * len(counts)).reshape(-1, 3), np.arange(len(counts))
@@ -378,7 +379,7 @@ def read(data: bytes) -> PlyMesh:
     indices = face.get("vertex_indices", face.get("vertex_index"))
     if not isinstance(indices, tuple):
         raise ValueError("no faces (a 'vertex_indices' list)")
-    corners, polygon = fan(*indices)
+    corners, polygon = fan(indices[1])
     triangles = indices[0].astype(np.int64)[corners] if len(corners) else np.zeros((0, 3), np.int64)
     if len(triangles) and (triangles.min() < 0 or triangles.max() >= len(positions)):
         raise ValueError(f"a face refers to a vertex outside 0..{len(positions) - 1}")

@@ -10,6 +10,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
+import bpy
 import numpy as np
 
 from . import compat, image_headers, png_files
@@ -308,8 +309,6 @@ def _check_image(img, material_name: str):
         raise DefragError(
             f"Image '{img.name}' in material '{material_name}' is a {img.source.lower()} "
             "image: only single still images are supported")
-    import bpy
-
     if bpy.data.images.get(img.name) is not img:  # the job finds its images by name
         return (f"Image '{img.name}' in material '{material_name}' comes from the library "
                 f"'{img.library.name if img.library else ''}' and this file has an image of that name: "
@@ -350,8 +349,6 @@ def _claimed_size(img) -> Tuple[Optional[image_headers.Claim], Optional[int]]:
     (and None) when it holds the pixels or generates them, else its file's
     header (packed or on disk; None when image_headers cannot read it).
     OSError when there is no file to read."""
-    import bpy
-
     if img.source == "GENERATED":
         return image_headers.Claim(img.generated_width, img.generated_height, bool(img.use_generated_float)), None
     if img.has_data:
@@ -388,8 +385,6 @@ def _pixel_count(img) -> int:
 
 def _file_bytes(img) -> Optional[bytes]:
     """The image file's bytes, packed or on disk; None when there is no file to read."""
-    import bpy
-
     if img.packed_file is not None:
         return img.packed_file.data
     try:
@@ -403,8 +398,6 @@ def _file_ends(img, head: int, tail: int) -> Optional[Tuple[bytes, bytes]]:
     """The first `head` and the last `tail` bytes of the image file, packed
     or on disk, without reading the rest from disk; None when there is no
     file to read."""
-    import bpy
-
     if img.packed_file is not None:
         data = img.packed_file.data
         return data[:head], data[-tail:]
@@ -516,7 +509,6 @@ def read(obj, uv_map: Optional[str] = None) -> ReadResult:
         return _read(obj, obj.data, layer.name)
     # In Edit mode the mesh arrays are stale and 4.x hides the UV data: read a
     # synced copy (removed again; the object is not touched).
-    import bpy
     obj.update_from_editmode()
     copy = obj.data.copy()
     try:
@@ -657,8 +649,6 @@ def _used_slots(tri_material: np.ndarray, n_slots: int) -> set:
 def _source_pages(materials: Dict[str, MaterialInfo], used_slots: set) -> List[SourcePage]:
     """One page per distinct set of image maps; sets info.page. Pages whose
     roles, colour spaces and buffer types agree form one group."""
-    import bpy  # only for bpy.data.images lookups
-
     pages: List[SourcePage] = []
     page_index: Dict[tuple, int] = {}
     group_index: Dict[tuple, int] = {}
@@ -753,8 +743,6 @@ class PendingImage:
     def fetch(self) -> None:
         """Reads the pixels (main thread only). An error is kept for whoever
         asks for them."""
-        import bpy
-
         if self._done.is_set():
             return
         try:
@@ -785,8 +773,6 @@ def _read_images(pages: List[SourcePage]) -> Dict[str, PendingImage]:
     """Every image of the pages, its pixels pending (PendingImage): plain
     PNGs start decoding from their files at once, side by side (the native
     inflate and row filters release the GIL)."""
-    import bpy
-
     names = list(dict.fromkeys(m.image for page in pages for m in page.maps))
     sizes = {n: _plain_png_size(bpy.data.images[n]) for n in names}
     plain = {n: size for n, size in sizes.items() if size}

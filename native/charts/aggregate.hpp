@@ -55,8 +55,9 @@ struct AggregateOptions {
   double developable_curvature = 0.6;
   // No merged chart grows beyond this many faces (scaled as
   // reference_chart_faces says): the cost of flattening a chart grows faster
-  // than its size (sparse Cholesky fill), and many mid-sized charts keep both
-  // cores busy. 0 disables.
+  // than its size (sparse Cholesky fill), and many mid-sized charts keep
+  // every core busy where one huge chart would leave the others idle.
+  // 0 disables.
   int max_chart_faces = 20000;
   // Two charts whose union would not be a disk (they touch along several
   // arcs) merge along their longest shared arc, the others staying a seam

@@ -130,7 +130,7 @@ int DiskClusters::holes_closed(int a, int b) const {
 // chi = V - E + F over the faces of cluster c, where a vertex whose faces in
 // c form k separate fans counts k times: touching at a single vertex costs no
 // seam, so such pinches are split rather than refused (see localize in
-// flatten/flatten_chart.cpp).
+// flatten/flatten_without_overlap.cpp).
 // A seam the cluster keeps counts as two edges, one per side.
 int DiskClusters::euler_of(int c) {
   ++stamp_;

@@ -4,7 +4,7 @@
 #pragma once
 #include <vector>
 
-#include "flatten/flatten_chart.hpp"
+#include "flatten/flatten_without_overlap.hpp"
 
 namespace atlas {
 

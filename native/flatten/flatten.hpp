@@ -17,7 +17,7 @@
 // relief_cut, relax_squeezed_faces and chart_rows are its internals.
 #pragma once
 #include "flatten/flatten_aggregation.hpp"
-#include "flatten/flatten_chart.hpp"
+#include "flatten/flatten_without_overlap.hpp"
 #include "flatten/packing_cuts.hpp"
 #include "flatten/reference_triangles.hpp"
 #include "flatten/refine_seams.hpp"

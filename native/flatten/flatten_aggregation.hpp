@@ -11,7 +11,7 @@
 #include "core/mesh.hpp"
 #include "core/run_control.hpp"
 #include "core/topology.hpp"
-#include "flatten/flatten_chart.hpp"
+#include "flatten/flatten_without_overlap.hpp"
 
 namespace atlas {
 

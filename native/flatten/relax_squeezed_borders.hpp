@@ -11,7 +11,7 @@
 
 #include "charts/chart_graph.hpp"
 #include "core/mesh.hpp"
-#include "flatten/flatten_chart.hpp"
+#include "flatten/flatten_without_overlap.hpp"
 #include "flatten/relax_squeezed_faces.hpp"
 
 namespace atlas {

@@ -21,7 +21,7 @@
 
 #include "core/mesh.hpp"
 #include "core/topology.hpp"
-#include "flatten/flatten_chart.hpp"
+#include "flatten/flatten_without_overlap.hpp"
 #include "flatten/refine_seams.hpp"
 
 namespace atlas {

@@ -1153,15 +1153,19 @@ def _report_error(pkg, fn) -> str:
 
 
 def operator_takes_what_it_is_told(pkg):
-    """A deselected active object is not worked on, a UV map named that the
-    mesh lacks is an error, a value a script gives an option with an
-    Automatic toggle is used, and the Python entry refuses a string where a
-    bool or a map name belongs. Nothing changes on a refusal."""
+    """A deselected (or hidden) active object is not worked on, and the
+    message says which; a UV map named that the mesh lacks is an error, a
+    value a script gives an option with an Automatic toggle is used, and the
+    Python entry refuses a string where a bool or a map name belongs.
+    Nothing changes on a refusal."""
     H.reset()
     obj = H.textured_plane("Told")
     before = H.object_state(obj.name)
     obj.select_set(False)
     assert "is not selected" in _report_error(pkg, lambda: run_operator(pkg))
+    obj.hide_set(True)
+    assert "is hidden" in _report_error(pkg, lambda: run_operator(pkg))
+    obj.hide_set(False)
     with pkg.compat.temp_override(bpy.context, selected_objects=[obj]):  # a script's override selects it
         assert "is not selected" not in _report_error(pkg, lambda: run_operator(pkg, uv_map="Scna"))
     obj.select_set(True)

@@ -1,4 +1,4 @@
-#include "flatten/flatten_chart.hpp"
+#include "flatten/flatten_without_overlap.hpp"
 
 #include <algorithm>
 #include <cmath>
