@@ -255,8 +255,9 @@ int detach_turned_faces(const Mesh& mesh, const PipelineResult& result, std::vec
       FlatChart lone;
       lone.faces = {f};
       lone.corner_uv.resize(3, 2);
-      const double density = std::abs(mesh.signed_area_uv(f)) / area;
-      write_flattened(a, b, mesh.positions.row(mesh.triangles(f, 2)), density > 0 ? density : 1.0, lone.corner_uv);
+      write_flattened(a, b, mesh.positions.row(mesh.triangles(f, 2)), 1.0, lone.corner_uv);
+      const double density = std::sqrt(std::abs(mesh.signed_area_uv(f)) / area);  // texels per unit length
+      lone.corner_uv *= density > 0 ? density : 1.0;
       detached.push_back(std::move(lone));
       // Out of its chart: the last face takes its rows.
       const size_t last = chart.faces.size() - 1;

@@ -54,8 +54,8 @@ def defragment(obj, **options) -> dict:
     none through it), storage ('PACK' or 'SAVE'), image_dir (with
     'SAVE'), duplicate_materials (True: rewire copies of every material;
     False: rewire them in place, with a warning naming those that objects
-    drawing other meshes use; default: copies of those only, as the
-    operator), new_map_first (default True: the new UV map
+    drawing other meshes use; default: as the operator, copies of all when
+    any is so used), new_map_first (default True: the new UV map
     at index 0, where FBX readers look), progress (callable(stage, fraction),
     called from the native worker threads: it must not touch bpy),
     cancel (a _native.CancelToken), wait_in_main_thread (the native work on a

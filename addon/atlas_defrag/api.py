@@ -190,9 +190,9 @@ def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **opt
 
     Options: those of options.SCHEMA, and uv_map (default: the active one, or
     the one the image maps read), storage ('PACK' | 'SAVE'), image_dir,
-    duplicate_materials (default: as the operator, copies of the materials
-    that objects drawing other meshes use, which would otherwise read a UV
-    map they lack), new_map_first. The
+    duplicate_materials (default: as the operator, copies of all of obj's
+    materials when any is used by an object drawing another mesh, which
+    would otherwise read a UV map it lacks), new_map_first. The
     report's 'shrunk' (and a warning) says when charts lost texel density to
     fit max_page_size, max_pages or the input's texel count. Raises DefragError
     (a subclass of Exception) with the reason; on any error nothing is changed.
@@ -205,7 +205,7 @@ def defragment(obj, progress=None, cancel=None, wait_in_main_thread=False, **opt
         settings = Settings.from_kwargs(**options)
         t0 = time.perf_counter()
         read = prepare(obj, settings, pixels_later=wait_in_main_thread)
-        if "duplicate_materials" not in options:  # obj is a mesh object: prepare checked it
+        if options.get("duplicate_materials") is None:  # obj is a mesh object: prepare checked it
             settings = replace(settings, duplicate_materials=uses_any(obj, shared_materials([obj])))
         t_read = time.perf_counter() - t0
         fetched = {}

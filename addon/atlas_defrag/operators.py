@@ -251,8 +251,10 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
 
     def _settings(self, obj=None) -> api.Settings:
         # The UV map chosen in the dialog is the active object's; the others use a map of
-        # that name if they have one, else their active map.
-        uv_map = self.uv_map if obj is None or self.uv_map in obj.data.uv_layers else None
+        # that name if they have one, else their default map (read_bpy.check_object), as
+        # they do when the field keeps the default invoke filled in.
+        chosen = self.uv_map != getattr(self, "_filled_uv_map", "")
+        uv_map = self.uv_map if obj is None or chosen and self.uv_map in obj.data.uv_layers else None
         return api.Settings.from_kwargs(
             uv_map=uv_map or None, storage=self.storage,
             duplicate_materials=self.duplicate_materials, new_map_first=self.new_map_first,
@@ -268,7 +270,8 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         except Exception as exc:  # a message, not a traceback in the UI
             return self._fail("error", _internal_error(exc))
         if not self.uv_map:
-            self.uv_map = api.read_bpy.check_object(objects[0]).name
+            # Kept as it is, this default of the active object's leaves the others theirs.
+            self.uv_map = self._filled_uv_map = api.read_bpy.check_object(objects[0]).name
         for option in SCHEMA:  # the dialog's toggles decide, whatever values a last run left
             if option.automatic:
                 setattr(self, _automatic_name(option), getattr(self, _automatic_name(option)))

@@ -91,8 +91,9 @@ def check_object(obj, uv_map: Optional[str] = None):
 
 def _default_layer(obj):
     """The UV map a job reads when none is named: the active one, unless the
-    image maps read none through it and another map's (a UV Map node naming
-    it): then the first such map in the mesh's order."""
+    image maps read none through it but read another (named by a UV Map
+    node, or the render-active map): then the first such map in the mesh's
+    order."""
     me = obj.data
     active = me.uv_layers.active or me.uv_layers[0]
     read = _maps_read_by_images(obj, _render_uv_name(me))
@@ -103,12 +104,15 @@ def _default_layer(obj):
 
 def _maps_read_by_images(obj, render_uv: str) -> set:
     """Names of the UV maps that the Image Texture nodes of obj's materials
-    read as plain UV lookups feeding a shader."""
+    read as plain UV lookups (flat projection) feeding a shader: named by a
+    UV Map node, or the render-active map for nodes with no coordinates
+    linked."""
     found = set()
     for mat in {s.material for s in obj.material_slots if s.material is not None}:
         tree = compat.node_tree(mat)
         for node in tree.nodes if tree is not None else ():
-            if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and not node.mute:
+            if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and not node.mute \
+                    and node.projection == "FLAT":
                 kind, uv_name = _vector_source(node, render_uv)
                 if kind != "other" and _downstream_roles(node)[0]:
                     found.add(uv_name)
@@ -145,7 +149,8 @@ def _no_texture_message(obj, uv_name: str, warnings: List[str]) -> str:
                       for s in obj.material_slots for group, node in _grouped_images(s.material)})
     hint = (f" (image {', '.join(grouped)}: only Image Texture nodes at a material's top level are rebuilt; "
             "ungroup them, Ctrl+Alt+G, to have them rebuilt)" if grouped else "")
-    elsewhere = [f"'{m}'" for m in sorted(_maps_read_by_images(obj, _render_uv_name(obj.data)) - {uv_name})]
+    maps = {layer.name for layer in obj.data.uv_layers} - {uv_name}
+    elsewhere = [f"'{m}'" for m in sorted(_maps_read_by_images(obj, _render_uv_name(obj.data)) & maps)]
     if elsewhere:
         hint += f" (the image maps read UV map {', '.join(elsewhere)}: choose it as the UV map to defragment)"
     if warnings:  # it has image nodes, none the job can follow

@@ -194,6 +194,25 @@ def driver():
     except Exception:
         done("redo_run_again", False, traceback.format_exc())
 
+    # 6. The dialog fills its UV Map field with the active object's default map, here one its image reads
+    # through a UV Map node; kept as it is, the other selected object lays out its own default map, not a
+    # map of that name it happens to have.
+    try:
+        for obj in list(bpy.data.objects):
+            bpy.data.objects.remove(obj)
+        win, override = ctx()
+        with override:
+            first, second, scan, own = S.planes_reading_their_own_maps()
+        OUTCOME["status"] = None
+        yield from confirm_dialog(win, override)
+        yield from wait_outcome(ARGS.timeout)
+        assert OUTCOME["status"] == "finished", OUTCOME
+        maps = [[m.name for m in o.data.uv_layers] for o in (first, second)]
+        assert maps[0][0] == f"{scan}_defrag" and maps[1][0] == f"{own}_defrag", maps
+        done("dialog_default_maps", True, {"maps": maps})
+    except Exception:
+        done("dialog_default_maps", False, traceback.format_exc())
+
 
 GEN = None
 

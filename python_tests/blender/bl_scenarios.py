@@ -853,19 +853,33 @@ def linked_duplicate_with_its_own_material_is_named(pkg):
     assert {H.vector_uv_map(n) for n in H.image_nodes(own)} <= {None, "UVMap"}, H.tree_state(own)
 
 
+def planes_reading_their_own_maps():
+    """Two selected planes with two UV maps each, the first active: the
+    first's image reads its second map (a UV Map node names it), the
+    second's its render-active first map. Returns (first, second, the map
+    the first's image reads, the map the second's reads)."""
+    first, second = H.textured_plane(name="First", uv_maps=2), H.textured_plane(name="Second", uv_maps=2)
+    for obj in (first, second):
+        obj.data.uv_layers.active = obj.data.uv_layers[0]
+    scan, own = first.data.uv_layers[1].name, second.data.uv_layers[0].name
+    mat = first.material_slots[0].material
+    node = mat.node_tree.nodes.new("ShaderNodeUVMap")
+    node.uv_map = scan
+    mat.node_tree.links.new(node.outputs["UV"], H.image_nodes(mat)[0].inputs["Vector"])
+    H.make_active(first)
+    second.select_set(True)
+    return first, second, scan, own
+
+
 def an_image_reading_another_map_decides_the_default_map(pkg):
     """The image reads a map that is not the active one, through a UV Map
     node: with no map named, the job (and the dialog's default) takes that
     map; the active map named instead is refused with the map the image
     reads in the message."""
     H.reset()
-    obj = H.textured_plane(name="Scanned", uv_maps=2)
-    me, tree = obj.data, obj.material_slots[0].material.node_tree
-    scan = me.uv_layers[1].name
-    me.uv_layers.active = me.uv_layers[0]
-    node = tree.nodes.new("ShaderNodeUVMap")
-    node.uv_map = scan
-    tree.links.new(node.outputs["UV"], next(iter(H.image_nodes(obj.material_slots[0].material))).inputs["Vector"])
+    obj, _, scan, _ = planes_reading_their_own_maps()
+    H.make_active(obj)
+    me = obj.data
     assert pkg.read_bpy.check_object(obj).name == scan
     error = _report_error(pkg, lambda: pkg.read_bpy.check_textures(obj, me.uv_layers[0].name))
     assert f"read UV map '{scan}'" in error, error

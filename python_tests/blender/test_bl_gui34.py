@@ -34,7 +34,7 @@ def gui_result(tmp_path_factory):
 
 
 @pytest.mark.parametrize("step", ["modal_run_and_undo", "escape_cancels", "dialog_run", "modal_one_atlas",
-                                  "redo_run_again"])
+                                  "redo_run_again", "dialog_default_maps"])
 def test_gui(gui_result, step):
     assert gui_result.get("background") is False, gui_result["log"]
     res = gui_result["steps"].get(step)
