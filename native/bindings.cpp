@@ -463,6 +463,8 @@ py::dict read_obj_py(const std::string& path) {
   out["texcoords"] = rows_array(f.texcoords);
   out["triangles"] = rows_array(f.triangles);
   out["texcoord_index"] = rows_array(f.texcoord_index);
+  out["normals"] = rows_array(f.normals);
+  out["normal_index"] = rows_array(f.normal_index);
   out["face_material"] = py::array_t<int>(f.face_material.size(), f.face_material.data());
   out["materials"] = file_names(f.materials);
   out["material_libraries"] = file_names(f.material_libraries);
@@ -470,9 +472,31 @@ py::dict read_obj_py(const std::string& path) {
   return out;
 }
 
+// The corner normals write_obj takes: both None, or normals (N, 3) and
+// normal_index (F, 3) with -1 for a corner without one.
+obj::CornerNormals corner_normals(const py::object& normals, const py::object& normal_index, py::ssize_t faces) {
+  if (normals.is_none() != normal_index.is_none())
+    throw py::value_error("write_obj: give normals and normal_index together");
+  obj::CornerNormals out;
+  if (normals.is_none()) return out;
+  const auto n = checked<double>(normals, "normals", {3}, "(N, 3)");
+  const auto i = checked<long long>(normal_index, "normal_index", {3}, "(F, 3)");
+  if (i.shape(0) != faces) throw py::value_error("write_obj: normal_index must hold one row per face");
+  out.normals = to_matrix<RowMatrixX3d>(n, n.shape(0), 3);
+  out.normal_index.resize(faces, 3);
+  for (py::ssize_t f = 0; f < faces; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const long long v = i.data()[3 * f + k];
+      if (v < -1 || v >= n.shape(0)) throw py::value_error("write_obj: normal_index refers to no normal");
+      out.normal_index(f, k) = static_cast<int>(v);
+    }
+  return out;
+}
+
 void write_obj_py(const std::string& path, const std::string& library, const py::object& positions,
                   const py::object& triangles, const py::object& uvs, const py::object& face_material,
-                  const std::vector<std::string>& materials) {
+                  const std::vector<std::string>& materials, const py::object& normals,
+                  const py::object& normal_index) {
   require_no_nul(path);
   const auto p = checked<double>(positions, "positions", {3}, "(V, 3)");
   const RowMatrixX3i faces = triangle_indices(triangles, p.shape(0));
@@ -481,8 +505,9 @@ void write_obj_py(const std::string& path, const std::string& library, const py:
   const RowMatrixX3d points = to_matrix<RowMatrixX3d>(p, p.shape(0), 3);
   const RowMatrixX2d corner_uv = to_matrix<RowMatrixX2d>(u, 3 * u.shape(0), 2);
   const Eigen::VectorXi material = int_values(m, "face_material");
+  const obj::CornerNormals shading = corner_normals(normals, normal_index, faces.rows());
   py::gil_scoped_release release;
-  obj::write_obj(path, library, points, faces, corner_uv, material, materials);
+  obj::write_obj(path, library, points, faces, corner_uv, material, materials, shading);
 }
 
 // A flat, contiguous byte buffer, exported for as long as this lives: while
@@ -927,6 +952,7 @@ as bake.)");
   m.def("read_obj", &read_obj_py, py::arg("path"),
         R"(Reads a Wavefront OBJ file: dict(positions (V,3) float64, texcoords (T,2) float64,
 triangles (F,3) int32 0-based, texcoord_index (F,3) int32 (-1 on a face without UVs),
+normals (N,3) float64, normal_index (F,3) int32 (-1 on a face without normals),
 face_material (F,) int32 into materials (-1: none), materials (usemtl names),
 material_libraries (mtllib names), vertex_colours (bool: a v line has r g b)). Names
 are decoded as file names are (os.fsdecode). Convex polygons are fan-triangulated, others
@@ -935,9 +961,12 @@ when the file cannot be read.)");
 
   m.def("write_obj", &write_obj_py, py::arg("path"), py::arg("library"), py::arg("positions"),
         py::arg("triangles"), py::arg("uvs"), py::arg("face_material"), py::arg("materials"),
+        py::arg("normals") = py::none(), py::arg("normal_index") = py::none(),
         R"(Writes a Wavefront OBJ file: `mtllib library`, positions (V,3), one vt per face corner
-of uvs (F,3,2), and faces grouped by face_material (F,) in ascending order, each group
-after `usemtl materials[m]`. Positions exactly (shortest round trip), UVs as %.9g.)");
+of uvs (F,3,2), the normals (N,3) if given (a face names them through normal_index (F,3)
+unless a corner of it has -1), and faces grouped by face_material (F,) in ascending order,
+each group after `usemtl materials[m]`. Positions and normals exactly (shortest round
+trip), UVs as %.9g.)");
 
   m.def("png_pixels", &png_pixels_py, py::arg("idat"), py::arg("width"), py::arg("height"),
         py::arg("channels"),

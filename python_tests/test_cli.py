@@ -45,6 +45,8 @@ def test_cli_output_loads_back_flip_free_with_the_colours_kept(native, scans, sc
     m = native.measure(scan.positions, scan.triangles, scan.uvs, scan.face_page, scan.page_sizes,
                        written.uvs, written.face_page, written.page_sizes)
     assert m["new"]["flipped_faces"] == 0 and m["new"]["overlap_texels"] == 0
+    # Every corner keeps the shading normal it was read with (the faces are grouped by page when written).
+    assert np.array_equal(written.normals[written.normal_index], scan.normals[scan.normal_index])
     # Through the PNG files: rows upside down or channels mixed would not pass.
     old = [np.ascontiguousarray(scan_io.load_image(p)[:, :, :3]) for p in scan.page_images]
     new = [np.ascontiguousarray(scan_io.load_image(p)[:, :, :3]) for p in written.page_images]
@@ -64,6 +66,26 @@ def test_obj_reader_triangulates_polygons_and_resolves_relative_indices(native, 
     assert obj["face_material"].tolist() == [0, 0, 1, 1]
     assert obj["materials"] == ["first", "second one"] and obj["material_libraries"] == ["a b.mtl"]
     assert obj["positions"].shape == (4, 3) and obj["texcoords"][2].tolist() == [1.0, 1.0]
+    assert obj["normals"].shape == (0, 3) and (obj["normal_index"] == -1).all()
+
+
+def test_obj_normals_are_read_per_corner_and_written_back(native, tmp_path):
+    """vn lines are kept through triangulation (a face missing one on any
+    corner has none) and written back exactly, each face naming its own."""
+    path = tmp_path / "shaded.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nvn 0.1 0.2 0.9746794344808963\n"
+                    "f 1/1/1 2/1/2 3/1/1 4/1/2\nf 1//2 3//1 4\n")
+    obj = native.read_obj(str(path))
+    assert obj["normal_index"].tolist() == [[0, 1, 0], [0, 0, 1], [-1, -1, -1]]
+    out = tmp_path / "out.obj"
+    native.write_obj(str(out), "out.mtl", obj["positions"], obj["triangles"], np.zeros((3, 3, 2)),
+                     np.zeros(3, np.int64), ["m"], obj["normals"], obj["normal_index"])
+    back = native.read_obj(str(out))
+    assert np.array_equal(back["normals"], obj["normals"])
+    assert np.array_equal(back["normal_index"], obj["normal_index"])
+    with pytest.raises(ValueError, match="together"):
+        native.write_obj(str(out), "out.mtl", obj["positions"], obj["triangles"], np.zeros((3, 3, 2)),
+                         np.zeros(3, np.int64), ["m"], obj["normals"], None)
 
 
 def test_obj_reader_clips_a_concave_polygon_into_ears(native, tmp_path):
@@ -157,6 +179,32 @@ def _one_triangle_gltf(tmp_path, name, **changes):
     path = tmp_path / name
     path.write_text(json.dumps(gltf))
     return path
+
+
+def test_gltf_normals_turn_with_their_node(tmp_path):
+    """NORMALs go into the scene's frame by the inverse transpose of the
+    node's matrix, unit again: under a shear they stay perpendicular to the
+    triangle."""
+    import base64
+
+    import scan_io
+
+    data = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, 1], [0, 0, 1]], np.float32).tobytes()
+    uri = "data:application/octet-stream;base64," + base64.b64encode(data).decode()
+    shear = [1, 0, 0, 0, 0.5, 2, 0, 0, 0, 0, 3, 0, 0, 0, 0, 1]  # column-major: y -> (0.5, 2, 0), z scaled 3
+    path = _one_triangle_gltf(
+        tmp_path, "sheared.gltf", nodes=[{"mesh": 0, "matrix": shear}],
+        meshes=[{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}}]}],
+        accessors=[{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+                   {"bufferView": 0, "byteOffset": 36, "componentType": 5126, "count": 3, "type": "VEC3"}],
+        bufferViews=[{"buffer": 0, "byteLength": len(data)}], buffers=[{"byteLength": len(data), "uri": uri}])
+    scan = scan_io.load(path)
+    p = scan.positions[scan.triangles[0]]
+    n = scan.normals[scan.normal_index[0]]
+    assert np.allclose(np.linalg.norm(n, axis=1), 1)
+    assert np.allclose(n @ (p[1] - p[0]), 0) and np.allclose(n @ (p[2] - p[0]), 0)
+    assert (n @ np.cross(p[1] - p[0], p[2] - p[0]) > 0).all()  # still on the front side
+    assert _one_triangle_gltf(tmp_path, "bare.gltf").exists() and scan_io.load(tmp_path / "bare.gltf").normals is None
 
 
 def test_gltf_without_scenes_walks_its_node_trees_from_their_roots(tmp_path):

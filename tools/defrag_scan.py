@@ -67,7 +67,7 @@ def write_obj(path: Path, scan, uvs: np.ndarray, face_page: np.ndarray, maps: li
         pngs = pool.submit(png_files.write_pngs, images)
         # Material 0 is "untextured" (page -1), material p + 1 is page p.
         _native.write_obj(str(path), f"{stem}.mtl", scan.positions, scan.triangles, uvs, face_page + 1,
-                          ["untextured"] + [f"page{p}" for p in range(len(maps))])
+                          ["untextured"] + [f"page{p}" for p in range(len(maps))], scan.normals, scan.normal_index)
         pngs.result()
     return unnamed
 

@@ -36,6 +36,11 @@ class Scan:
     # several nodes is read once per node; its later instances repeat the
     # first, whose UVs they share in the file and so must share in the output.
     corner_source: np.ndarray = None
+    # Shading normals, written back as read (the job moves no vertex):
+    # normal_index (F, 3) rows into normals (N, 3), -1 on a face without
+    # them; both None when the scan has none.
+    normals: np.ndarray = None
+    normal_index: np.ndarray = None
 
     def instances_repeated(self) -> int:
         """How many faces repeat another's UVs (later instances of a mesh)."""
@@ -330,9 +335,11 @@ def load_obj(path: Path) -> Scan:
     face_page = np.where(has_uv, material_page[obj["face_material"]], -1).astype(np.int32)
     bases = [page["base_color"] for page in pages]
     sizes = np.array([_decodable_size(p, p.name) for p in bases], dtype=np.int32).reshape(-1, 2)
+    shaded = len(obj["normals"]) > 0
     return Scan(obj["positions"], tris, uvs, face_page, sizes, bases, pages,
                 files=[path] + libraries + [p for page in pages for p in page.values()],
-                warnings=warnings)
+                warnings=warnings, normals=obj["normals"] if shaded else None,
+                normal_index=obj["normal_index"] if shaded else None)
 
 
 def _clamp_warning(material: str, how: str, corners: np.ndarray) -> list:
@@ -690,7 +697,7 @@ def _page_key(gltf: dict, material: dict) -> tuple:
 
 def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
     """The scan, or None when no node holds a triangle primitive."""
-    positions, tris, uvs, face_page = [], [], [], []
+    positions, tris, uvs, face_page, normals, normal_index = [], [], [], [], [], []
     page_of, maps, names, sources, warnings = {}, [], [], [], set()
     first_corners = {}  # mesh index -> (corners of its first instance, whether that one mirrors)
     base = faces = 0
@@ -723,6 +730,9 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
                     page = page_of[key]
             else:
                 uvs.append(np.zeros((len(idx), 3, 2)))
+            shading = _world_normals(gltf, buffers, prim, world)
+            normals.append(shading if shading is not None else np.zeros((len(pos), 3)))
+            normal_index.append(idx + base if shading is not None else np.full(idx.shape, -1))
             positions.append(pos)
             tris.append(idx + base)
             face_page.append(np.full(len(idx), page, dtype=np.int32))
@@ -733,9 +743,23 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
         return None
     pages = [m["base_color"] for m in maps]
     sizes = np.array([_decodable_size(p, name) for p, name in zip(pages, names)], dtype=np.int32).reshape(-1, 2)
+    shaded = np.concatenate(normal_index).astype(np.int32)
     return Scan(np.concatenate(positions), np.concatenate(tris).astype(np.int32), np.concatenate(uvs),
                 np.concatenate(face_page), sizes, pages, maps, corner_source=np.concatenate(sources),
-                warnings=sorted(warnings))
+                warnings=sorted(warnings), normals=np.concatenate(normals) if (shaded >= 0).any() else None,
+                normal_index=shaded if (shaded >= 0).any() else None)
+
+
+def _world_normals(gltf: dict, buffers: list, prim: dict, world: np.ndarray):
+    """The primitive's NORMALs (V, 3) in the scene's frame, turned by the
+    inverse transpose of the node's matrix and made unit again; None when it
+    has none."""
+    if "NORMAL" not in prim["attributes"] or np.linalg.det(world[:3, :3]) == 0:
+        return None  # a node scaled flat has no normals to turn
+    normals = _accessor(gltf, buffers, prim["attributes"]["NORMAL"]).astype(np.float64)
+    turned = normals @ np.linalg.inv(world[:3, :3])  # (M^-T n)^T = n^T M^-1
+    length = np.linalg.norm(turned, axis=1, keepdims=True)
+    return np.divide(turned, length, out=np.zeros_like(turned), where=length > 0)
 
 
 _REPEAT = 10497

@@ -109,9 +109,10 @@ int element_index(std::string_view token, int count, const char* what, const Wor
 
 // What the parser gathers before the arrays are built.
 struct Lists {
-  std::vector<double> positions, texcoords;
-  std::vector<int> corners, corner_texcoords, face_material;
-  std::vector<int> face_vertices, face_texcoords;  // of the face being read, kept to spare an allocation per face
+  std::vector<double> positions, texcoords, normals;
+  std::vector<int> corners, corner_texcoords, corner_normals, face_material;
+  // Of the face being read, kept to spare an allocation per face.
+  std::vector<int> face_vertices, face_texcoords, face_normals;
   std::unordered_map<std::string, int> material_of;
   int material = -1;
   ObjFile out;
@@ -158,22 +159,30 @@ std::vector<Eigen::Vector3i> polygon_triangles(const std::vector<double>& positi
 void read_face(Words& words, Lists& lists) {
   std::vector<int>& vertex = lists.face_vertices;
   std::vector<int>& texcoord = lists.face_texcoords;
-  vertex.clear(), texcoord.clear();
-  bool textured = true;
+  std::vector<int>& normal = lists.face_normals;
+  vertex.clear(), texcoord.clear(), normal.clear();
+  bool textured = true, shaded = true;
   const int vertices = static_cast<int>(lists.positions.size() / 3);
   const int texcoords = static_cast<int>(lists.texcoords.size() / 2);
+  const int normals = static_cast<int>(lists.normals.size() / 3);
   for (std::string_view corner = words.next(); !corner.empty(); corner = words.next()) {
     const size_t slash = corner.find('/');
     vertex.push_back(element_index(corner.substr(0, slash), vertices, "vertex", words));
-    std::string_view uv = slash == std::string_view::npos ? std::string_view() : corner.substr(slash + 1);
-    uv = uv.substr(0, uv.find('/'));
+    const std::string_view rest = slash == std::string_view::npos ? std::string_view() : corner.substr(slash + 1);
+    const size_t second = rest.find('/');
+    const std::string_view uv = rest.substr(0, second);
+    const std::string_view n = second == std::string_view::npos ? std::string_view() : rest.substr(second + 1);
     if (uv.empty()) textured = false;
     else texcoord.push_back(element_index(uv, texcoords, "texture coordinate", words));
+    // A file without vn lines names no normal, whatever its faces say.
+    if (n.empty() || normals == 0) shaded = false;
+    else normal.push_back(element_index(n, normals, "normal", words));
   }
   auto add = [&](const Eigen::Vector3i& triangle) {
     for (const int k : triangle) {
       lists.corners.push_back(vertex[k]);
       lists.corner_texcoords.push_back(textured ? texcoord[k] : -1);
+      lists.corner_normals.push_back(shaded ? normal[k] : -1);
     }
     lists.face_material.push_back(lists.material);
   };
@@ -189,6 +198,8 @@ void read_line(std::string_view line, int number, Lists& lists) {
   if (keyword == "v") {
     for (int k = 0; k < 3; ++k) lists.positions.push_back(words.number());
     lists.out.vertex_colours |= !words.next().empty() && !words.next().empty();  // x y z r g b, not x y z w
+  } else if (keyword == "vn") {
+    for (int k = 0; k < 3; ++k) lists.normals.push_back(words.number());
   } else if (keyword == "vt") {
     lists.texcoords.push_back(words.number());
     lists.texcoords.push_back(words.number_or(0.0));
@@ -334,6 +345,8 @@ ObjFile read_obj(const std::string& path) {
   out.texcoords = rows_of<RowMatrixX2d>(lists.texcoords);
   out.triangles = rows_of<RowMatrixX3i>(lists.corners);
   out.texcoord_index = rows_of<RowMatrixX3i>(lists.corner_texcoords);
+  out.normals = rows_of<RowMatrixX3d>(lists.normals);
+  out.normal_index = rows_of<RowMatrixX3i>(lists.corner_normals);
   out.face_material = Eigen::Map<const Eigen::VectorXi>(lists.face_material.data(),
                                                         static_cast<Eigen::Index>(lists.face_material.size()));
   return std::move(out);
@@ -341,11 +354,17 @@ ObjFile read_obj(const std::string& path) {
 
 void write_obj(const std::string& path, const std::string& library, const RowMatrixX3d& positions,
                const RowMatrixX3i& triangles, const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_material,
-               const std::vector<std::string>& materials) {
+               const std::vector<std::string>& materials, const CornerNormals& normals) {
   if (corner_uv.rows() != 3 * triangles.rows() || face_material.size() != triangles.rows())
     throw InputError("write_obj: corner_uv must hold 3 rows and face_material 1 entry per face");
   if (triangles.size() && (triangles.minCoeff() < 0 || triangles.maxCoeff() >= positions.rows()))
     throw InputError("write_obj: triangles refer to vertices that do not exist");
+  const RowMatrixX3i& normal = normals.normal_index;
+  const bool shaded = normal.rows() > 0;
+  if (shaded && normal.rows() != triangles.rows())
+    throw InputError("write_obj: normal_index must hold one row per face");
+  if (shaded && (normal.minCoeff() < -1 || normal.maxCoeff() >= normals.normals.rows()))
+    throw InputError("write_obj: normal_index refers to normals that do not exist");
   std::vector<std::vector<int>> faces_of(materials.size());
   for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
     if (face_material[f] < 0 || face_material[f] >= static_cast<int>(materials.size()))
@@ -358,13 +377,20 @@ void write_obj(const std::string& path, const std::string& library, const RowMat
     out.text("v ").exact(positions(v, 0)).text(" ").exact(positions(v, 1)).text(" ").exact(positions(v, 2)).text("\n");
   for (Eigen::Index c = 0; c < corner_uv.rows(); ++c)
     out.text("vt ").number(corner_uv(c, 0)).text(" ").number(corner_uv(c, 1)).text("\n");
+  for (Eigen::Index n = 0; shaded && n < normals.normals.rows(); ++n) {
+    const auto row = normals.normals.row(n);
+    out.text("vn ").exact(row(0)).text(" ").exact(row(1)).text(" ").exact(row(2)).text("\n");
+  }
   for (size_t m = 0; m < materials.size(); ++m) {
     if (faces_of[m].empty()) continue;
     out.text("usemtl ").text(materials[m]).text("\n");
     for (const int f : faces_of[m]) {
       out.text("f");
-      for (int k = 0; k < 3; ++k)  // 1-based; corner k of face f is texcoord 3f + k
+      const bool with_normals = shaded && normal.row(f).minCoeff() >= 0;
+      for (int k = 0; k < 3; ++k) {  // 1-based; corner k of face f is texcoord 3f + k
         out.text(" ").integer(triangles(f, k) + 1).text("/").integer(3LL * f + k + 1);
+        if (with_normals) out.text("/").integer(normal(f, k) + 1);
+      }
       out.text("\n");
     }
   }

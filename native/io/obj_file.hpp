@@ -1,7 +1,8 @@
 // Wavefront OBJ geometry as plain arrays, read and written for the
 // command-line entry (the add-on goes through Blender). Only what a textured scan needs:
-// positions, texture coordinates, faces (triangulated) and the material
-// each face uses; normals, groups, lines and points are skipped.
+// positions, texture coordinates, normals (the job moves no vertex, so they
+// are written back as read), faces (triangulated) and the material each face
+// uses; groups, lines and points are skipped.
 #pragma once
 #include <cerrno>
 #include <stdexcept>
@@ -28,6 +29,8 @@ struct ObjFile {
   RowMatrixX3i triangles;                      // F x 3, 0-based vertex of each corner
   RowMatrixX3i texcoord_index;                 // F x 3, 0-based texcoord of each corner; -1 on all three
                                                // corners of a face that lacks one on any corner
+  RowMatrixX3d normals;                        // N x 3, the x y z of each `vn` line
+  RowMatrixX3i normal_index;                   // F x 3, 0-based normal of each corner; -1 as texcoord_index
   Eigen::VectorXi face_material;               // F, index into materials; -1 before the first usemtl
   std::vector<std::string> materials;          // usemtl names, in order of first use
   std::vector<std::string> material_libraries; // mtllib arguments, in file order
@@ -47,14 +50,23 @@ struct ObjFile {
 // be opened or read.
 ObjFile read_obj(const std::string& path);
 
-// Writes positions (V x 3), one `vt` per face corner (corner_uv, 3F x 2) and
-// the faces, grouped by material in ascending order, each group after
-// `usemtl materials[m]` (face_material, F, indexes materials), after a line
-// `mtllib library`. Positions are written exactly (the shortest digits that
-// read back as the same double), UVs with 9 significant digits (%.9g, what
-// a float32 holds). Throws FileError if the file cannot be written.
+// Normals of the corners of a mesh: normal_index (F x 3) rows into normals
+// (N x 3), -1 for a corner without one; both empty: no normals.
+struct CornerNormals {
+  RowMatrixX3d normals;
+  RowMatrixX3i normal_index;
+};
+
+// Writes positions (V x 3), one `vt` per face corner (corner_uv, 3F x 2), the
+// normals (`vn`, each corner naming its own; a face with a corner
+// without one names none) and the faces, grouped by material in ascending
+// order, each group after `usemtl materials[m]` (face_material, F, indexes
+// materials), after a line `mtllib library`. Positions and normals are
+// written exactly (the shortest digits that read back as the same double),
+// UVs with 9 significant digits (%.9g, what a float32 holds). Throws
+// FileError if the file cannot be written.
 void write_obj(const std::string& path, const std::string& library, const RowMatrixX3d& positions,
                const RowMatrixX3i& triangles, const RowMatrixX2d& corner_uv, const Eigen::VectorXi& face_material,
-               const std::vector<std::string>& materials);
+               const std::vector<std::string>& materials, const CornerNormals& normals = {});
 
 }  // namespace atlas::obj
