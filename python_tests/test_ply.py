@@ -323,3 +323,18 @@ def test_a_texture_name_in_latin1_finds_the_file_of_those_bytes(tmp_path):
     found, per_face, missing = ply_io.face_textures(mesh, str(tmp_path))
     assert [os.fsencode(Path(f).name) for f in found] == [b"caf\xe9.png", "caf\u00e9 2.png".encode()], found
     assert missing == [] and per_face.tolist() == [0, 1]
+
+
+def test_vertex_normals_are_kept_for_the_command_line(tmp_path):
+    """nx ny nz of the vertices reach the scan as corner normals, which the
+    command line writes back; a file without them has none."""
+    import scan_io
+
+    head = _header("ascii", 3, 1, ["float x", "float y", "float z", "float nx", "float ny", "float nz",
+                                   "float s", "float t"], ["list uchar int vertex_indices"], [])
+    rows = b"0 0 0 0 0 1 0 0\n1 0 0 0 0.6 0.8 1 0\n0 1 0 0 0 1 0 1\n3 0 1 2\n"
+    (tmp_path / "shaded.ply").write_bytes(head + rows)
+    scan = scan_io.load(tmp_path / "shaded.ply")
+    assert scan.normals[scan.normal_index[0]].tolist() == [[0, 0, 1], [0, 0.6, 0.8], [0, 0, 1]]
+    (tmp_path / "square.ply").write_bytes(_coloured_square("ascii"))
+    assert scan_io.load(tmp_path / "square.ply").normals is None

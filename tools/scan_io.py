@@ -368,8 +368,10 @@ def load_ply(path: Path) -> Scan:
     warnings = [f"texture {name} not found: its faces are left untextured" for name in missing] + mesh.notes
     if mesh.colours is not None:
         warnings.append(_VERTEX_COLOURS)
-    return Scan(mesh.positions, mesh.triangles.astype(np.int32), uvs, face_page, sizes, pages,
-                [{"base_color": p} for p in pages], files=[path] + pages, warnings=warnings)
+    triangles = mesh.triangles.astype(np.int32)
+    return Scan(mesh.positions, triangles, uvs, face_page, sizes, pages, [{"base_color": p} for p in pages],
+                files=[path] + pages, warnings=warnings, normals=mesh.normals,
+                normal_index=triangles if mesh.normals is not None else None)
 
 
 # ---- glTF and GLB -----------------------------------------------------------

@@ -53,6 +53,7 @@ class PlyMesh:
     textures: list            # file names from the header, as written
     colours: np.ndarray = None  # (V, 4) float32 sRGB in 0..1 (alpha 1 when absent); None: no vertex colours
     notes: list = field(default_factory=list)  # faces left untextured by what the file says, in words
+    normals: np.ndarray = None  # (V, 3) float64, the vertices' nx ny nz; None when the file has none
 
 
 def _type(name: str) -> str:
@@ -405,7 +406,9 @@ def read(data: bytes) -> PlyMesh:
     if uvs is not None and not np.isfinite(uvs).all():
         raise ValueError("a texture coordinate is not a finite number (NaN or infinity)")
     types = {p.name: p.type for e in elements if e.name == "vertex" for p in e.properties}
-    return PlyMesh(positions, triangles, uvs, texnumber, textures, _vertex_colours(vertex, types), notes)
+    normals = np.stack([vertex[c] for c in ("nx", "ny", "nz")], axis=1).astype(np.float64) \
+        if all(c in vertex for c in ("nx", "ny", "nz")) else None
+    return PlyMesh(positions, triangles, uvs, texnumber, textures, _vertex_colours(vertex, types), notes, normals)
 
 
 def _texnumber_notes(texnumber: np.ndarray, texture_count: int) -> list:
