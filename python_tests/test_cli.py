@@ -74,9 +74,10 @@ def test_obj_normals_are_read_per_corner_and_written_back(native, tmp_path):
     corner has none) and written back exactly, each face naming its own."""
     path = tmp_path / "shaded.obj"
     path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nvn 0.1 0.2 0.9746794344808963\n"
-                    "f 1/1/1 2/1/2 3/1/1 4/1/2\nf 1//2 3//1 4\n")
-    obj = native.read_obj(str(path))
-    assert obj["normal_index"].tolist() == [[0, 1, 0], [0, 0, 1], [-1, -1, -1]]
+                    "f 1/1/1 2/1/2 3/1/1 4/1/2\nf 1//2 3//1 4\nf 1//3 2//1 3//1\nvn 0 1 0\n")
+    obj = native.read_obj(str(path))  # the last face names a normal defined only after it: none
+    assert obj["normal_index"].tolist() == [[0, 1, 0], [0, 0, 1], [-1, -1, -1], [-1, -1, -1]]
+    obj["triangles"], obj["normal_index"] = obj["triangles"][:3], obj["normal_index"][:3]
     out = tmp_path / "out.obj"
     native.write_obj(str(out), "out.mtl", obj["positions"], obj["triangles"], np.zeros((3, 3, 2)),
                      np.zeros(3, np.int64), ["m"], obj["normals"], obj["normal_index"])
@@ -205,6 +206,13 @@ def test_gltf_normals_turn_with_their_node(tmp_path):
     assert np.allclose(n @ (p[1] - p[0]), 0) and np.allclose(n @ (p[2] - p[0]), 0)
     assert (n @ np.cross(p[1] - p[0], p[2] - p[0]) > 0).all()  # still on the front side
     assert _one_triangle_gltf(tmp_path, "bare.gltf").exists() and scan_io.load(tmp_path / "bare.gltf").normals is None
+    short = _one_triangle_gltf(
+        tmp_path, "short.gltf", meshes=[{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}}]}],
+        accessors=[{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+                   {"bufferView": 0, "byteOffset": 36, "componentType": 5126, "count": 2, "type": "VEC3"}],
+        bufferViews=[{"buffer": 0, "byteLength": len(data)}], buffers=[{"byteLength": len(data), "uri": uri}])
+    with pytest.raises(ValueError, match="2 NORMALs for 3 POSITIONs"):
+        scan_io.load(short)
 
 
 def test_gltf_without_scenes_walks_its_node_trees_from_their_roots(tmp_path):

@@ -759,6 +759,9 @@ def _world_normals(gltf: dict, buffers: list, prim: dict, world: np.ndarray):
     if "NORMAL" not in prim["attributes"] or np.linalg.det(world[:3, :3]) == 0:
         return None  # a node scaled flat has no normals to turn
     normals = _accessor(gltf, buffers, prim["attributes"]["NORMAL"]).astype(np.float64)
+    count = _item(gltf["accessors"], prim["attributes"]["POSITION"], "accessor")["count"]
+    if len(normals) != count:
+        raise ValueError(f"a primitive has {len(normals)} NORMALs for {count} POSITIONs (glTF asks as many)")
     turned = normals @ np.linalg.inv(world[:3, :3])  # (M^-T n)^T = n^T M^-1
     length = np.linalg.norm(turned, axis=1, keepdims=True)
     return np.divide(turned, length, out=np.zeros_like(turned), where=length > 0)

@@ -406,8 +406,9 @@ def read(data: bytes) -> PlyMesh:
     if uvs is not None and not np.isfinite(uvs).all():
         raise ValueError("a texture coordinate is not a finite number (NaN or infinity)")
     types = {p.name: p.type for e in elements if e.name == "vertex" for p in e.properties}
-    normals = np.stack([vertex[c] for c in ("nx", "ny", "nz")], axis=1).astype(np.float64) \
-        if all(c in vertex for c in ("nx", "ny", "nz")) else None
+    normal = [vertex.get(c) for c in ("nx", "ny", "nz")]  # lists there are no normals: left out
+    normals = np.stack(normal, axis=1).astype(np.float64) \
+        if all(isinstance(c, np.ndarray) for c in normal) else None
     return PlyMesh(positions, triangles, uvs, texnumber, textures, _vertex_colours(vertex, types), notes, normals)
 
 

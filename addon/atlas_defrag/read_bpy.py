@@ -92,30 +92,32 @@ def check_object(obj, uv_map: Optional[str] = None):
 def _default_layer(obj):
     """The UV map a job reads when none is named: the active one, unless the
     image maps read none through it but read another (named by a UV Map
-    node, or the render-active map): then the first such map in the mesh's
-    order."""
+    node, or the render-active map): then the one the base colour reads,
+    else the first such map in the mesh's order."""
     me = obj.data
     active = me.uv_layers.active or me.uv_layers[0]
     read = _maps_read_by_images(obj, _render_uv_name(me))
     if active.name in read:
         return active
-    return next((layer for layer in me.uv_layers if layer.name in read), active)
+    readers = [layer for layer in me.uv_layers if layer.name in read]
+    return next((layer for layer in readers if "base_color" in read[layer.name]), readers[0] if readers else active)
 
 
-def _maps_read_by_images(obj, render_uv: str) -> set:
-    """Names of the UV maps that the Image Texture nodes of obj's materials
-    read as plain UV lookups (flat projection) feeding a shader: named by a
-    UV Map node, or the render-active map for nodes with no coordinates
-    linked."""
-    found = set()
+def _maps_read_by_images(obj, render_uv: str) -> Dict[str, set]:
+    """The UV maps that the Image Texture nodes of obj's materials read as
+    plain UV lookups (flat projection) feeding a shader (named by a UV Map
+    node, or the render-active map for nodes with no coordinates linked),
+    each with the roles its images feed."""
+    found: Dict[str, set] = {}
     for mat in {s.material for s in obj.material_slots if s.material is not None}:
         tree = compat.node_tree(mat)
         for node in tree.nodes if tree is not None else ():
             if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and not node.mute \
                     and node.projection == "FLAT":
                 kind, uv_name = _vector_source(node, render_uv)
-                if kind != "other" and _downstream_roles(node)[0]:
-                    found.add(uv_name)
+                roles = _downstream_roles(node)[0]
+                if kind != "other" and roles:
+                    found.setdefault(uv_name, set()).update(roles)
     return found
 
 
@@ -149,10 +151,13 @@ def _no_texture_message(obj, uv_name: str, warnings: List[str]) -> str:
                       for s in obj.material_slots for group, node in _grouped_images(s.material)})
     hint = (f" (image {', '.join(grouped)}: only Image Texture nodes at a material's top level are rebuilt; "
             "ungroup them, Ctrl+Alt+G, to have them rebuilt)" if grouped else "")
-    maps = {layer.name for layer in obj.data.uv_layers} - {uv_name}
-    elsewhere = [f"'{m}'" for m in sorted(_maps_read_by_images(obj, _render_uv_name(obj.data)) & maps)]
+    read = set(_maps_read_by_images(obj, _render_uv_name(obj.data))) - {uv_name}
+    elsewhere = [f"'{m}'" for m in sorted(read) if m in obj.data.uv_layers]
+    missing = [f"'{m}'" for m in sorted(read) if m not in obj.data.uv_layers]
     if elsewhere:
         hint += f" (the image maps read UV map {', '.join(elsewhere)}: choose it as the UV map to defragment)"
+    if missing:
+        hint += f" (UV Map nodes name {', '.join(missing)}, which the mesh has no map of)"
     if warnings:  # it has image nodes, none the job can follow
         return f"No image texture this job can rebuild on '{obj.name}': " + "; ".join(warnings) + hint
     return (f"No image texture: no material of '{obj.name}' has an Image Texture node feeding "
@@ -471,6 +476,9 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]) -> L
         elif img is not None and kind == "other" and roles and node.projection == "FLAT":
             warnings.append(f"Image '{img.name}' in material '{mat.name}' is read through a "
                             "coordinate transform: left unchanged")
+        elif img is not None and roles and uv_name != uv_map and node.projection == "FLAT" and not node.mute:
+            warnings.append(f"Image '{img.name}' in material '{mat.name}' reads UV map '{uv_name}', not "
+                            f"'{uv_map}': left unchanged, reading '{uv_name}'")
     return maps
 
 

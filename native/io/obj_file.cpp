@@ -91,20 +91,31 @@ class Words {
   int number_;
 };
 
-// One index of a face corner (1-based, or negative from the end of the
-// elements defined so far) as a 0-based index; `count` elements exist.
-int element_index(std::string_view token, int count, const char* what, const Words& words) {
-  long long value = 0;
-  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+// One index of a face corner as written (1-based, or negative from the end
+// of the elements defined so far) and as a 0-based index, -1 when it names
+// none of the `count` elements; a token that is no integer throws.
+struct CornerIndex {
+  long long written = 0, index = -1;
+};
+CornerIndex parsed_index(std::string_view token, int count, const Words& words) {
+  CornerIndex out;
+  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), out.written);
   if (token.empty() || error != std::errc() || end != token.data() + token.size()) words.fail("an index", token);
-  const long long index = value > 0 ? value - 1 : count + value;
-  if (value == 0 || index < 0 || index >= count) {
+  const long long index = out.written > 0 ? out.written - 1 : count + out.written;
+  if (out.written != 0 && index >= 0 && index < count) out.index = index;
+  return out;
+}
+
+// parsed_index's 0-based index; InputError naming the line when it names none.
+int element_index(std::string_view token, int count, const char* what, const Words& words) {
+  const CornerIndex i = parsed_index(token, count, words);
+  if (i.index < 0) {
     std::ostringstream msg;
-    msg << "OBJ line " << words.line_number() << ": " << what << " index " << value << " is outside the "
+    msg << "OBJ line " << words.line_number() << ": " << what << " index " << i.written << " is outside the "
         << count << " defined before it";
     throw InputError(msg.str());
   }
-  return static_cast<int>(index);
+  return static_cast<int>(i.index);
 }
 
 // What the parser gathers before the arrays are built.
@@ -174,9 +185,11 @@ void read_face(Words& words, Lists& lists) {
     const std::string_view n = second == std::string_view::npos ? std::string_view() : rest.substr(second + 1);
     if (uv.empty()) textured = false;
     else texcoord.push_back(element_index(uv, texcoords, "texture coordinate", words));
-    // A file without vn lines names no normal, whatever its faces say.
-    if (n.empty() || normals == 0) shaded = false;
-    else normal.push_back(element_index(n, normals, "normal", words));
+    // Normals are optional: one the file has not defined before the face
+    // (or at all) leaves the face without, as the writer then leaves it.
+    const long long n_index = n.empty() ? -1 : parsed_index(n, normals, words).index;
+    if (n_index < 0) shaded = false;
+    else normal.push_back(static_cast<int>(n_index));
   }
   auto add = [&](const Eigen::Vector3i& triangle) {
     for (const int k : triangle) {

@@ -889,6 +889,37 @@ def an_image_reading_another_map_decides_the_default_map(pkg):
     return {"uv_map": report["uv_map"]}
 
 
+def the_base_colours_map_is_the_default_among_several(pkg):
+    """Images reading two maps, neither the active one: the default is the
+    base colour's map, and the emission image on the other is named as left
+    unchanged. A UV Map node naming a map the mesh lacks is named as such."""
+    H.reset()
+    obj = H.textured_plane(name="Layers", uv_maps=3)
+    me, mat = obj.data, obj.material_slots[0].material
+    me.uv_layers.active = me.uv_layers[0]
+    tree, colour = mat.node_tree, H.image_nodes(mat)[0]
+    glow = tree.nodes.new("ShaderNodeTexImage")
+    glow.image = colour.image.copy()
+    bsdf = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    tree.links.new(glow.outputs["Color"], bsdf.inputs["Emission Color" if bpy.app.version >= (4, 0, 0) else "Emission"])
+    for image_node, layer in ((colour, me.uv_layers[2]), (glow, me.uv_layers[1])):
+        node = tree.nodes.new("ShaderNodeUVMap")
+        node.uv_map = layer.name
+        tree.links.new(node.outputs["UV"], image_node.inputs["Vector"])
+    assert pkg.read_bpy.check_object(obj).name == me.uv_layers[2].name
+    report = pkg.defragment(obj)
+    assert any(f"'{glow.image.name}'" in w and "left unchanged" in w for w in report["warnings"]), report["warnings"]
+    H.reset()
+    obj = H.textured_plane(name="Ghostly")
+    mat = obj.material_slots[0].material
+    node = mat.node_tree.nodes.new("ShaderNodeUVMap")
+    node.uv_map = "Ghost"
+    mat.node_tree.links.new(node.outputs["UV"], H.image_nodes(mat)[0].inputs["Vector"])
+    error = _report_error(pkg, lambda: pkg.read_bpy.check_textures(obj))
+    assert "'Ghost', which the mesh has no map of" in error, error
+    return {}
+
+
 def an_object_linked_slot_is_not_another_user(pkg):
     """A material in an object-linked slot, the mesh's slot holding it too,
     is used by this object alone: no warning that other objects use it, as
@@ -1479,6 +1510,7 @@ def long_uv_map_names_fit_the_nodes(pkg):
 SCENARIOS = {
     "an_image_reading_another_map_decides_the_default_map": an_image_reading_another_map_decides_the_default_map,
     "an_object_linked_slot_is_not_another_user": an_object_linked_slot_is_not_another_user,
+    "the_base_colours_map_is_the_default_among_several": the_base_colours_map_is_the_default_among_several,
     "operator_tetra": lambda pkg: operator_on_model(pkg, "tetra"),
     "operator_smithsonian": lambda pkg: operator_on_model(pkg, "smithsonian"),
     "operator_meshroom": lambda pkg: operator_on_model(pkg, "meshroom"),

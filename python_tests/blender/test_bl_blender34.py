@@ -23,7 +23,8 @@ GROUPS = {
               "linear_float_images_keep_their_colour_space", "obj_output_names_a_base_colour_behind_a_mix",
               "images_in_node_groups_keep_the_old_map", "premultiplied_byte_images_keep_their_colours",
               "a_failed_save_takes_back_its_folders",
-              "an_image_reading_another_map_decides_the_default_map", "an_object_linked_slot_is_not_another_user"]
+              "an_image_reading_another_map_decides_the_default_map", "an_object_linked_slot_is_not_another_user",
+              "the_base_colours_map_is_the_default_among_several"]
     + ["error_" + c for c in sorted(S.ERRORS)],
     "tetra": ["operator_tetra", "edit_mode_undo", "python_entry", "duplicate_materials_and_removal",
               "save_beside_blend", "world_scale_density", "cancel_leaves_nothing", "worker_thread_run"],

@@ -22,7 +22,8 @@ NATIVE_SCENARIOS = ["operator_tetra", "png_read_from_file", "edit_mode_undo", "p
                     "linked_duplicate_with_its_own_material_is_named",
                     "images_in_node_groups_keep_the_old_map", "premultiplied_byte_images_keep_their_colours",
                     "a_failed_save_takes_back_its_folders",
-                    "an_image_reading_another_map_decides_the_default_map", "an_object_linked_slot_is_not_another_user"]
+                    "an_image_reading_another_map_decides_the_default_map", "an_object_linked_slot_is_not_another_user",
+                    "the_base_colours_map_is_the_default_among_several"]
 
 
 def test_is_blender_4():
