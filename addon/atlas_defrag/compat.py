@@ -72,6 +72,17 @@ def temp_override(context, **kwargs):
     return contextlib.nullcontext()
 
 
+def set_vertex_normals(me, normals: np.ndarray) -> None:
+    """Shades me smooth with normals (V, 3) as its custom normals (a zero or
+    non-finite one: Blender's own). Before 4.1 custom normals show only with
+    Auto Smooth on."""
+    me.polygons.foreach_set("use_smooth", np.ones(len(me.polygons), dtype=bool))
+    if hasattr(me, "use_auto_smooth"):
+        me.use_auto_smooth = True
+    clean = np.where(np.isfinite(normals).all(axis=1, keepdims=True), normals, 0.0)
+    me.normals_split_custom_set_from_vertices(clean)
+
+
 def set_colorspace(image, name: str) -> None:
     try:
         image.colorspace_settings.name = name

@@ -20,7 +20,8 @@ from . import compat, ply_io
 
 def _mesh(name: str, mesh: ply_io.PlyMesh):
     """One triangle per face, the UVs (when the file has any) in map 'UVMap',
-    vertex colours (when it has any) in the colour attribute 'Col'."""
+    vertex colours (when it has any) in the colour attribute 'Col'. (Its
+    normals are set once the mesh is valid: see import_ply.)"""
     me = bpy.data.meshes.new(name)
     count = len(mesh.triangles)
     me.vertices.add(len(mesh.positions))
@@ -92,6 +93,8 @@ def import_ply(path: str):
     # Faces that name a vertex twice, and repeated faces, go as Blender's
     # own importers drop them: later steps expect a valid mesh.
     me.validate(clean_customdata=False)
+    if mesh.normals is not None:  # as the file shades it
+        compat.set_vertex_normals(me, mesh.normals)
     obj = bpy.data.objects.new(name, me)
     (bpy.context.collection or bpy.context.scene.collection).objects.link(obj)
     # As an import operator does: without it bpy 4.5's OBJ export, which

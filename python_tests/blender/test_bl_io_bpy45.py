@@ -325,6 +325,23 @@ def test_import_ply_drops_faces_blender_cannot_hold(pkg, tmp_path):
     assert len(me.polygons) == 2 and len(me.uv_layers[0].data) == 6
 
 
+def test_import_ply_shades_with_its_vertex_normals(pkg, tmp_path):
+    """nx ny nz become the mesh's custom normals, smooth shaded, as the file
+    shades it."""
+    H.reset()
+    head = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+            "property float nx\nproperty float ny\nproperty float nz\nelement face 2\n"
+            "property list uchar int vertex_indices\nend_header\n")
+    normals = np.array([[0, 0, 1], [0.6, 0, 0.8], [0, 0.6, 0.8], [0, 0, 1]])
+    rows = "".join(f"{x} {y} 0 {n[0]} {n[1]} {n[2]}\n" for (x, y), n in zip([(0, 0), (1, 0), (1, 1), (0, 1)], normals))
+    (tmp_path / "shaded.ply").write_text(head + rows + "3 0 1 2\n3 0 2 3\n")
+    assert bpy.ops.import_mesh.textured_scan_ply(filepath=str(tmp_path / "shaded.ply")) == {"FINISHED"}
+    me = bpy.context.view_layer.objects.active.data
+    corner = np.array([n.vector[:] for n in me.corner_normals])
+    vertex = np.array([lp.vertex_index for lp in me.loops])
+    assert all(p.use_smooth for p in me.polygons) and np.allclose(corner, normals[vertex], atol=1e-4)
+
+
 def test_read_gltf_wrap_emulation_and_transforms(pkg):
     """glTF mirrored-repeat emulation (maths between UV map and image) is a
     plain UV lookup; a texture transform (Mapping) is not, and says so."""
