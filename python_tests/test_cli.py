@@ -892,6 +892,24 @@ def test_a_failed_write_leaves_the_earlier_runs_files_as_they_were(tmp_path, too
     assert not (tmp_path / "fresh").exists()
 
 
+def test_pages_an_earlier_run_wrote_beyond_this_ones_go(tmp_path, tool_env):
+    """A run over an earlier one's output that wrote more pages or maps
+    takes away the images its model no longer names, and only those."""
+    source = _two_material_obj(tmp_path / "in", "newmtl a\nmap_Kd t0.png\nnewmtl b\nmap_Kd t1.png\n")
+    out = tmp_path / "out"
+    run = lambda: subprocess.run([sys.executable, str(CLI), str(source), str(out)], capture_output=True,
+                                 timeout=300, env=tool_env)
+    assert run().returncode == 0
+    written = sorted(p.name for p in out.iterdir())
+    stem = f"{source.stem}_defrag"
+    stale = [f"{stem}_page7_base_color.png", f"{stem}_page0_normal.png"]
+    others = ["notes_page1_base_color.png", f"{stem}_page0_base_color.png.bak", f"{stem}_page_x.png"]
+    for name in stale + others:
+        (out / name).write_bytes(b"earlier")
+    assert run().returncode == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(written + others)
+
+
 def _run_twice_the_image_move_hit(tmp_path, tool_env, hit: str):
     """(source, OUT_DIR, the second run): a two-material OBJ written into
     OUT_DIR, then again with `hit` (lines of Python, indented 8) run in place

@@ -150,3 +150,19 @@ def test_the_info_line_says_when_charts_were_cut_to_fit():
               "pages_after": 1, "padding": 2, "packing_cuts": 24, "seconds": {"total": 1.0}}
     assert "stay within" not in job.summary(report)
     assert "24 cuts for packing to stay within the source's texels" in job.summary({**report, "cut_to_fit": True})
+
+
+def test_infinities_and_numpy_scalars_get_the_options_words():
+    """An infinity for an integer option is refused as any value out of
+    range (it raised OverflowError); numpy scalars count as the Python values
+    they hold, so a numpy bool is a bool and a float32 is judged at its real value."""
+    by_name = options.BY_NAME
+    for name in ("target_charts", "padding", "max_pages"):
+        for value in (float("inf"), float("-inf")):
+            with pytest.raises(ValueError, match=f"{name} must be"):
+                options.check(by_name[name], value)
+    assert options.check(by_name["padding_follows_page"], np.bool_(False)) is False
+    assert options.check(by_name["padding"], np.int64(8)) == 8
+    assert options.check(by_name["density_scale"], np.float32(0.5)) == 0.5
+    with pytest.raises(ValueError, match="not 0.800000011920929"):
+        options.check(by_name["density_loss_budget"], np.float32(0.8))

@@ -13,7 +13,9 @@ exists for machines and pipelines without Blender.
 from __future__ import annotations
 
 import argparse
+import glob
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -194,6 +196,16 @@ def output_files(folder: Path, stem: str, maps: list[dict]) -> list[Path]:
     return [folder / n for n in names]
 
 
+def stale_pages(folder: Path, stem: str, outputs: list[Path], inputs: list[Path]) -> list[Path]:
+    """PNGs named as write_obj names its pages, left in folder by an earlier
+    run with more pages or maps than this one writes: the model written
+    would no longer name them. Input files are never among them."""
+    keep = {os.path.realpath(p) for p in list(outputs) + list(inputs)}
+    named = re.compile(re.escape(stem) + r"_page\d+_[a-z_]+\.png")
+    return sorted(p for p in folder.glob(glob.escape(stem) + "_page*.png")
+                  if named.fullmatch(p.name) and os.path.realpath(p) not in keep)
+
+
 def refuse_overwriting_input(outputs: list[Path], inputs: list[Path]) -> None:
     """Failed naming the input file an output would replace, if any."""
     read = {os.path.realpath(p) for p in inputs}
@@ -266,7 +278,8 @@ def write_checked(args, scan, laid, rows, inp, result, old):
             args.output.mkdir(parents=True, exist_ok=True)
             scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=args.output))
             unnamed = write_obj(scratch / outputs[0].name, scan, *every_instance(result, rows), maps)
-            swap_in(scratch, outputs[1:] + outputs[:1])
+            stale = stale_pages(args.output, f"{args.input.stem}_defrag", outputs, scan.files)
+            swap_in(scratch, outputs[1:] + outputs[:1], stale)
             written = True
         except OSError as exc:
             raise Failed(f"writing into {args.output} failed: {exc}") from exc
@@ -298,13 +311,14 @@ def interrupted_runs(folder: Path) -> list[str]:
     return warnings
 
 
-def swap_in(scratch: Path, outputs: list[Path]) -> None:
-    """Moves the files of these names from scratch over outputs, in order.
-    The files they replace wait in scratch until all are in; when a move
-    fails (or is interrupted), every output is put back as it was."""
+def swap_in(scratch: Path, outputs: list[Path], stale: list[Path] = ()) -> None:
+    """Moves the files of these names from scratch over outputs, in order,
+    then the stale files out of the way. The files they replace and the
+    stale ones wait in scratch until all are in; when a move fails (or is
+    interrupted), every file is put back as it was."""
     kept = scratch / SET_ASIDE
     kept.mkdir()
-    done = []  # (output, whether an earlier file was kept), as far as the moves went
+    done, gone = [], []  # (output, whether an earlier file was kept), and the stale files moved
     try:
         for path in outputs:
             had = os.path.lexists(path)
@@ -312,7 +326,12 @@ def swap_in(scratch: Path, outputs: list[Path]) -> None:
                 os.replace(path, kept / path.name)
             done.append((path, had))
             os.replace(scratch / path.name, path)
+        for path in stale:
+            os.replace(path, kept / path.name)
+            gone.append(path)
     except BaseException:
+        for path in gone:
+            os.replace(kept / path.name, path)
         for path, had in reversed(done):
             if had:
                 os.replace(kept / path.name, path)

@@ -134,15 +134,19 @@ def _native_token():
 def _option_property(option):
     """The property of one option; with an Automatic toggle, its manual value."""
     common = {"name": option.label, "description": option.help}
-    if option.choices:
-        return EnumProperty(items=[(c.value.upper(), c.label, c.help) for c in option.choices],
-                            default=option.default.upper(), **common)
+    if option.choices:  # spelled as the other entries spell them
+        return EnumProperty(items=[(c.value, c.label, c.help) for c in option.choices],
+                            default=option.default, **common)
     if option.kind is bool:
         return BoolProperty(default=option.default, **common)
+    # Soft bounds only: the sliders stop there, while a value a script or the
+    # keyboard gives beyond them (0 for automatic, or out of range) reaches
+    # the options' check, which takes it or refuses it in words, instead of
+    # Blender clamping it without a word.
     if option.low is not None:
-        common["min"] = option.low
+        common["soft_min"] = option.low
     if option.high is not None:
-        common["max"] = option.high
+        common["soft_max"] = option.high
     if option.unit == "texels":
         common["subtype"] = "PIXEL"
     make = IntProperty if option.kind is int else FloatProperty
@@ -241,7 +245,7 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         value = getattr(self, option.name)
         if option.kind is float:  # Blender keeps it in single precision: 0.8 reads 0.800000011920929
             return float(f"{value:.7g}")
-        return value.lower() if option.choices else value
+        return value
 
     def _given_alone(self, option) -> bool:
         """True when a script gave the option's value but not its Automatic

@@ -64,7 +64,7 @@ SCHEMA: Tuple[Option, ...] = (
            "so half the padding keeps the same distances free of bleeding"),
     Option("fixed_page_size", int, 0, "Page Size",
            "Side of one square output page, charts scaled as large as fit (at most Maximum Page Size, "
-           "and a side Page Sides allows)",
+           "and a side Page Sides allows; Density Scale, Texels per Unit and Maximum Pages then do not apply)",
            low=64, high=16384, automatic="pages sized to keep the source texel budget",
            manual_default=4096, unit="texels"),
     Option("max_page_size", int, 8192, "Maximum Page Size", "Largest output page side",
@@ -133,7 +133,10 @@ def range_text(option: Option) -> str:
 
 def check(option: Option, value):
     """value converted to the option's type; ValueError naming the option and
-    its range when it is outside."""
+    its range when it is outside. A numpy scalar counts as the Python value
+    it holds (np.float32(0.8) is 0.800000011920929)."""
+    if hasattr(value, "item") and getattr(value, "ndim", None) == 0:
+        value = value.item()
     if option.choices:
         text = str(value).lower()
         if text not in {c.value for c in option.choices}:
@@ -159,7 +162,7 @@ def _number(option: Option, value):
     try:
         number = option.kind(value)
         exact = option.kind is float or float(value) == number
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an infinity for an int
         return None
     return number if exact else None
 
