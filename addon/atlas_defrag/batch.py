@@ -820,7 +820,25 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, re
             raise PreviousFilesKept(f"{exc}; the previous output's files could not all be put back: they are "
                                     f"kept as {', '.join(elsewhere)}") from exc
         raise
+    _take_away_stale(out_dir, tmp, replaceable - set(moving), inputs)
     return unnamed
+
+
+def _take_away_stale(out_dir: str, tmp: str, names: set, inputs: set) -> None:
+    """Moves into tmp (which goes with the run) the files of the earlier
+    output at dst that this one no longer names: pages and maps beyond its
+    own. Only plain names in out_dir, never an input, and a file that cannot
+    be moved stays."""
+    read = {_real(i) for i in inputs}
+    for name in sorted(names):
+        target = os.path.join(out_dir, name)
+        if os.path.basename(name) != name or not os.path.isfile(target) or os.path.islink(target) \
+                or _real(target) in read:
+            continue
+        try:
+            os.replace(target, os.path.join(tmp, _SET_ASIDE_PREFIX + name))
+        except OSError:
+            pass
 
 
 class PreviousFilesKept(BatchError):

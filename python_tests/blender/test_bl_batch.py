@@ -74,6 +74,20 @@ def test_batch34_obj_to_obj(tmp_path):
     assert time.perf_counter() - t < 60
 
 
+def test_batch34_a_rerun_with_fewer_pages_takes_away_the_earlier_ones(tmp_path):
+    """The same OBJ output written again with fewer pages: the images only
+    the earlier output named go with it, and a file it did not name stays."""
+    out = tmp_path / "out" / "tetra.obj"
+    assert blender34_batch(H.model_path("tetra"), out, "--max-page-size", "512").returncode == 0
+    assert len(_read_obj_output(out)[1]) > 1
+    (out.parent / "notes.png").write_bytes(b"mine")
+    proc = blender34_batch(H.model_path("tetra"), out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    maps = _read_obj_output(out)[1]
+    assert len(maps) == 1
+    assert sorted(p.name for p in out.parent.iterdir()) == sorted(["tetra.obj", "tetra.mtl", "notes.png"] + maps)
+
+
 def test_batch34_glb_to_glb(tmp_path):
     out = tmp_path / "box.glb"
     cache = tmp_path / "cache"
