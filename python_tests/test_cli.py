@@ -182,6 +182,16 @@ def _one_triangle_gltf(tmp_path, name, **changes):
     return path
 
 
+def test_obj_normals_that_are_no_vectors_leave_their_faces_without(native, tmp_path):
+    """A vn line of two values, or one an old exporter wrote as 1.#QNAN0,
+    refuses no scan: the faces naming it get no normals."""
+    path = tmp_path / "odd.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0\nvn 1.#QNAN0 0 1\nvn 0 0 1\n"
+                    "f 1//1 2//3 3//3\nf 1//2 2//3 3//3\nf 1//3 2//3 3//3\n")
+    obj = native.read_obj(str(path))
+    assert obj["normal_index"].tolist() == [[-1, -1, -1], [-1, -1, -1], [2, 2, 2]]
+
+
 def test_gltf_normals_turn_with_their_node(tmp_path):
     """NORMALs go into the scene's frame by the inverse transpose of the
     node's matrix, unit again: under a shear they stay perpendicular to the
@@ -903,11 +913,15 @@ def test_pages_an_earlier_run_wrote_beyond_this_ones_go(tmp_path, tool_env):
     written = sorted(p.name for p in out.iterdir())
     stem = f"{source.stem}_defrag"
     stale = [f"{stem}_page7_base_color.png", f"{stem}_page0_normal.png"]
-    others = ["notes_page1_base_color.png", f"{stem}_page0_base_color.png.bak", f"{stem}_page_x.png"]
+    others = ["notes_page1_base_color.png", f"{stem}_page0_base_color.png.bak", f"{stem}_page_x.png",
+              f"{stem}_page0_base_color_retouched.png"]
     for name in stale + others:
         (out / name).write_bytes(b"earlier")
+    (out / f"{stem}_page8_base_color.png").mkdir()  # a folder so named is no page
+    (out / f"{stem}_page8_base_color.png" / "work.txt").write_text("mine")
     assert run().returncode == 0
-    assert sorted(p.name for p in out.iterdir()) == sorted(written + others)
+    assert sorted(p.name for p in out.iterdir()) == sorted(written + others + [f"{stem}_page8_base_color.png"])
+    assert (out / f"{stem}_page8_base_color.png" / "work.txt").read_text() == "mine"
 
 
 def _run_twice_the_image_move_hit(tmp_path, tool_env, hit: str):

@@ -338,6 +338,8 @@ def test_vertex_normals_are_kept_for_the_command_line(tmp_path):
     assert scan.normals[scan.normal_index[0]].tolist() == [[0, 0, 1], [0, 0.6, 0.8], [0, 0, 1]]
     (tmp_path / "square.ply").write_bytes(_coloured_square("ascii"))
     assert scan_io.load(tmp_path / "square.ply").normals is None
+    (tmp_path / "nan.ply").write_bytes(head + rows.replace(b"0 0.6 0.8", b"nan 0.6 0.8"))
+    assert scan_io.load(tmp_path / "nan.ply").normals is None  # its one face names a normal that is no vector
     head = _header("ascii", 3, 1, ["float x", "float y", "float z", "list uchar float nx", "float ny", "float nz"],
                    ["list uchar int vertex_indices"], [])  # a list is no normal: left out, the file read
     (tmp_path / "listed.ply").write_bytes(head + b"0 0 0 1 0 0 1\n1 0 0 1 0 0 1\n0 1 0 1 0 0 1\n3 0 1 2\n")

@@ -201,9 +201,11 @@ def stale_pages(folder: Path, stem: str, outputs: list[Path], inputs: list[Path]
     run with more pages or maps than this one writes: the model written
     would no longer name them. Input files are never among them."""
     keep = {os.path.realpath(p) for p in list(outputs) + list(inputs)}
-    named = re.compile(re.escape(stem) + r"_page\d+_[a-z_]+\.png")
+    roles = "|".join(sorted(set(MTL_MAPS) | {"metallic_roughness"}))
+    named = re.compile(re.escape(stem) + rf"_page\d+_({roles})\.png")
     return sorted(p for p in folder.glob(glob.escape(stem) + "_page*.png")
-                  if named.fullmatch(p.name) and os.path.realpath(p) not in keep)
+                  if named.fullmatch(p.name) and p.is_file() and not p.is_symlink()
+                  and os.path.realpath(p) not in keep)
 
 
 def refuse_overwriting_input(outputs: list[Path], inputs: list[Path]) -> None:
@@ -314,11 +316,12 @@ def interrupted_runs(folder: Path) -> list[str]:
 def swap_in(scratch: Path, outputs: list[Path], stale: list[Path] = ()) -> None:
     """Moves the files of these names from scratch over outputs, in order,
     then the stale files out of the way. The files they replace and the
-    stale ones wait in scratch until all are in; when a move fails (or is
-    interrupted), every file is put back as it was."""
+    stale ones wait in scratch until all are in; when a move of an output
+    fails (or is interrupted), every output is put back as it was. A stale
+    file that cannot be moved (held open, say) stays."""
     kept = scratch / SET_ASIDE
     kept.mkdir()
-    done, gone = [], []  # (output, whether an earlier file was kept), and the stale files moved
+    done = []  # (output, whether an earlier file was kept), as far as the moves went
     try:
         for path in outputs:
             had = os.path.lexists(path)
@@ -326,18 +329,18 @@ def swap_in(scratch: Path, outputs: list[Path], stale: list[Path] = ()) -> None:
                 os.replace(path, kept / path.name)
             done.append((path, had))
             os.replace(scratch / path.name, path)
-        for path in stale:
-            os.replace(path, kept / path.name)
-            gone.append(path)
     except BaseException:
-        for path in gone:
-            os.replace(kept / path.name, path)
         for path, had in reversed(done):
             if had:
                 os.replace(kept / path.name, path)
             elif os.path.lexists(path):
                 os.remove(path)
         raise
+    for path in stale:
+        try:
+            os.replace(path, kept / path.name)
+        except OSError:
+            pass
 
 
 def main(argv=None) -> int:

@@ -369,9 +369,20 @@ def load_ply(path: Path) -> Scan:
     if mesh.colours is not None:
         warnings.append(_VERTEX_COLOURS)
     triangles = mesh.triangles.astype(np.int32)
+    normals, normal_index = _shading(mesh.normals, triangles if mesh.normals is not None else None)
     return Scan(mesh.positions, triangles, uvs, face_page, sizes, pages, [{"base_color": p} for p in pages],
-                files=[path] + pages, warnings=warnings, normals=mesh.normals,
-                normal_index=triangles if mesh.normals is not None else None)
+                files=[path] + pages, warnings=warnings, normals=normals, normal_index=normal_index)
+
+
+def _shading(normals, normal_index):
+    """(normals, normal_index) with every face that names a normal that is
+    no finite vector left without (-1, as the OBJ reader leaves it); both
+    None when no face keeps one."""
+    if normals is None:
+        return None, None
+    finite = np.isfinite(normals).all(axis=1)
+    kept = (normal_index >= 0).all(axis=1) & finite[np.maximum(normal_index, 0)].all(axis=1)
+    return (normals, np.where(kept[:, None], normal_index, -1).astype(np.int32)) if kept.any() else (None, None)
 
 
 # ---- glTF and GLB -----------------------------------------------------------
@@ -745,11 +756,10 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
         return None
     pages = [m["base_color"] for m in maps]
     sizes = np.array([_decodable_size(p, name) for p, name in zip(pages, names)], dtype=np.int32).reshape(-1, 2)
-    shaded = np.concatenate(normal_index).astype(np.int32)
+    shading = _shading(np.concatenate(normals), np.concatenate(normal_index))
     return Scan(np.concatenate(positions), np.concatenate(tris).astype(np.int32), np.concatenate(uvs),
                 np.concatenate(face_page), sizes, pages, maps, corner_source=np.concatenate(sources),
-                warnings=sorted(warnings), normals=np.concatenate(normals) if (shaded >= 0).any() else None,
-                normal_index=shaded if (shaded >= 0).any() else None)
+                warnings=sorted(warnings), normals=shading[0], normal_index=shading[1])
 
 
 def _world_normals(gltf: dict, buffers: list, prim: dict, world: np.ndarray):

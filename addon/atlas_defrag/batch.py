@@ -364,6 +364,7 @@ def run_one(args, cancel=None) -> dict:
     libraries = _libraries_named_by(dst)  # the earlier output's, read once
     _refuse_foreign_library(dst, libraries)
     owned = _images_named_by(dst, libraries)
+    written_before = _written_by(dst) if dst.lower().endswith(".obj") else set()
     t_import = time.perf_counter() - t0
     meshes = [o for o in objects if o.type == "MESH"]
     if args.texture:
@@ -390,7 +391,8 @@ def run_one(args, cancel=None) -> dict:
         t_export = time.perf_counter()
         unnamed = _export_and_move(objects, tmp, dst, inputs | _input_files_of_scene(),  # --texture's too
                                    lambda: _stop_if_cancelled(pkg, cancel), owned | libraries,
-                                   dict(image_format=args.image_format, quality=args.image_quality), copied)
+                                   dict(image_format=args.image_format, quality=args.image_quality), copied,
+                                   written_before)
         if unnamed:
             report["warnings"].append(
                 f"{', '.join(unnamed)} written beside {os.path.basename(dst)}, but its materials do not name "
@@ -633,6 +635,29 @@ def _images_named_by(model: str, libraries: set) -> set:
 _UNNAMED_NOTE = b"# written beside this model by Atlas Defrag, named by no statement:"
 
 
+# The MTL's comment naming every image a run wrote beside the OBJ: a rerun
+# into the same OBJ takes away those it does not write again, and never a
+# file that a MTL it did not write names.
+_WRITTEN_NOTE = b"# written beside this model by Atlas Defrag:"
+
+
+def _note_written(mtl: str, images: list) -> None:
+    """Appends the _WRITTEN_NOTE of each of images to the MTL."""
+    with open(mtl, "ab") as f:
+        f.write(b"".join(_WRITTEN_NOTE + b" " + name.encode("utf-8") + b"\n" for name in images))
+
+
+def _written_by(dst: str) -> set:
+    """The images the _WRITTEN_NOTE of the MTL beside the OBJ dst names."""
+    try:
+        with open(_mtl_beside(dst), "rb") as f:
+            data = f.read()
+    except OSError:
+        return set()
+    return {ln[len(_WRITTEN_NOTE):].strip().decode("utf-8", "replace")
+            for ln in _lines_starting(data, b"#") if ln.startswith(_WRITTEN_NOTE)}
+
+
 def _note_unnamed(mtl: str, images: list) -> None:
     """Appends the _UNNAMED_NOTE of each of images to the MTL."""
     with open(mtl, "ab") as f:
@@ -761,14 +786,16 @@ def _stop_if_cancelled(pkg, cancel) -> None:
 
 
 def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, replaceable: set,
-                     export_images=None, copied=None) -> list:
+                     export_images=None, copied=None, written_before=frozenset()) -> list:
     """Exports into tmp, checks every file there, calls before_moving (which
     may raise), then moves them beside dst: images next to an OBJ (a glTF
     carries them), the model file last. Images and the MTL may replace only
     the files named in replaceable: the earlier output's at dst (its
     libraries and their images). Returns the images moved beside an OBJ that
     its materials do not name. export_images: export_model's image_format and
-    quality; copied: what _bring_input_maps copied into tmp."""
+    quality; copied: what _bring_input_maps copied into tmp; written_before:
+    the images the earlier run into dst wrote (_written_by), taken away once
+    the new model is in place unless written again."""
     export_images = export_images or {}
     out_dir = os.path.dirname(dst) or "."
     tmp_out = os.path.join(tmp, os.path.basename(dst))
@@ -786,6 +813,8 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, re
     _refuse_overwriting(inputs, [os.path.join(out_dir, name) for name in moving])
     if unnamed:
         _note_unnamed(_mtl_beside(tmp_out), unnamed)
+    if is_obj:
+        _note_written(_mtl_beside(tmp_out), [n for n in moving if not n.lower().endswith(".mtl")])
     before_moving()
     moved, kept = [], []  # kept: (the previous run's file, set aside in tmp; where it was)
 
@@ -820,20 +849,22 @@ def _export_and_move(objects, tmp: str, dst: str, inputs: set, before_moving, re
             raise PreviousFilesKept(f"{exc}; the previous output's files could not all be put back: they are "
                                     f"kept as {', '.join(elsewhere)}") from exc
         raise
-    _take_away_stale(out_dir, tmp, replaceable - set(moving), inputs)
+    if is_obj:
+        _take_away_stale(dst, tmp, written_before - set(moving), inputs)
     return unnamed
 
 
-def _take_away_stale(out_dir: str, tmp: str, names: set, inputs: set) -> None:
-    """Moves into tmp (which goes with the run) the files of the earlier
-    output at dst that this one no longer names: pages and maps beyond its
-    own. Only plain names in out_dir, never an input, and a file that cannot
-    be moved stays."""
-    read = {_real(i) for i in inputs}
-    for name in sorted(names):
+def _take_away_stale(dst: str, tmp: str, names: set, inputs: set) -> None:
+    """Moves into tmp (which goes with the run) the images that the earlier
+    run into the OBJ dst wrote (its MTL's _WRITTEN_NOTE) and this one did
+    not write again: pages beyond its own. Only plain names beside dst,
+    regular files, none an input or named by the new MTL; a file that
+    cannot be moved stays."""
+    out_dir = os.path.dirname(dst) or "."
+    for name in sorted(names - _images_named_by(dst, _libraries_named_by(dst))):
         target = os.path.join(out_dir, name)
         if os.path.basename(name) != name or not os.path.isfile(target) or os.path.islink(target) \
-                or _real(target) in read:
+                or _file_among(target, inputs) is not None:
             continue
         try:
             os.replace(target, os.path.join(tmp, _SET_ASIDE_PREFIX + name))

@@ -134,9 +134,9 @@ def _native_token():
 def _option_property(option):
     """The property of one option; with an Automatic toggle, its manual value."""
     common = {"name": option.label, "description": option.help}
-    if option.choices:  # spelled as the other entries spell them
-        return EnumProperty(items=[(c.value, c.label, c.help) for c in option.choices],
-                            default=option.default, **common)
+    if option.choices:  # upper case, as Blender spells enum items (and saved presets hold them)
+        return EnumProperty(items=[(c.value.upper(), c.label, c.help) for c in option.choices],
+                            default=option.default.upper(), **common)
     if option.kind is bool:
         return BoolProperty(default=option.default, **common)
     # Soft bounds only: the sliders stop there, while a value a script or the
@@ -245,7 +245,7 @@ class UV_OT_defragment_atlas(_OptionProperties, WriteProperties, bpy.types.Opera
         value = getattr(self, option.name)
         if option.kind is float:  # Blender keeps it in single precision: 0.8 reads 0.800000011920929
             return float(f"{value:.7g}")
-        return value
+        return value.lower() if option.choices else value
 
     def _given_alone(self, option) -> bool:
         """True when a script gave the option's value but not its Automatic

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <numeric>
 #include <optional>
@@ -63,6 +65,17 @@ class Words {
   }
 
   double number() { return number_from(next()); }
+
+  // A number, or NaN where the word is none or missing: for values the
+  // reader can do without (a normal), which must not refuse the scan.
+  double number_or_nan() {
+    std::string_view word = next();
+    if (!word.empty() && word.front() == '+') word.remove_prefix(1);
+    double value = 0;
+    const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
+    const bool whole = !word.empty() && error == std::errc() && end == word.data() + word.size();
+    return whole ? value : std::numeric_limits<double>::quiet_NaN();
+  }
 
   // A number that may be left out at the end of the line.
   double number_or(double absent) {
@@ -186,9 +199,11 @@ void read_face(Words& words, Lists& lists) {
     if (uv.empty()) textured = false;
     else texcoord.push_back(element_index(uv, texcoords, "texture coordinate", words));
     // Normals are optional: one the file has not defined before the face
-    // (or at all) leaves the face without, as the writer then leaves it.
+    // (or at all), or one that is no finite vector, leaves the face
+    // without, as the writer then leaves it.
     const long long n_index = n.empty() ? -1 : parsed_index(n, normals, words).index;
-    if (n_index < 0) shaded = false;
+    const double* row = n_index < 0 ? nullptr : &lists.normals[3 * n_index];
+    if (!row || !std::isfinite(row[0]) || !std::isfinite(row[1]) || !std::isfinite(row[2])) shaded = false;
     else normal.push_back(static_cast<int>(n_index));
   }
   auto add = [&](const Eigen::Vector3i& triangle) {
@@ -211,8 +226,8 @@ void read_line(std::string_view line, int number, Lists& lists) {
   if (keyword == "v") {
     for (int k = 0; k < 3; ++k) lists.positions.push_back(words.number());
     lists.out.vertex_colours |= !words.next().empty() && !words.next().empty();  // x y z r g b, not x y z w
-  } else if (keyword == "vn") {
-    for (int k = 0; k < 3; ++k) lists.normals.push_back(words.number());
+  } else if (keyword == "vn") {  // a malformed one is kept as NaN: the faces naming it get no normals
+    for (int k = 0; k < 3; ++k) lists.normals.push_back(words.number_or_nan());
   } else if (keyword == "vt") {
     lists.texcoords.push_back(words.number());
     lists.texcoords.push_back(words.number_or(0.0));

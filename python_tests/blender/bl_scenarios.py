@@ -1222,15 +1222,14 @@ def operator_takes_what_it_is_told(pkg):
     assert run_operator(pkg, fixed_page_size=256) == {"FINISHED"}
     new = [i for i in bpy.data.images if i.name.endswith("_defrag")]
     assert [tuple(i.size) for i in new] == [(256, 256)], [(i.name, tuple(i.size)) for i in new]
-    # A script's 0 is automatic, a value out of range is refused in words, not clamped, and the
-    # choices are spelled as in the other entries.
+    # A script's 0 is automatic, and a value out of range is refused in words, not clamped.
     for wrong, words in (({"density_scale": 100.0}, "must be 0.01..16.0, not 100"), ({"padding": -3}, "not -3")):
         H.reset()
         H.textured_plane("Wrong")
         assert words in _report_error(pkg, lambda: run_operator(pkg, **wrong)), wrong
     H.reset()
     H.textured_plane("Zeros")
-    assert run_operator(pkg, texels_per_unit=0.0, fixed_page_size=0, page_sides="power_of_two") == {"FINISHED"}
+    assert run_operator(pkg, texels_per_unit=0.0, fixed_page_size=0, page_sides="POWER_OF_TWO") == {"FINISHED"}
     report = pkg.operators.last_outcome["report"][0]
     assert report["scale"] == 1.0 and not report["shrunk"], report
 

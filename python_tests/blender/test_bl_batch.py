@@ -88,6 +88,21 @@ def test_batch34_a_rerun_with_fewer_pages_takes_away_the_earlier_ones(tmp_path):
     assert sorted(p.name for p in out.parent.iterdir()) == sorted(["tetra.obj", "tetra.mtl", "notes.png"] + maps)
 
 
+def test_batch34_a_run_over_an_obj_it_did_not_write_takes_away_nothing(tmp_path):
+    """An OBJ output written over one this entry did not write (a library of
+    another name, shared with another model, naming images named like this
+    entry's): every file of the other models stays."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "common.mtl").write_text("newmtl m\nmap_Kd old_texture.png\n")
+    for name in ("old.obj", "other.obj"):
+        (out / name).write_text("mtllib common.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n")
+    (out / "old_texture.png").write_bytes(b"theirs")
+    proc = blender34_batch(H.model_path("tetra"), out / "old.obj")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert (out / "common.mtl").is_file() and (out / "old_texture.png").read_bytes() == b"theirs"
+
+
 def test_batch34_glb_to_glb(tmp_path):
     out = tmp_path / "box.glb"
     cache = tmp_path / "cache"

@@ -272,8 +272,8 @@ def test_operator_properties_follow_the_schema(pkg):
         p = props[o.name]
         assert p.name == o.label and p.description == o.help, o.name
         if o.choices:
-            assert [i.identifier for i in p.enum_items] == [c.value for c in o.choices]
-            assert p.default == o.default
+            assert [i.identifier for i in p.enum_items] == [c.value.upper() for c in o.choices]
+            assert p.default == o.default.upper()
             continue
         if o.kind is bool:
             assert p.type == "BOOLEAN" and p.default is o.default, o.name
