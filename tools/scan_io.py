@@ -335,11 +335,10 @@ def load_obj(path: Path) -> Scan:
     face_page = np.where(has_uv, material_page[obj["face_material"]], -1).astype(np.int32)
     bases = [page["base_color"] for page in pages]
     sizes = np.array([_decodable_size(p, p.name) for p in bases], dtype=np.int32).reshape(-1, 2)
-    shaded = len(obj["normals"]) > 0
+    normals, normal_index = _shading(obj["normals"] if len(obj["normals"]) else None, obj["normal_index"])
     return Scan(obj["positions"], tris, uvs, face_page, sizes, bases, pages,
                 files=[path] + libraries + [p for page in pages for p in page.values()],
-                warnings=warnings, normals=obj["normals"] if shaded else None,
-                normal_index=obj["normal_index"] if shaded else None)
+                warnings=warnings, normals=normals, normal_index=normal_index)
 
 
 def _clamp_warning(material: str, how: str, corners: np.ndarray) -> list:
@@ -743,7 +742,7 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
                     page = page_of[key]
             else:
                 uvs.append(np.zeros((len(idx), 3, 2)))
-            shading = _world_normals(gltf, buffers, prim, world)
+            shading = _world_normals(gltf, buffers, prim, world, len(pos))
             normals.append(shading if shading is not None else np.zeros((len(pos), 3)))
             normal_index.append(idx + base if shading is not None else np.full(idx.shape, -1))
             positions.append(pos)
@@ -762,14 +761,13 @@ def _scan_from_gltf(gltf: dict, buffers: list, folder: Path):
                 warnings=sorted(warnings), normals=shading[0], normal_index=shading[1])
 
 
-def _world_normals(gltf: dict, buffers: list, prim: dict, world: np.ndarray):
-    """The primitive's NORMALs (V, 3) in the scene's frame, turned by the
-    inverse transpose of the node's matrix and made unit again; None when it
-    has none."""
+def _world_normals(gltf: dict, buffers: list, prim: dict, world: np.ndarray, count: int):
+    """The primitive's NORMALs (count, 3: one per POSITION) in the scene's
+    frame, turned by the inverse transpose of the node's matrix and made
+    unit again; None when it has none."""
     if "NORMAL" not in prim["attributes"] or np.linalg.det(world[:3, :3]) == 0:
         return None  # a node scaled flat has no normals to turn
     normals = _accessor(gltf, buffers, prim["attributes"]["NORMAL"]).astype(np.float64)
-    count = _item(gltf["accessors"], prim["attributes"]["POSITION"], "accessor")["count"]
     if len(normals) != count:
         raise ValueError(f"a primitive has {len(normals)} NORMALs for {count} POSITIONs (glTF asks as many)")
     turned = normals @ np.linalg.inv(world[:3, :3])  # (M^-T n)^T = n^T M^-1

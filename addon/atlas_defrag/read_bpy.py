@@ -112,13 +112,18 @@ def _maps_read_by_images(obj, render_uv: str) -> Dict[str, set]:
     for mat in {s.material for s in obj.material_slots if s.material is not None}:
         tree = compat.node_tree(mat)
         for node in tree.nodes if tree is not None else ():
-            if node.bl_idname == "ShaderNodeTexImage" and node.image is not None and not node.mute \
-                    and node.projection == "FLAT":
+            if node.bl_idname == "ShaderNodeTexImage" and _flat_lookup(node):
                 kind, uv_name = _vector_source(node, render_uv)
                 roles = _downstream_roles(node)[0]
                 if kind != "other" and roles:
                     found.setdefault(uv_name, set()).update(roles)
     return found
+
+
+def _flat_lookup(node) -> bool:
+    """Whether an Image Texture node looks its image up flat, as the job can
+    rebuild it: an image, flat projection, not muted."""
+    return node.image is not None and node.projection == "FLAT" and not node.mute
 
 
 def _refuse_linked(obj) -> None:
@@ -463,8 +468,7 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]) -> L
         kind, uv_name = _vector_source(node, render_uv)
         img = node.image
         roles, normal_nodes = _downstream_roles(node)
-        usable = (img is not None and roles and uv_name == uv_map and kind != "other"
-                  and node.projection == "FLAT" and not node.mute)
+        usable = _flat_lookup(node) and roles and uv_name == uv_map and kind != "other"
         if usable:
             problem = _check_image(img, mat.name)
             if problem:
@@ -476,7 +480,7 @@ def analyse_material(mat, uv_map: str, render_uv: str, warnings: List[str]) -> L
         elif img is not None and kind == "other" and roles and node.projection == "FLAT":
             warnings.append(f"Image '{img.name}' in material '{mat.name}' is read through a "
                             "coordinate transform: left unchanged")
-        elif img is not None and roles and uv_name != uv_map and node.projection == "FLAT" and not node.mute:
+        elif _flat_lookup(node) and roles and uv_name != uv_map:
             warnings.append(f"Image '{img.name}' in material '{mat.name}' reads UV map '{uv_name}', not "
                             f"'{uv_map}': left unchanged, reading '{uv_name}'")
     return maps

@@ -69,12 +69,7 @@ class Words {
   // A number, or NaN where the word is none or missing: for values the
   // reader can do without (a normal), which must not refuse the scan.
   double number_or_nan() {
-    std::string_view word = next();
-    if (!word.empty() && word.front() == '+') word.remove_prefix(1);
-    double value = 0;
-    const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
-    const bool whole = !word.empty() && error == std::errc() && end == word.data() + word.size();
-    return whole ? value : std::numeric_limits<double>::quiet_NaN();
+    return parsed_number(next()).value_or(std::numeric_limits<double>::quiet_NaN());
   }
 
   // A number that may be left out at the end of the line.
@@ -92,12 +87,19 @@ class Words {
   int line_number() const { return number_; }
 
  private:
-  double number_from(std::string_view word) const {
+  // The number the whole word writes, if it writes one.
+  static std::optional<double> parsed_number(std::string_view word) {
     if (!word.empty() && word.front() == '+') word.remove_prefix(1);  // from_chars takes no '+'
     double value = 0;
     const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
-    if (word.empty() || error != std::errc() || end != word.data() + word.size()) fail("a number", word);
+    if (word.empty() || error != std::errc() || end != word.data() + word.size()) return std::nullopt;
     return value;
+  }
+
+  double number_from(std::string_view word) const {
+    const std::optional<double> value = parsed_number(word);
+    if (!value) fail("a number", word);
+    return *value;
   }
 
   std::string_view rest_;
